@@ -1,0 +1,42 @@
+# mosaicloc_add_module(<name> SOURCES ... [PUBLIC_DEPS ...] [PRIVATE_DEPS ...] [TESTS ...])
+#
+# Declares library target mosaicloc_<name> (alias mosaicloc::<name>) with public headers
+# in include/mosaicloc/<name>/, our compile options, and one GoogleTest executable
+# mosaicloc_<name>_test from TESTS, registered with CTest under the label "unit".
+
+function(mosaicloc_target_options target)
+  target_compile_features(${target} PUBLIC cxx_std_20)
+  set_target_properties(${target} PROPERTIES CXX_EXTENSIONS OFF)
+  target_compile_options(${target} PRIVATE -Wall -Wextra -Wpedantic -Wshadow
+    -Wnon-virtual-dtor -Wold-style-cast -Wcast-align -Woverloaded-virtual -Werror)
+  if(MOSAICLOC_SANITIZE)
+    target_compile_options(${target} PUBLIC -fsanitize=address,undefined
+      -fno-sanitize-recover=undefined -fno-omit-frame-pointer)
+    target_link_options(${target} PUBLIC -fsanitize=address,undefined)
+  endif()
+endfunction()
+
+function(mosaicloc_add_module name)
+  cmake_parse_arguments(ARG "" "" "SOURCES;PUBLIC_DEPS;PRIVATE_DEPS;TESTS;TEST_DEPS" ${ARGN})
+  set(target mosaicloc_${name})
+  add_library(${target} STATIC ${ARG_SOURCES})
+  add_library(mosaicloc::${name} ALIAS ${target})
+  target_include_directories(${target} PUBLIC
+    $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/include>
+    PRIVATE ${CMAKE_CURRENT_SOURCE_DIR}/src)
+  target_link_libraries(${target} PUBLIC ${ARG_PUBLIC_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
+  set_target_properties(${target} PROPERTIES POSITION_INDEPENDENT_CODE ON)
+  mosaicloc_target_options(${target})
+
+  if(MOSAICLOC_BUILD_TESTS AND ARG_TESTS)
+    set(test_target mosaicloc_${name}_test)
+    add_executable(${test_target} ${ARG_TESTS})
+    target_link_libraries(${test_target} PRIVATE ${target} ${ARG_TEST_DEPS}
+      mosaicloc::test_support GTest::gtest GTest::gmock GTest::gtest_main)
+    mosaicloc_target_options(${test_target})
+    gtest_discover_tests(${test_target}
+      PROPERTIES LABELS unit
+      ENVIRONMENT "MOSAICLOC_SHARED_DATA=${MOSAICLOC_SHARED_DATA}"
+      DISCOVERY_TIMEOUT 60)
+  endif()
+endfunction()
