@@ -1,0 +1,73 @@
+#include "report.hpp"
+
+#include <cstdio>
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
+#include "mosaicloc/core/error.hpp"
+#include "mosaicloc/dataset/plots.hpp"
+
+namespace mosaicloc::app {
+
+dataset::Metrics WriteReport(const std::filesystem::path& directory, const dataset::Trajectory& estimate,
+                             const std::optional<dataset::Trajectory>& groundtruth, dataset::Metrics metrics,
+                             const std::string& title) {
+  std::error_code ec;
+  std::filesystem::create_directories(directory, ec);
+  if (ec) core::ThrowRuntime(directory.string() + ": cannot create the report directory (" + ec.message() + ")");
+  dataset::WriteTum(directory / "estimate.tum", estimate);
+  if (groundtruth) {
+    const dataset::Evaluation evaluation = dataset::Evaluate(estimate, *groundtruth, dataset::EvaluationOptions{});
+    // Keep what the caller measured; take the accuracy figures from the evaluation.
+    dataset::Metrics merged = evaluation.metrics;
+    const auto keep = [](auto& target, const auto& known) {
+      if (known) target = known;
+    };
+    keep(merged.frames, metrics.frames);
+    keep(merged.fixes, metrics.fixes);
+    keep(merged.fix_rate, metrics.fix_rate);
+    keep(merged.lock_losses, metrics.lock_losses);
+    keep(merged.processing_fps, metrics.processing_fps);
+    keep(merged.latency_p50_ms, metrics.latency_p50_ms);
+    keep(merged.latency_p99_ms, metrics.latency_p99_ms);
+    keep(merged.overlap_speed_limit_mps, metrics.overlap_speed_limit_mps);
+    metrics = merged;
+    dataset::WritePlots(directory, evaluation, title);
+  }
+  dataset::WriteMetricsJson(directory / "metrics.json", metrics);
+  return metrics;
+}
+
+void PrintMetrics(const std::filesystem::path& directory, const dataset::Metrics& metrics, bool json) {
+  if (json) {
+    std::ifstream in(directory / "metrics.json");
+    const nlohmann::json parsed = nlohmann::json::parse(in);
+    nlohmann::json result = {{"report", std::filesystem::absolute(directory).string()}, {"metrics", parsed}};
+    std::printf("%s\n", result.dump(2).c_str());
+    return;
+  }
+  const auto show = [](const char* name, const auto& value, const char* unit) {
+    if (value) {
+      std::printf("  %-24s %12.4f %s\n", name, static_cast<double>(*value), unit);
+    } else {
+      std::printf("  %-24s %12s\n", name, "n/a");
+    }
+  };
+  std::printf("report: %s\n", std::filesystem::absolute(directory).string().c_str());
+  show("frames", metrics.frames, "");
+  show("position RMS", metrics.position_rms_mm, "mm");
+  show("position p99", metrics.position_p99_mm, "mm");
+  show("position max", metrics.position_max_mm, "mm");
+  show("heading RMS", metrics.heading_rms_deg, "deg");
+  show("heading max", metrics.heading_max_deg, "deg");
+  show("repeatability", metrics.repeatability_mm, "mm");
+  show("final position error", metrics.final_position_error_mm, "mm");
+  show("drift", metrics.drift_percent, "% of path");
+  show("path length", metrics.path_length_m, "m");
+  show("max speed", metrics.max_speed_mps, "m/s");
+  show("overlap speed limit", metrics.overlap_speed_limit_mps, "m/s");
+  show("processing", metrics.processing_fps, "frames/s");
+}
+
+}  // namespace mosaicloc::app

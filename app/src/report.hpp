@@ -1,0 +1,22 @@
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <string>
+
+#include "mosaicloc/dataset/evaluation.hpp"
+#include "mosaicloc/dataset/trajectory.hpp"
+
+namespace mosaicloc::app {
+
+/// Writes a report directory (design.md section 4): estimate.tum, and when ground truth is
+/// given metrics.json and the PNG plots. `metrics` carries what the caller knows (frames,
+/// fixes, timing); the evaluation fills the accuracy figures. Returns the final metrics.
+dataset::Metrics WriteReport(const std::filesystem::path& directory, const dataset::Trajectory& estimate,
+                             const std::optional<dataset::Trajectory>& groundtruth, dataset::Metrics metrics,
+                             const std::string& title);
+
+/// Prints the headline figures, or the whole metrics as JSON.
+void PrintMetrics(const std::filesystem::path& directory, const dataset::Metrics& metrics, bool json);
+
+}  // namespace mosaicloc::app

@@ -1,0 +1,88 @@
+#include "sim_config.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "mosaicloc/core/error.hpp"
+
+namespace mosaicloc::app {
+namespace {
+
+using ::testing::HasSubstr;
+
+// The shipped example must state exactly the compiled defaults, so the documentation of
+// every key cannot drift from the code.
+TEST(SimulatorConfig, DefaultFileEqualsCompiledDefaults) {
+  const sim::SimulatorOptions loaded = LoadSimulatorConfig(std::string(MOSAICLOC_CONFIG_DIR) + "/default/simulator.yaml");
+  const sim::SimulatorOptions defaults;
+  EXPECT_EQ(loaded.floor.kind, defaults.floor.kind);
+  EXPECT_EQ(loaded.floor.seed, defaults.floor.seed);
+  EXPECT_EQ(loaded.floor.image, defaults.floor.image);
+  EXPECT_EQ(loaded.floor.mm_per_texel, defaults.floor.mm_per_texel);
+  EXPECT_EQ(loaded.route.name, defaults.route.name);
+  EXPECT_EQ(loaded.route.straight_length_m, defaults.route.straight_length_m);
+  EXPECT_EQ(loaded.route.loop_width_m, defaults.route.loop_width_m);
+  EXPECT_EQ(loaded.route.loop_height_m, defaults.route.loop_height_m);
+  EXPECT_EQ(loaded.route.corner_radius_m, defaults.route.corner_radius_m);
+  EXPECT_EQ(loaded.route.network_scale, defaults.route.network_scale);
+  EXPECT_EQ(loaded.route.speed_mps, defaults.route.speed_mps);
+  EXPECT_EQ(loaded.route.max_accel_mps2, defaults.route.max_accel_mps2);
+  EXPECT_EQ(loaded.route.max_lateral_accel_mps2, defaults.route.max_lateral_accel_mps2);
+  EXPECT_EQ(loaded.route.stop_s, defaults.route.stop_s);
+  EXPECT_EQ(loaded.route.lateral_deviation_mm, defaults.route.lateral_deviation_mm);
+  EXPECT_EQ(loaded.camera.width_px, defaults.camera.width_px);
+  EXPECT_EQ(loaded.camera.height_px, defaults.camera.height_px);
+  EXPECT_EQ(loaded.camera.mm_per_px, defaults.camera.mm_per_px);
+  EXPECT_EQ(loaded.frame_rate_hz, defaults.frame_rate_hz);
+  EXPECT_EQ(loaded.timestamp_jitter_ms, defaults.timestamp_jitter_ms);
+  EXPECT_EQ(loaded.drop_probability, defaults.drop_probability);
+  EXPECT_EQ(loaded.vehicle_from_camera.x_mm(), defaults.vehicle_from_camera.x_mm());
+  EXPECT_EQ(loaded.vehicle_from_camera.y_mm(), defaults.vehicle_from_camera.y_mm());
+  EXPECT_EQ(loaded.vehicle_from_camera.yaw_rad(), defaults.vehicle_from_camera.yaw_rad());
+  EXPECT_EQ(loaded.imaging.exposure_us, defaults.imaging.exposure_us);
+  EXPECT_EQ(loaded.imaging.noise_std_dn, defaults.imaging.noise_std_dn);
+  EXPECT_EQ(loaded.imaging.vignetting, defaults.imaging.vignetting);
+  EXPECT_EQ(loaded.imaging.illumination_amplitude, defaults.imaging.illumination_amplitude);
+  EXPECT_EQ(loaded.imaging.illumination_period_s, defaults.imaging.illumination_period_s);
+  EXPECT_EQ(loaded.imaging.dust_fraction, defaults.imaging.dust_fraction);
+  EXPECT_EQ(loaded.encoders.nominal.left_wheel_radius_mm, defaults.encoders.nominal.left_wheel_radius_mm);
+  EXPECT_EQ(loaded.encoders.nominal.right_wheel_radius_mm, defaults.encoders.nominal.right_wheel_radius_mm);
+  EXPECT_EQ(loaded.encoders.nominal.track_width_mm, defaults.encoders.nominal.track_width_mm);
+  EXPECT_EQ(loaded.encoders.nominal.ticks_per_revolution, defaults.encoders.nominal.ticks_per_revolution);
+  EXPECT_EQ(loaded.encoders.rate_hz, defaults.encoders.rate_hz);
+  EXPECT_EQ(loaded.encoders.left_radius_error, defaults.encoders.left_radius_error);
+  EXPECT_EQ(loaded.encoders.right_radius_error, defaults.encoders.right_radius_error);
+  EXPECT_EQ(loaded.encoders.track_width_error, defaults.encoders.track_width_error);
+  EXPECT_EQ(loaded.encoders.slip_std, defaults.encoders.slip_std);
+  EXPECT_EQ(loaded.encoders.initial_left_ticks, defaults.encoders.initial_left_ticks);
+  EXPECT_EQ(loaded.encoders.initial_right_ticks, defaults.encoders.initial_right_ticks);
+  EXPECT_EQ(loaded.seed, defaults.seed);
+  EXPECT_EQ(loaded.frames, defaults.frames);
+  EXPECT_EQ(loaded.laps, defaults.laps);
+  EXPECT_EQ(loaded.threads, defaults.threads);
+}
+
+TEST(SimulatorConfig, TypoIsRejectedWithFileLineAndSuggestion) {
+  sim::SimulatorOptions options;
+  const YAML::Node node = YAML::Load("route:\n  name: loop\n  sped_mps: 2.0\nimaging:\n  noise_std_dn: -1\n");
+  try {
+    ReadSimulatorConfig(node, "site.yaml", &options);
+    FAIL();
+  } catch (const core::Error& e) {
+    EXPECT_EQ(e.kind(), core::ErrorKind::kInvalidInput);
+    EXPECT_THAT(e.what(), HasSubstr("site.yaml:3: route.sped_mps: unknown key (did you mean 'speed_mps'?)"));
+    EXPECT_THAT(e.what(), HasSubstr("site.yaml:5: imaging.noise_std_dn: must be in [0, 64], got -1"));
+  }
+}
+
+TEST(SimulatorConfig, OverridesApply) {
+  sim::SimulatorOptions options;
+  ReadSimulatorConfig(YAML::Load("route: {name: network, speed_mps: 2.5}\nrun: {laps: 3}\n"), "x.yaml", &options);
+  EXPECT_EQ(options.route.name, "network");
+  EXPECT_DOUBLE_EQ(options.route.speed_mps, 2.5);
+  EXPECT_EQ(options.laps, 3);
+  EXPECT_EQ(options.frames, 900);
+}
+
+}  // namespace
+}  // namespace mosaicloc::app

@@ -1,0 +1,159 @@
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <opencv2/core/mat.hpp>
+
+#include "mosaicloc/core/pose2.hpp"
+#include "mosaicloc/core/timestamp.hpp"
+#include "mosaicloc/dataset/trajectory.hpp"
+
+namespace mosaicloc::dataset {
+
+/// Dataset layout (design.md section 4):
+///   DIR/dataset.yaml, DIR/cam0/data.csv, DIR/cam0/data/<ns>.png,
+///   DIR/encoders/data.csv, DIR/groundtruth/data.tum (optional).
+inline constexpr int kFormatVersion = 1;
+
+struct CameraInfo {
+  int width_px = 640;
+  int height_px = 480;
+  double mm_per_px = 0.25;             ///< ideal (rectified) image scale
+  core::Pose2 vehicle_from_camera;     ///< calibrated mounting, mm and rad
+};
+
+/// Wheel geometry as the vehicle is calibrated (what odometry should use).
+struct VehicleInfo {
+  double left_wheel_radius_mm = 75.0;
+  double right_wheel_radius_mm = 75.0;
+  double track_width_mm = 500.0;
+  std::int64_t ticks_per_revolution = 4096;
+};
+
+struct DatasetInfo {
+  CameraInfo camera;
+  VehicleInfo vehicle;
+  /// Free-form key/value record of where the data came from (simulator settings, site, ...).
+  std::map<std::string, std::string> provenance;
+};
+
+struct Frame {
+  core::Timestamp time;
+  std::filesystem::path path;
+  cv::Mat image;  ///< CV_8UC1, camera width x height
+};
+
+struct EncoderSample {
+  core::Timestamp time;
+  std::int32_t left_ticks = 0;   ///< raw PLC counter, may wrap
+  std::int32_t right_ticks = 0;
+};
+
+/// Reads a dataset as a stream: frames and encoder samples one at a time, each line and
+/// file validated as it is read. Every problem is a core::Error (invalid input) whose message
+/// starts with "file:line: ".
+class DatasetReader {
+ public:
+  /// Opens DIR and validates dataset.yaml and the presence and headers of the CSV files.
+  explicit DatasetReader(const std::filesystem::path& directory);
+
+  const std::filesystem::path& directory() const { return directory_; }
+  const DatasetInfo& info() const { return info_; }
+
+  class FrameStream {
+   public:
+    /// The next frame with its decoded image, or nothing at the end.
+    /// With decode = false only the file's existence is checked (image left empty).
+    std::optional<Frame> Next(bool decode = true);
+
+   private:
+    friend class DatasetReader;
+    FrameStream(std::filesystem::path directory, const CameraInfo& camera);
+    std::filesystem::path directory_;
+    std::filesystem::path csv_;
+    CameraInfo camera_;
+    std::ifstream in_;
+    int line_number_ = 1;
+    std::optional<core::Timestamp> last_time_;
+  };
+
+  class EncoderStream {
+   public:
+    std::optional<EncoderSample> Next();
+
+   private:
+    friend class DatasetReader;
+    explicit EncoderStream(std::filesystem::path csv);
+    std::filesystem::path csv_;
+    std::ifstream in_;
+    int line_number_ = 1;
+    std::optional<core::Timestamp> last_time_;
+  };
+
+  FrameStream Frames() const;
+  EncoderStream Encoders() const;
+  bool HasGroundTruth() const;
+  /// The ground truth trajectory (world_from_vehicle); throws if absent or invalid.
+  Trajectory GroundTruth() const;
+
+  /// Reads everything once (decoding every image) and throws on the first problem.
+  struct Summary {
+    std::int64_t frames = 0;
+    std::int64_t encoder_samples = 0;
+    std::int64_t groundtruth_poses = 0;
+    double duration_s = 0.0;
+  };
+  Summary Validate() const;
+
+ private:
+  std::filesystem::path directory_;
+  DatasetInfo info_;
+};
+
+/// Writes a dataset so that it appears complete or not at all: everything goes to a hidden
+/// staging directory beside the target, and Commit() renames it into place. Destroying the
+/// writer without Commit() removes the staging directory and leaves the target untouched.
+class DatasetWriter {
+ public:
+  /// Throws core::Error if the target exists and overwrite is false, or on I/O failure.
+  DatasetWriter(const std::filesystem::path& directory, const DatasetInfo& info, bool overwrite);
+  ~DatasetWriter();
+  DatasetWriter(const DatasetWriter&) = delete;
+  DatasetWriter& operator=(const DatasetWriter&) = delete;
+
+  /// Adds a frame (CV_8UC1 of the camera size); times must strictly increase.
+  void AddFrame(core::Timestamp time, const cv::Mat& image);
+  /// Encodes a frame as the dataset stores it (lossless PNG). Thread-safe, so producers can
+  /// encode in parallel and hand the bytes to AddEncodedFrame in order.
+  static std::vector<unsigned char> EncodeFrame(const cv::Mat& image);
+  /// Adds a frame encoded by EncodeFrame from an image of the camera size.
+  void AddEncodedFrame(core::Timestamp time, const std::vector<unsigned char>& png);
+  void AddEncoderSample(const EncoderSample& sample);
+  void SetGroundTruth(const Trajectory& world_from_vehicle);
+  /// Flushes, closes and renames the staging directory into place.
+  void Commit();
+
+ private:
+  std::filesystem::path directory_;
+  std::filesystem::path staging_;
+  DatasetInfo info_;
+  bool overwrite_ = false;
+  bool committed_ = false;
+  std::ofstream frames_csv_;
+  std::ofstream encoders_csv_;
+  std::optional<core::Timestamp> last_frame_time_;
+  std::optional<core::Timestamp> last_encoder_time_;
+  std::optional<Trajectory> groundtruth_;
+};
+
+/// Reads and validates DIR/dataset.yaml alone.
+DatasetInfo ReadDatasetInfo(const std::filesystem::path& yaml_file);
+
+}  // namespace mosaicloc::dataset

@@ -1,0 +1,114 @@
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "mosaicloc/core/pose2.hpp"
+#include "mosaicloc/core/timestamp.hpp"
+#include "mosaicloc/dataset/trajectory.hpp"
+
+namespace mosaicloc::dataset {
+
+struct EvaluationOptions {
+  /// An estimate is compared only where the ground-truth samples around it are at most this
+  /// far apart in time (longer gaps are not interpolated).
+  core::Duration max_gap = std::chrono::milliseconds(100);
+  /// A ground-truth position within this distance of a repeatability place visits it [mm].
+  double repeatability_radius_mm = 10.0;
+  /// Path length between repeatability places along the ground truth [mm].
+  double repeatability_spacing_mm = 100.0;
+
+  /// False, with the reason in *why (if not null), when a value is not finite and positive.
+  bool Check(std::string* why) const;
+};
+
+/// One estimate compared with the ground truth interpolated at its time.
+struct ErrorSample {
+  core::Timestamp time;
+  core::Pose2 estimate;     ///< world_from_vehicle, estimated
+  core::Pose2 groundtruth;  ///< world_from_vehicle, reference
+  /// |estimate - groundtruth| of the positions [mm].
+  double position_error_mm = 0.0;
+  /// estimate yaw - groundtruth yaw, wrapped to (-pi, pi] [rad].
+  double heading_error_rad = 0.0;
+};
+
+/// The replay report (design.md section 4, metrics.json). Empty means unknown (null in JSON).
+struct Metrics {
+  // --- design.md section 4 keys ---
+  std::optional<std::int64_t> frames;       ///< images processed (Evaluate: number of estimates)
+  std::optional<std::int64_t> fixes;        ///< visual fixes accepted (caller)
+  std::optional<double> fix_rate;           ///< fixes / frames, 0..1 (caller)
+  std::optional<std::int64_t> lock_losses;  ///< times the visual lock was lost (caller)
+  std::optional<double> position_rms_mm;    ///< RMS of position errors
+  std::optional<double> position_p50_mm;    ///< median position error (percentile, see Evaluate)
+  std::optional<double> position_p99_mm;    ///< 99th percentile of position errors
+  std::optional<double> position_max_mm;    ///< largest position error
+  std::optional<double> heading_rms_deg;    ///< RMS of heading errors [deg]
+  std::optional<double> heading_max_deg;    ///< largest |heading error| [deg]
+  std::optional<double> repeatability_mm;   ///< spread at revisited places (see Evaluate)
+  std::optional<double> processing_fps;     ///< frames per second of processing time (caller)
+  std::optional<double> latency_p50_ms;     ///< median image-to-fix latency (caller)
+  std::optional<double> latency_p99_ms;     ///< 99th percentile latency (caller)
+  std::optional<double> max_speed_mps;      ///< highest ground-truth speed [m/s]
+  std::optional<double>
+      overlap_speed_limit_mps;  ///< speed at which images stop overlapping (caller)
+  // --- extras, written after the design keys ---
+  std::optional<std::int64_t> associated;         ///< estimates compared with ground truth
+  std::optional<double> final_position_error_mm;  ///< position error of the last compared estimate
+  std::optional<double> path_length_m;  ///< ground-truth path length over the compared span
+  std::optional<double> drift_percent;  ///< 100 final_position_error / path_length
+  std::optional<std::int64_t> repeatability_places;  ///< places visited at least twice
+};
+
+struct Evaluation {
+  std::vector<ErrorSample> samples;  ///< the associated estimates, in time order
+  Metrics metrics;
+};
+
+/// Associates each estimate with the ground truth interpolated at its time (PoseAt with
+/// options.max_gap: estimates outside the ground truth's time range, or inside a gap longer than
+/// max_gap, are left out) and computes the errors and metrics.
+///
+/// Fills frames (number of estimates), associated, position_* and heading_* statistics,
+/// repeatability, max_speed_mps and the extras. Leaves fixes, fix_rate, lock_losses,
+/// processing_fps, latency_* and overlap_speed_limit_mps empty for the caller.
+///
+/// Percentiles interpolate linearly between closest ranks (NumPy's default): with the n errors
+/// sorted e_0 <= ... <= e_(n-1), the p-th percentile at h = (n - 1) p / 100 is
+/// e_floor(h) + (h - floor(h)) (e_ceil(h) - e_floor(h)). Heading statistics use |heading error|.
+///
+/// max_speed_mps: the highest |Δposition| / Δt over consecutive ground-truth samples whose
+/// interval meets the compared time span and is at most max_gap long.
+/// path_length_m: ground-truth path length from the first to the last compared time.
+///
+/// Repeatability, the spread of the estimates at the same ground-truth place over repeated
+/// passes (a sample here is an associated estimate, in time order):
+///  1. Places: walking along the samples' ground-truth positions, a candidate place is taken at
+///     the first sample and then whenever repeatability_spacing_mm of path length has been
+///     travelled since the last candidate; a candidate closer than spacing / 2 to an existing
+///     place is dropped, so repeated passes share the first pass's places.
+///  2. Visits: a visit of a place is a maximal run of consecutive samples whose ground truth
+///     lies within repeatability_radius_mm of it; the run's sample nearest the place stands for it.
+///  3. For every place with k >= 2 visits, with error vectors e_j = estimate - groundtruth
+///     position (world frame) of its visits and their mean m, the deviations |e_j - m| are
+///     collected; repeatability_mm = sqrt(mean of the squared deviations over all visits of all
+///     such places) (for two visits of every place: half the distance between the two errors).
+///     Empty when no place is visited twice (a single pass, a straight run).
+/// Places are found through a hash grid: linear time in the number of samples.
+///
+/// Throws core::Error (invalid input) when the options fail Check, a trajectory is empty or
+/// not sorted, or no estimate can be associated (the message gives both time ranges).
+Evaluation Evaluate(const Trajectory& estimate, const Trajectory& groundtruth,
+                    const EvaluationOptions& options);
+
+/// Writes metrics.json: an object with every design.md section 4 key in that order, null where
+/// unknown, then the extras; pretty-printed, written atomically (temporary file, then rename).
+/// Throws core::Error (runtime) if writing fails.
+void WriteMetricsJson(const std::filesystem::path& file, const Metrics& metrics);
+
+}  // namespace mosaicloc::dataset

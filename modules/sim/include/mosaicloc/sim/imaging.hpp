@@ -1,0 +1,56 @@
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include <Eigen/Core>
+#include <opencv2/core/mat.hpp>
+
+#include "mosaicloc/camera/ideal_camera.hpp"
+#include "mosaicloc/core/pose2.hpp"
+#include "mosaicloc/sim/floor.hpp"
+
+namespace mosaicloc::sim {
+
+/// How the simulated floor camera forms an image. Defaults: a strobed LED floor camera.
+struct ImagingOptions {
+  double exposure_us = 100.0;          ///< motion blur = speed x exposure
+  double noise_std_dn = 2.0;           ///< additive Gaussian sensor noise, 8-bit digital numbers
+  double vignetting = 0.15;            ///< relative brightness loss at the image corners
+  double illumination_amplitude = 0.05;  ///< slow relative gain change over time
+  double illumination_period_s = 30.0;
+  /// Optional lens dust/grime: fraction of the image covered by dark semi-transparent
+  /// blobs fixed in the image (0 disables).
+  double dust_fraction = 0.0;
+  bool Check(std::string* why) const;
+};
+
+/// Renders ideal images of a floor: each pixel is the area average of the floor over the
+/// pixel's square footprint (supersampled), blurred along the motion during the exposure,
+/// shaded by vignetting and illumination, with sensor noise. Thread-safe: Render() is const
+/// and takes its randomness from the caller's per-frame seed.
+class Imager {
+ public:
+  Imager(const Floor& floor, const camera::IdealCamera& camera, const ImagingOptions& options, std::uint64_t seed);
+
+  /// The image at world_from_camera; `camera_velocity_mm_per_s` is the camera's velocity in
+  /// its own floor frame C (for motion blur); `time_s` drives the illumination change.
+  cv::Mat Render(const core::Pose2& world_from_camera, const Eigen::Vector2d& camera_velocity_mm_per_s,
+                 double time_s, std::uint64_t frame_seed) const;
+  /// The noise-free, blur-free, evenly lit image (the "true" view), for tests.
+  cv::Mat RenderClean(const core::Pose2& world_from_camera) const;
+
+  int supersampling() const { return supersampling_; }
+
+ private:
+  cv::Mat RenderSupersampled(const core::Pose2& world_from_camera, double blur_margin_px) const;
+
+  const Floor& floor_;
+  camera::IdealCamera camera_;
+  ImagingOptions options_;
+  int supersampling_ = 2;
+  cv::Mat static_gain_;  ///< vignetting x dust, CV_32F
+  double illumination_phase_ = 0.0;
+};
+
+}  // namespace mosaicloc::sim

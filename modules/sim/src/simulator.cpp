@@ -1,0 +1,190 @@
+#include "mosaicloc/sim/simulator.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <future>
+#include <random>
+#include <sstream>
+#include <vector>
+
+#include "mosaicloc/core/error.hpp"
+#include "mosaicloc/dataset/dataset.hpp"
+
+namespace mosaicloc::sim {
+namespace {
+
+// SplitMix64: independent, reproducible seeds per frame from one seed.
+std::uint64_t Mix(std::uint64_t seed, std::uint64_t index) {
+  std::uint64_t z = seed + 0x9e3779b97f4a7c15ULL * (index + 1);
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+
+std::string Number(double value) {
+  std::ostringstream out;
+  out.precision(10);
+  out << value;
+  return out.str();
+}
+
+}  // namespace
+
+std::unique_ptr<Floor> MakeFloor(const FloorChoice& choice) {
+  if (choice.kind == "procedural") {
+    ProceduralFloorOptions options;
+    options.seed = choice.seed;
+    if (choice.mm_per_texel > 0.0) options.mm_per_texel = choice.mm_per_texel;
+    return MakeProceduralFloor(options);
+  }
+  if (choice.kind == "image") {
+    ImageFloorOptions options;
+    options.image = choice.image;
+    if (choice.mm_per_texel > 0.0) options.mm_per_texel = choice.mm_per_texel;
+    return MakeImageFloor(options);
+  }
+  core::ThrowInvalidInput("floor must be 'procedural' or an image file, got kind '" + choice.kind + "'");
+}
+
+bool SimulatorOptions::Check(std::string* why) const {
+  if (!route.Check(why) || !camera.Check(why) || !imaging.Check(why) || !encoders.Check(why)) return false;
+  if (!(frame_rate_hz > 0.0 && frame_rate_hz <= 10000.0)) {
+    *why = "frame_rate_hz must be in (0, 10000]";
+    return false;
+  }
+  if (!(timestamp_jitter_ms >= 0.0 && timestamp_jitter_ms < 250.0 / frame_rate_hz)) {
+    *why = "timestamp_jitter_ms must be >= 0 and under a quarter of the frame period";
+    return false;
+  }
+  if (!(drop_probability >= 0.0 && drop_probability < 1.0)) {
+    *why = "drop_probability must be in [0, 1)";
+    return false;
+  }
+  if (laps < 0 || (laps == 0 && frames < 1)) {
+    *why = "give frames >= 1 or laps >= 1";
+    return false;
+  }
+  if (threads < 1 || threads > 64) {
+    *why = "threads must be in [1, 64]";
+    return false;
+  }
+  return true;
+}
+
+SimulationSummary Simulate(const SimulatorOptions& options, const std::filesystem::path& out, bool overwrite,
+                           const ProgressCallback& progress) {
+  std::string why;
+  if (!options.Check(&why)) core::ThrowInvalidInput("simulate: " + why);
+  const std::unique_ptr<Floor> floor = MakeFloor(options.floor);
+  const camera::IdealCamera camera(options.camera);
+  const int laps = options.laps > 0 ? options.laps
+                                    : Drive::LapsForFrames(options.route, options.frames, options.frame_rate_hz);
+  const Drive drive(options.route, laps, options.seed);
+  const Imager imager(*floor, camera, options.imaging, options.seed);
+  EncoderModel encoders(options.encoders, options.seed);
+
+  const double period_s = 1.0 / options.frame_rate_hz;
+  const std::int64_t frames = options.laps > 0
+                                  ? static_cast<std::int64_t>(std::floor(drive.duration_s() / period_s)) + 1
+                                  : options.frames;
+
+  // Capture instants (with jitter) and which frames are lost, drawn up front so they do
+  // not depend on rendering order.
+  std::mt19937_64 rng(Mix(options.seed, 0xf4a3e5ULL));
+  std::normal_distribution<double> jitter(0.0, options.timestamp_jitter_ms * 1e-3);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::vector<double> capture_s;
+  capture_s.reserve(static_cast<std::size_t>(frames));
+  SimulationSummary summary;
+  for (std::int64_t k = 0; k < frames; ++k) {
+    const double j = std::clamp(jitter(rng), -0.25 * period_s, 0.25 * period_s);
+    const bool dropped = unit(rng) < options.drop_probability;
+    if (dropped) {
+      ++summary.frames_dropped;
+      continue;
+    }
+    capture_s.push_back(std::max(0.0, static_cast<double>(k) * period_s + j));
+  }
+  if (capture_s.empty()) core::ThrowInvalidInput("simulate: every frame was dropped; lower drop_probability");
+
+  dataset::DatasetInfo info;
+  info.camera.width_px = options.camera.width_px;
+  info.camera.height_px = options.camera.height_px;
+  info.camera.mm_per_px = options.camera.mm_per_px;
+  info.camera.vehicle_from_camera = options.vehicle_from_camera;
+  info.vehicle = options.encoders.nominal;
+  auto& p = info.provenance;
+  p["source"] = "mosaicloc simulate";
+  p["floor"] = floor->Describe();
+  p["route"] = options.route.name;
+  p["laps"] = std::to_string(laps);
+  p["speed_mps"] = Number(options.route.speed_mps);
+  p["seed"] = std::to_string(options.seed);
+  p["frame_rate_hz"] = Number(options.frame_rate_hz);
+  p["exposure_us"] = Number(options.imaging.exposure_us);
+  p["noise_std_dn"] = Number(options.imaging.noise_std_dn);
+  p["lateral_deviation_mm"] = Number(options.route.lateral_deviation_mm);
+  p["encoder_rate_hz"] = Number(options.encoders.rate_hz);
+  p["true_left_wheel_radius_mm"] =
+      Number(options.encoders.nominal.left_wheel_radius_mm * (1.0 + options.encoders.left_radius_error));
+  p["true_right_wheel_radius_mm"] =
+      Number(options.encoders.nominal.right_wheel_radius_mm * (1.0 + options.encoders.right_radius_error));
+  p["true_track_width_mm"] = Number(options.encoders.nominal.track_width_mm * (1.0 + options.encoders.track_width_error));
+  p["wheel_slip_std"] = Number(options.encoders.slip_std);
+
+  dataset::DatasetWriter writer(out, info, overwrite);
+
+  // Encoder samples from the start to just past the last frame.
+  const double end_s = capture_s.back() + period_s;
+  const double encoder_period_s = 1.0 / options.encoders.rate_hz;
+  for (std::int64_t j = 0; static_cast<double>(j) * encoder_period_s <= end_s; ++j) {
+    const double t = static_cast<double>(j) * encoder_period_s;
+    writer.AddEncoderSample(encoders.Step(core::Timestamp::FromSeconds(t), drive.At(t).world_from_vehicle));
+    ++summary.encoder_samples;
+  }
+
+  // Frames, rendered in parallel batches and written in order.
+  dataset::Trajectory groundtruth;
+  groundtruth.reserve(capture_s.size());
+  const std::size_t batch = 8 * static_cast<std::size_t>(options.threads);
+  std::vector<std::vector<unsigned char>> encoded(batch);
+  for (std::size_t first = 0; first < capture_s.size(); first += batch) {
+    const std::size_t count = std::min(batch, capture_s.size() - first);
+    const auto render = [&](std::size_t i) {
+      const double t = capture_s[first + i];
+      const core::Pose2 world_from_camera = drive.At(t).world_from_vehicle * options.vehicle_from_camera;
+      constexpr double kHalfStepS = 5e-4;
+      const core::Pose2 before = drive.At(t - kHalfStepS).world_from_vehicle * options.vehicle_from_camera;
+      const core::Pose2 after = drive.At(t + kHalfStepS).world_from_vehicle * options.vehicle_from_camera;
+      const Eigen::Vector2d velocity_camera =
+          world_from_camera.Rotation().transpose() * (after.translation_mm() - before.translation_mm()) / (2 * kHalfStepS);
+      encoded[i] = dataset::DatasetWriter::EncodeFrame(
+          imager.Render(world_from_camera, velocity_camera, t, Mix(options.seed, first + i + 1)));
+    };
+    std::vector<std::future<void>> workers;
+    for (int w = 0; w < options.threads; ++w) {
+      workers.push_back(std::async(std::launch::async, [&, w] {
+        for (std::size_t i = static_cast<std::size_t>(w); i < count; i += static_cast<std::size_t>(options.threads)) render(i);
+      }));
+    }
+    for (auto& worker : workers) worker.get();
+    for (std::size_t i = 0; i < count; ++i) {
+      const auto time = core::Timestamp::FromSeconds(capture_s[first + i]);
+      writer.AddEncodedFrame(time, encoded[i]);
+      groundtruth.push_back({time, drive.At(capture_s[first + i]).world_from_vehicle});
+    }
+    if (progress) progress(static_cast<double>(first + count) / static_cast<double>(capture_s.size()));
+  }
+  writer.SetGroundTruth(groundtruth);
+  writer.Commit();
+
+  summary.frames_written = static_cast<std::int64_t>(capture_s.size());
+  summary.duration_s = capture_s.back();
+  summary.path_length_m = drive.At(capture_s.back()).path_distance_m;
+  summary.lap_length_m = drive.lap_length_m();
+  summary.laps_driven = summary.path_length_m / drive.lap_length_m();
+  summary.max_speed_mps = drive.max_speed_mps();
+  return summary;
+}
+
+}  // namespace mosaicloc::sim

@@ -1,0 +1,125 @@
+#include "mosaicloc/sim/route.hpp"
+
+#include <cmath>
+#include <numbers>
+
+#include <gtest/gtest.h>
+
+#include "mosaicloc/core/error.hpp"
+
+namespace mosaicloc::sim {
+namespace {
+
+RouteOptions Route(const std::string& name) {
+  RouteOptions options;
+  options.name = name;
+  return options;
+}
+
+TEST(Drive, LoopLapsCloseAndDeviationStaysSmall) {
+  RouteOptions options = Route("loop");
+  options.lateral_deviation_mm = 0.0;
+  const Drive drive(options, 3, 1);
+  // Perimeter of a rounded rectangle: 2 (W - 2R) + 2 (H - 2R) + 2 pi R.
+  const double perimeter = 2 * 3.0 + 2 * 1.0 + 2 * std::numbers::pi * 0.5;
+  EXPECT_NEAR(drive.lap_length_m(), perimeter, 1e-9);
+  EXPECT_NEAR(drive.length_m(), 3 * perimeter, 1e-6);
+  const core::Pose2 start = drive.At(0.0).world_from_vehicle;
+  const core::Pose2 end = drive.At(drive.duration_s()).world_from_vehicle;
+  EXPECT_LT(core::Distance(start, end), 1e-6);
+  EXPECT_LT(std::abs(core::YawDifference(start, end)), 1e-9);
+}
+
+TEST(Drive, NetworkLapClosesReversesInTheSpurAndHasJunctions) {
+  RouteOptions options = Route("network");
+  options.lateral_deviation_mm = 0.0;
+  const Drive drive(options, 2, 1);
+  EXPECT_NEAR(drive.lap_length_m(), 0.5 * (63.0 + 14.0 * std::numbers::pi / 2.0), 1e-6);
+  const core::Pose2 start = drive.At(0.0).world_from_vehicle;
+  const core::Pose2 end = drive.At(drive.duration_s()).world_from_vehicle;
+  EXPECT_LT(core::Distance(start, end), 1e-5);
+  // Somewhere the vehicle drives backwards, and it comes to rest between legs.
+  bool reversed = false;
+  for (double t = 0.0; t < drive.duration_s(); t += 0.05) {
+    reversed = reversed || drive.At(t).forward_speed_mps < -0.1;
+  }
+  EXPECT_TRUE(reversed);
+  // The spur end at (3, 8.5) m in the unit layout, scaled by 0.5, relative to the start (1, 0).
+  bool at_spur_end = false;
+  for (double t = 0.0; t < drive.duration_s(); t += 0.02) {
+    const core::Pose2 pose = drive.At(t).world_from_vehicle;
+    if (std::hypot(pose.x_mm() - 1000.0, pose.y_mm() - 4250.0) < 5.0) at_spur_end = true;
+  }
+  EXPECT_TRUE(at_spur_end);
+}
+
+TEST(Drive, SpeedProfileRespectsLimits) {
+  RouteOptions options = Route("loop");
+  options.speed_mps = 2.0;
+  options.loop_width_m = 8.0;  // long enough straights to reach cruise speed
+  const Drive drive(options, 2, 3);
+  EXPECT_NEAR(drive.max_speed_mps(), 2.0, 1e-9);
+  double previous_speed = 0.0;
+  const double dt = 0.01;
+  for (double t = 0.0; t < drive.duration_s(); t += dt) {
+    const VehicleState state = drive.At(t);
+    EXPECT_LE(std::abs(state.forward_speed_mps), 2.0 + 1e-9);
+    // Longitudinal acceleration within the limit (with sampling slack).
+    EXPECT_LE(std::abs(state.forward_speed_mps - previous_speed) / dt, options.max_accel_mps2 * 1.05 + 1e-6);
+    previous_speed = state.forward_speed_mps;
+  }
+  // Starts and ends at rest.
+  EXPECT_EQ(drive.At(0.0).forward_speed_mps, 0.0);
+  EXPECT_NEAR(drive.At(drive.duration_s()).forward_speed_mps, 0.0, 1e-9);
+}
+
+TEST(Drive, LateralDeviationDiffersBetweenLapsAndMatchesItsSize) {
+  RouteOptions options = Route("loop");
+  options.lateral_deviation_mm = 3.0;
+  RouteOptions centre = options;
+  centre.lateral_deviation_mm = 0.0;
+  const Drive drive(options, 4, 9);
+  const Drive reference(centre, 4, 9);
+  double sum2 = 0.0;
+  int n = 0;
+  double lap_difference = 0.0;
+  for (double t = 5.0; t < drive.duration_s() - 20.0; t += 0.1) {
+    const double offset = core::Distance(drive.At(t).world_from_vehicle, reference.At(t).world_from_vehicle);
+    sum2 += offset * offset;
+    ++n;
+  }
+  // Same place one lap later: the deviation is not the same.
+  const double lap_s = 11.2;  // roughly one lap at 1 m/s
+  for (double t = 5.0; t < 10.0; t += 0.1) {
+    const auto here = reference.At(t);
+    // find the time one lap later with the same path distance
+    double lo = t, hi = t + 2 * lap_s;
+    for (int i = 0; i < 60; ++i) {
+      const double mid = 0.5 * (lo + hi);
+      (reference.At(mid).path_distance_m < here.path_distance_m + reference.lap_length_m() ? lo : hi) = mid;
+    }
+    lap_difference = std::max(lap_difference, core::Distance(drive.At(t).world_from_vehicle, drive.At(lo).world_from_vehicle));
+  }
+  const double rms = std::sqrt(sum2 / n);
+  EXPECT_GT(rms, 1.5);
+  EXPECT_LT(rms, 5.0);
+  EXPECT_GT(lap_difference, 0.5);
+}
+
+TEST(Drive, LapsForFramesCoversTheFrames) {
+  const RouteOptions options = Route("straight");
+  const int laps = Drive::LapsForFrames(options, 3000, 30.0);
+  const Drive drive(options, laps, 1);
+  EXPECT_GE(drive.duration_s(), 3000 / 30.0);
+}
+
+TEST(Drive, RejectsBadOptions) {
+  RouteOptions options = Route("circle");
+  EXPECT_THROW(Drive(options, 1, 1), core::Error);
+  options = Route("loop");
+  options.corner_radius_m = 3.0;
+  EXPECT_THROW(Drive(options, 1, 1), core::Error);
+}
+
+}  // namespace
+}  // namespace mosaicloc::sim

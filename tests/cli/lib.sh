@@ -1,0 +1,24 @@
+# Helpers for the CLI tests. Usage: source lib.sh; the first argument of the test is the program.
+set -u
+MOSAICLOC=$1
+SCRATCH=$(mktemp -d)
+trap 'rm -rf "$SCRATCH"' EXIT
+FAILURES=0
+
+fail() { echo "FAIL: $*" >&2; FAILURES=$((FAILURES + 1)); }
+
+# expect_exit CODE CMD...: runs CMD, keeps stdout in $SCRATCH/out and stderr in $SCRATCH/err.
+expect_exit() {
+  local expected=$1; shift
+  "$@" >"$SCRATCH/out" 2>"$SCRATCH/err"
+  local code=$?
+  [ "$code" -eq "$expected" ] || fail "exit $code (wanted $expected): $* -- $(head -c 600 "$SCRATCH/err")"
+}
+
+# expect_in FILE TEXT: FILE contains TEXT.
+expect_in() { grep -qF -- "$2" "$1" || fail "'$2' not in $1: $(head -c 600 "$1")"; }
+
+finish() {
+  if [ "$FAILURES" -gt 0 ]; then echo "$FAILURES check(s) failed" >&2; exit 1; fi
+  echo "all checks passed"
+}
