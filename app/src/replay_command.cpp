@@ -1,12 +1,12 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <fstream>
 #include <vector>
 
 #include "commands.hpp"
 #include "mosaicloc/camera/ideal_camera.hpp"
 #include "mosaicloc/core/error.hpp"
+#include "mosaicloc/core/file.hpp"
 #include "mosaicloc/core/log.hpp"
 #include "mosaicloc/dataset/dataset.hpp"
 #include "mosaicloc/estimation/odometry.hpp"
@@ -108,11 +108,7 @@ void RunDeadReckoning(const ReplayArgs& args, const GlobalOptions& global) {
 
   std::error_code ec;
   std::filesystem::create_directories(args.out, ec);
-  {
-    std::ofstream fixes(args.out / "fixes.csv");
-    fixes << "#timestamp_ns,x_mm,y_mm,yaw_rad,status,quality\n";
-    if (!fixes) core::ThrowRuntime((args.out / "fixes.csv").string() + ": cannot write");
-  }
+  core::WriteFileAtomically(args.out / "fixes.csv", "#timestamp_ns,x_mm,y_mm,yaw_rad,status,quality\n");
   const dataset::Metrics written = WriteReport(args.out, estimate, groundtruth, metrics,
                                                "dead reckoning: " + args.dataset.filename().string());
   if (rejected > 0) core::Log().warn("{} encoder samples rejected", rejected);

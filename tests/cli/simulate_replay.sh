@@ -15,7 +15,7 @@ done
 for file in estimate.tum fixes.csv metrics.json trajectory.png position_error.png heading_error.png; do
   [ -s "$SCRATCH/report/$file" ] || fail "report file $file missing or empty"
 done
-# Dead reckoning with a 0.4 % / -0.3 % wheel error drifts: measurable, but not absurd.
+# Dead reckoning with a +0.3 % / +0.1 % wheel error drifts: measurable, but not absurd.
 python3 - "$SCRATCH/report/metrics.json" <<'PY' || fail "dead-reckoning figures out of range"
 import json, sys
 m = json.load(open(sys.argv[1]))

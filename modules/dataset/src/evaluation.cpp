@@ -9,14 +9,10 @@
 #include <nlohmann/json.hpp>
 
 #include "mosaicloc/core/error.hpp"
+#include "mosaicloc/core/file.hpp"
 #include "mosaicloc/core/log.hpp"
 
 namespace mosaicloc::dataset {
-
-namespace internal {
-// Defined in trajectory.cpp.
-void WriteFileAtomically(const std::filesystem::path& file, std::string_view content);
-}  // namespace internal
 
 namespace {
 
@@ -323,7 +319,7 @@ void WriteMetricsJson(const std::filesystem::path& file, const Metrics& metrics)
   json["path_length_m"] = ToJson(metrics.path_length_m);
   json["drift_percent"] = ToJson(metrics.drift_percent);
   json["repeatability_places"] = ToJson(metrics.repeatability_places);
-  internal::WriteFileAtomically(file, json.dump(2) + "\n");
+  core::WriteFileAtomically(file, json.dump(2) + "\n");
 }
 
 }  // namespace mosaicloc::dataset

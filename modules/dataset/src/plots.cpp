@@ -14,13 +14,9 @@
 #include <opencv2/imgproc.hpp>
 
 #include "mosaicloc/core/error.hpp"
+#include "mosaicloc/core/file.hpp"
 
 namespace mosaicloc::dataset {
-
-namespace internal {
-// Defined in trajectory.cpp.
-void WriteFileAtomically(const std::filesystem::path& file, std::string_view content);
-}  // namespace internal
 
 namespace {
 
@@ -329,7 +325,7 @@ void SavePng(const std::filesystem::path& file, const cv::Mat& image) {
   std::vector<uchar> png;
   if (!cv::imencode(".png", image, png))
     core::ThrowRuntime(file.string() + ": PNG encoding failed");
-  internal::WriteFileAtomically(
+  core::WriteFileAtomically(
       file, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
 }
 

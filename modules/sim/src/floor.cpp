@@ -71,11 +71,6 @@ TileCache::Tile TileCache::Get(std::int64_t tile_col, std::int64_t tile_row) con
   }
 }
 
-std::size_t TileCache::size() const {
-  const std::lock_guard lock(mutex_);
-  return lru_.size();
-}
-
 void CheckWindowSize(int cols, int rows) {
   if (cols < 0 || rows < 0) {
     throw std::invalid_argument("Floor::Render: negative window size " + std::to_string(cols) +

@@ -95,8 +95,6 @@ class TileCache {
   /// The tile; rethrows whatever the generator threw (and forgets the failed tile).
   Tile Get(std::int64_t tile_col, std::int64_t tile_row) const;
 
-  std::size_t size() const;
-
  private:
   struct Key {
     std::int64_t col;

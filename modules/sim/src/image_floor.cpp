@@ -84,7 +84,7 @@ class ImageFloor final : public Floor {
   }
 
  private:
-  cv::Mat image_;  // CV_8UC1, continuous, immutable after construction
+  cv::Mat image_;  // CV_8UC1, never modified: safe to read from several threads
   ImageFloorOptions options_;
 };
 
@@ -127,9 +127,7 @@ std::unique_ptr<Floor> MakeImageFloor(const ImageFloorOptions& options) {
                             std::to_string(kMinImageSidePx) + " x " +
                             std::to_string(kMinImageSidePx));
   }
-  cv::Mat grey = ToGrey8(decoded);
-  if (!grey.isContinuous() || grey.data == decoded.data) grey = grey.clone();
-  return std::make_unique<ImageFloor>(std::move(grey), options);
+  return std::make_unique<ImageFloor>(ToGrey8(decoded), options);
 }
 
 }  // namespace mosaicloc::sim

@@ -8,7 +8,7 @@
 //   stones  irregular polygons with a shadow rim and a lit facet, and pores, drawn
 //           anti-aliased into a premultiplied grey + opacity canvas;
 //   cracks  meandering walks with branches, drawn into a coverage canvas.
-// A texel is  stones over (matrix + grain), plus smooth, then darkened by crack coverage.
+// A texel is stones over (matrix + grain), plus smooth, then darkened by crack coverage.
 //
 // Every lattice value and every feature comes from a hash of (seed, layer, level or world
 // cell), and every tile is computed from global coordinates only, so tiles join without
@@ -250,9 +250,9 @@ float StainShapeWeight(double spacing_mm) {
   return spacing_mm >= 12.0 && spacing_mm <= 300.0 ? 1.0F : 0.0F;
 }
 
-/// The tile being generated: its texel and mm extents and its drawing canvases, which
-/// extend margin texels beyond the tile on every side so that no feature touching the
-/// tile is clipped (clipping would change its rasterisation).
+/// The tile being generated: its texel and mm extents, and the frame of its drawing
+/// canvases, which extend `margin` texels beyond the tile on every side so that no feature
+/// touching the tile is clipped (clipping would change its rasterisation).
 struct TileFrame {
   std::int64_t col0 = 0;
   std::int64_t row0 = 0;
@@ -749,7 +749,7 @@ bool ProceduralFloorOptions::Check(std::string* why) const {
       {"pore_density_per_cm2", pore_density_per_cm2, 0.0, 50.0},
       {"stain_density_per_m2", stain_density_per_m2, 0.0, 100.0},
       {"stain_contrast_dn", stain_contrast_dn, 0.0, 100.0},
-      {"crack_density_per_m2", crack_density_per_m2, 0.0, 100.0},
+      {"crack_density_per_m2", crack_density_per_m2, 0.0, 50.0},
       {"crack_max_length_mm", crack_max_length_mm, 10.0, 2000.0},
   };
   for (const Bound& bound : bounds) {

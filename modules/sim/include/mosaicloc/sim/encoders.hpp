@@ -15,8 +15,8 @@ namespace mosaicloc::sim {
 struct EncoderOptions {
   double rate_hz = 100.0;
   dataset::VehicleInfo nominal;         ///< calibrated geometry, written to dataset.yaml
-  double left_radius_error = 0.004;     ///< true radius = nominal * (1 + error)
-  double right_radius_error = -0.003;
+  double left_radius_error = 0.003;     ///< true radius = nominal * (1 + error)
+  double right_radius_error = 0.001;
   double track_width_error = 0.002;
   double slip_std = 0.002;              ///< relative wheel travel noise per sample
   /// Counter values at the start. Close to the int32 maximum so that every dataset

@@ -39,6 +39,8 @@ class Floor {
 /// (seed, layer, world cell), so the floor never repeats and has no seams at any scale.
 /// Physical sizes are in mm: changing mm_per_texel renders the same stones, stains and
 /// cracks at another resolution (the fine noise octaves follow the texel grid).
+/// Renders are bit-identical for the same options with the same build; another OpenCV
+/// version or CPU (SIMD path) may change a few texels by 1 DN.
 struct ProceduralFloorOptions {
   /// Floor seed (separate from the simulator's noise seed).
   std::uint64_t seed = 1;
@@ -55,7 +57,8 @@ struct ProceduralFloorOptions {
   /// Fraction of the floor covered by stones (sum of stone areas / floor area, overlaps
   /// counted twice), in [0, 1.5].
   double stone_area_fraction = 0.45;
-  /// Stone diameters are log-uniform in [min, max], mm; 0 < min <= max <= 40.
+  /// Stone diameters are log-uniform in [min, max], mm; 0.3 <= min <= max <= 40.
+  /// Small stones are many: their count per area grows as 1 / min^2, and so does the cost.
   double stone_min_diameter_mm = 1.0;
   double stone_max_diameter_mm = 8.0;
 
@@ -67,13 +70,14 @@ struct ProceduralFloorOptions {
   /// Typical stain depth, DN, in [0, 100].
   double stain_contrast_dn = 22.0;
 
-  /// Thin dark meandering cracks, per m^2 (counted by start point), in [0, 100].
+  /// Thin dark meandering cracks, per m^2 (counted by start point), in [0, 50]. A tile
+  /// traces every crack that may reach it: the cost grows as density * max_length^3.
   double crack_density_per_m2 = 1.0;
   /// Longest crack (a crack is 40-100 % of this, plus short branches), mm, in [10, 2000].
   double crack_max_length_mm = 600.0;
 
   /// Budget of the generated-tile cache (256 x 256 texel tiles, 64 KiB each), bytes;
-  /// at least 1 MiB.
+  /// at least 1 MiB. Each thread generating a tile also holds about 1 MiB of scratch.
   std::size_t cache_bytes = std::size_t{64} << 20;
 
   /// True if every field is in range; otherwise false with the first problem in *why.
@@ -81,7 +85,8 @@ struct ProceduralFloorOptions {
 };
 
 /// Throws core::Error (invalid input) with Check()'s reason if the options are invalid.
-/// The floor keeps a thread-safe LRU cache of generated tiles bounded by cache_bytes.
+/// The floor keeps a thread-safe LRU cache of generated tiles bounded by cache_bytes; a
+/// missing tile is generated once even when several threads ask for it at the same time.
 std::unique_ptr<Floor> MakeProceduralFloor(const ProceduralFloorOptions& options);
 
 struct ImageFloorOptions {
@@ -90,6 +95,8 @@ struct ImageFloorOptions {
   /// Size of one image pixel on the floor, mm; in (0, 100].
   double mm_per_texel = 0.25;
 
+  /// True if a file is named and mm_per_texel is in range; otherwise false with the reason
+  /// in *why. Does not open the file.
   bool Check(std::string* why) const;
 };
 
