@@ -20,5 +20,6 @@ Action AddSimulateCommand(CLI::App& app, const GlobalOptions& global);
 Action AddDatasetCommand(CLI::App& app, const GlobalOptions& global);
 Action AddEvaluateCommand(CLI::App& app, const GlobalOptions& global);
 Action AddReplayCommand(CLI::App& app, const GlobalOptions& global);
+Action AddMapCommand(CLI::App& app, const GlobalOptions& global);
 
 }  // namespace mosaicloc::app

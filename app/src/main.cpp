@@ -37,6 +37,7 @@ int main(int argc, char** argv) {
   add(app::AddDatasetCommand);
   add(app::AddEvaluateCommand);
   add(app::AddReplayCommand);
+  add(app::AddMapCommand);
 
   try {
     app.parse(argc, argv);

@@ -1,0 +1,55 @@
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <unordered_map>
+
+#include <opencv2/core/mat.hpp>
+
+#include "mosaicloc/core/pose2.hpp"
+#include "mosaicloc/mosaic/grid.hpp"
+#include "mosaicloc/mosaic/tile_store.hpp"
+
+namespace mosaicloc::mosaic {
+
+/// How overlapping frames combine into one map pixel. Each frame pixel carries a weight that
+/// falls linearly from the frame centre to zero at its edges.
+enum class Blend {
+  kFeather,   ///< weighted mean of every frame that saw the pixel
+  kBestView,  ///< the value from the frame that saw the pixel closest to its centre
+};
+Blend ParseBlend(const std::string& name);  ///< "feather" or "best-view"; throws core::Error
+
+/// Paints posed ideal images into a mosaic: level 0 accumulates in memory (8 bytes per
+/// painted pixel), then Write() stores level 0 and the pyramid above it.
+class MapBuilder {
+ public:
+  MapBuilder(const MapGrid& grid, Blend blend);
+
+  /// Paints a CV_8UC1 ideal image of mm_per_px taken at world_from_camera.
+  void AddFrame(const cv::Mat& image, const core::Pose2& world_from_camera, double mm_per_px);
+  /// Writes every level into the store in transactions of at most `batch` tiles.
+  void Write(TileStore& store, const std::function<void(double)>& progress = {}, int batch = 64) const;
+
+  std::int64_t frames() const { return frames_; }
+  std::size_t tiles() const { return accumulators_.size(); }
+
+  /// Level 0 tile values as they will be stored (for tests).
+  cv::Mat FinishTile(const TileKey& key) const;
+
+ private:
+  struct Accumulator {
+    cv::Mat value;   ///< CV_32F: weighted sum (feather) or best value (best view)
+    cv::Mat weight;  ///< CV_32F
+  };
+  const cv::Mat& WeightMap(int width, int height);
+
+  MapGrid grid_;
+  Blend blend_;
+  std::int64_t frames_ = 0;
+  std::unordered_map<TileKey, Accumulator, TileKeyHash> accumulators_;
+  cv::Mat weight_map_;
+};
+
+}  // namespace mosaicloc::mosaic

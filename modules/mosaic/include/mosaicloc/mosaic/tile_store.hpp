@@ -1,0 +1,79 @@
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <opencv2/core/mat.hpp>
+
+#include "mosaicloc/mosaic/grid.hpp"
+
+struct sqlite3;
+
+namespace mosaicloc::mosaic {
+
+inline constexpr int kMapFormatVersion = 1;
+/// Pixel value that means "not mapped". Painted pixels are clamped to [1, 255].
+inline constexpr std::uint8_t kUnmapped = 0;
+
+/// Outcome of reading one tile.
+enum class TileStatus { kOk, kAbsent, kCorrupt };
+
+struct TileRead {
+  TileStatus status = TileStatus::kAbsent;
+  cv::Mat pixels;       ///< CV_8UC1, tile_size square, when kOk
+  std::string problem;  ///< names the tile, when kCorrupt
+};
+
+/// A tile to write: CV_8UC1, tile_size square.
+struct TileWrite {
+  TileKey key;
+  cv::Mat pixels;
+};
+
+/// The map file (design.md section 4): one SQLite database with a metadata table and a
+/// tiles table of lossless 8-bit PNGs with their CRC32. Written in WAL mode, every change in
+/// one transaction, so a crash or power cut leaves each tile either old or new.
+/// Thread-safe: one connection guarded by a mutex; PNG coding happens outside the lock.
+class TileStore {
+ public:
+  /// Creates a new, empty map file; throws core::Error if it exists or cannot be created.
+  static std::unique_ptr<TileStore> Create(const std::filesystem::path& file, const MapGrid& grid);
+  /// Opens an existing map; checks format_version and every metadata key, and throws
+  /// core::Error (invalid input) naming the file and key when something is wrong.
+  static std::unique_ptr<TileStore> Open(const std::filesystem::path& file, bool writable);
+  ~TileStore();
+  TileStore(const TileStore&) = delete;
+  TileStore& operator=(const TileStore&) = delete;
+
+  const MapGrid& grid() const { return grid_; }
+  const std::filesystem::path& file() const { return file_; }
+
+  /// Reads and verifies a tile (CRC, PNG decode, size, type). Never throws for a bad tile.
+  TileRead Read(const TileKey& key) const;
+  /// Writes tiles in one transaction (all or none). Throws core::Error on failure.
+  void Write(const std::vector<TileWrite>& tiles);
+  /// Every tile of a level (all levels when level < 0), ordered by level, row, col.
+  std::vector<TileKey> List(int level = -1) const;
+  std::int64_t Count(int level = -1) const;
+
+  /// PNG-encodes a tile and its CRC32, as stored. Thread-safe.
+  static std::vector<unsigned char> Encode(const cv::Mat& pixels);
+  static std::uint32_t Crc32(const std::vector<unsigned char>& data);
+
+ private:
+  TileStore(std::filesystem::path file, sqlite3* db, MapGrid grid);
+  void Execute(const std::string& sql) const;
+
+  std::filesystem::path file_;
+  sqlite3* db_ = nullptr;
+  MapGrid grid_;
+  mutable std::mutex mutex_;
+};
+
+}  // namespace mosaicloc::mosaic

@@ -1,0 +1,194 @@
+#include "mosaicloc/mosaic/builder.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <set>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "mosaicloc/core/error.hpp"
+
+namespace mosaicloc::mosaic {
+
+Blend ParseBlend(const std::string& name) {
+  if (name == "feather") return Blend::kFeather;
+  if (name == "best-view") return Blend::kBestView;
+  core::ThrowInvalidInput("blend must be 'feather' or 'best-view', got '" + name + "'");
+}
+
+MapBuilder::MapBuilder(const MapGrid& grid, Blend blend) : grid_(grid), blend_(blend) {
+  std::string why;
+  if (!grid_.Check(&why)) core::ThrowInvalidInput("map grid: " + why);
+}
+
+const cv::Mat& MapBuilder::WeightMap(int width, int height) {
+  if (weight_map_.cols != width || weight_map_.rows != height) {
+    // Tent: distance to the nearest edge (in pixels, at pixel centres), so neighbouring
+    // frames fade into each other and the frame centre wins a best-view contest.
+    weight_map_.create(height, width, CV_32F);
+    for (int v = 0; v < height; ++v) {
+      for (int u = 0; u < width; ++u) {
+        const float d = static_cast<float>(std::min({u + 0.5, width - u - 0.5, v + 0.5, height - v - 0.5}));
+        weight_map_.at<float>(v, u) = d;
+      }
+    }
+  }
+  return weight_map_;
+}
+
+void MapBuilder::AddFrame(const cv::Mat& image, const core::Pose2& world_from_camera, double mm_per_px) {
+  if (image.type() != CV_8UC1 || image.empty()) core::ThrowInvalidInput("map builder: frames must be 8-bit grey");
+  ++frames_;
+  const cv::Mat& weights = WeightMap(image.cols, image.rows);
+  cv::Mat values;
+  image.convertTo(values, CV_32F);
+
+  // Level-0 raster (col, row) -> world -> image pixel: an affine map.
+  const double res = grid_.mm_per_px;
+  const double cx = 0.5 * (image.cols - 1);
+  const double cy = 0.5 * (image.rows - 1);
+  const core::Pose2 camera_from_world = world_from_camera.Inverse();
+  const Eigen::Matrix2d r = camera_from_world.Rotation();
+  // world = (x0 + (c + 0.5) res, y0 - (r + 0.5) res); p_C = R world + t; u = cx + p_C.x / s, v = cy - p_C.y / s.
+  Eigen::Matrix2d linear;
+  linear << r(0, 0) * res / mm_per_px, -r(0, 1) * res / mm_per_px, -r(1, 0) * res / mm_per_px, r(1, 1) * res / mm_per_px;
+  const Eigen::Vector2d world00(grid_.origin_x_mm + 0.5 * res, grid_.origin_y_mm - 0.5 * res);
+  const Eigen::Vector2d camera00 = camera_from_world * world00;
+  const Eigen::Vector2d offset(cx + camera00.x() / mm_per_px, cy - camera00.y() / mm_per_px);
+
+  // Footprint of the frame in level-0 raster pixels.
+  double min_c = 1e300, min_r = 1e300, max_c = -1e300, max_r = -1e300;
+  for (const double u : {-0.5, image.cols - 0.5}) {
+    for (const double v : {-0.5, image.rows - 0.5}) {
+      const Eigen::Vector2d world = world_from_camera * Eigen::Vector2d((u - cx) * mm_per_px, -(v - cy) * mm_per_px);
+      const Eigen::Vector2d raster = grid_.WorldToRaster(world, 0);
+      min_c = std::min(min_c, raster.x());
+      max_c = std::max(max_c, raster.x());
+      min_r = std::min(min_r, raster.y());
+      max_r = std::max(max_r, raster.y());
+    }
+  }
+  const auto c0 = static_cast<std::int64_t>(std::floor(min_c));
+  const auto c1 = static_cast<std::int64_t>(std::ceil(max_c));
+  const auto r0 = static_cast<std::int64_t>(std::floor(min_r));
+  const auto r1 = static_cast<std::int64_t>(std::ceil(max_r));
+  const std::int64_t t = grid_.tile_size_px;
+  for (std::int64_t tr = FloorDiv(r0, t); tr <= FloorDiv(r1, t); ++tr) {
+    for (std::int64_t tc = FloorDiv(c0, t); tc <= FloorDiv(c1, t); ++tc) {
+      const std::int64_t x0 = std::max(c0, tc * t);
+      const std::int64_t y0 = std::max(r0, tr * t);
+      const std::int64_t x1 = std::min(c1 + 1, (tc + 1) * t);
+      const std::int64_t y1 = std::min(r1 + 1, (tr + 1) * t);
+      if (x1 <= x0 || y1 <= y0) continue;
+      const cv::Rect roi(static_cast<int>(x0 - tc * t), static_cast<int>(y0 - tr * t), static_cast<int>(x1 - x0),
+                         static_cast<int>(y1 - y0));
+      cv::Mat map(2, 3, CV_64F);
+      const Eigen::Vector2d shifted = offset + linear * Eigen::Vector2d(static_cast<double>(x0), static_cast<double>(y0));
+      map.at<double>(0, 0) = linear(0, 0);
+      map.at<double>(0, 1) = linear(0, 1);
+      map.at<double>(0, 2) = shifted.x();
+      map.at<double>(1, 0) = linear(1, 0);
+      map.at<double>(1, 1) = linear(1, 1);
+      map.at<double>(1, 2) = shifted.y();
+      cv::Mat frame_values;
+      cv::Mat frame_weights;
+      cv::warpAffine(values, frame_values, map, roi.size(), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP,
+                     cv::BORDER_REPLICATE);
+      cv::warpAffine(weights, frame_weights, map, roi.size(), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP,
+                     cv::BORDER_CONSTANT, cv::Scalar(0));
+      auto [it, inserted] = accumulators_.try_emplace(TileKey{0, tc, tr});
+      if (inserted) {
+        it->second.value = cv::Mat::zeros(static_cast<int>(t), static_cast<int>(t), CV_32F);
+        it->second.weight = cv::Mat::zeros(static_cast<int>(t), static_cast<int>(t), CV_32F);
+      }
+      cv::Mat value = it->second.value(roi);
+      cv::Mat weight = it->second.weight(roi);
+      if (blend_ == Blend::kFeather) {
+        value += frame_values.mul(frame_weights);
+        weight += frame_weights;
+      } else {
+        const cv::Mat better = frame_weights > weight;
+        frame_values.copyTo(value, better);
+        frame_weights.copyTo(weight, better);
+      }
+    }
+  }
+}
+
+cv::Mat MapBuilder::FinishTile(const TileKey& key) const {
+  const Accumulator& acc = accumulators_.at(key);
+  cv::Mat mean;
+  if (blend_ == Blend::kFeather) {
+    cv::divide(acc.value, cv::max(acc.weight, 1e-12), mean);
+  } else {
+    mean = acc.value;
+  }
+  cv::Mat out;
+  mean.convertTo(out, CV_8U);
+  cv::max(out, 1, out);  // 0 means unmapped
+  out.setTo(cv::Scalar(kUnmapped), acc.weight <= 1e-6);
+  return out;
+}
+
+void MapBuilder::Write(TileStore& store, const std::function<void(double)>& progress, int batch) const {
+  const std::int64_t t = grid_.tile_size_px;
+  std::map<std::pair<std::int64_t, std::int64_t>, cv::Mat> level;
+  for (const auto& [key, acc] : accumulators_) level[{key.col, key.row}] = FinishTile(key);
+  // Tiles per level shrink about fourfold: the total is about 4/3 of level 0.
+  const std::size_t total = level.size() * 4 / 3 + static_cast<std::size_t>(grid_.levels);
+  std::size_t done = 0;
+  for (int k = 0; k < grid_.levels; ++k) {
+    std::vector<TileWrite> pending;
+    for (const auto& [index, pixels] : level) {
+      pending.push_back({TileKey{k, index.first, index.second}, pixels});
+      if (static_cast<int>(pending.size()) == batch) {
+        store.Write(pending);
+        done += pending.size();
+        pending.clear();
+        if (progress) progress(std::min(1.0, static_cast<double>(done) / static_cast<double>(total)));
+      }
+    }
+    store.Write(pending);
+    done += pending.size();
+    if (progress) progress(std::min(1.0, static_cast<double>(done) / static_cast<double>(total)));
+    if (k + 1 == grid_.levels) break;
+
+    // Next level: each pixel is the mean of the mapped ones among its 2x2 children.
+    std::map<std::pair<std::int64_t, std::int64_t>, cv::Mat> parents;
+    std::set<std::pair<std::int64_t, std::int64_t>> parent_keys;
+    for (const auto& [index, pixels] : level) parent_keys.insert({FloorDiv(index.first, 2), FloorDiv(index.second, 2)});
+    for (const auto& parent : parent_keys) {
+      cv::Mat children = cv::Mat::zeros(static_cast<int>(2 * t), static_cast<int>(2 * t), CV_8UC1);
+      for (int dy = 0; dy < 2; ++dy) {
+        for (int dx = 0; dx < 2; ++dx) {
+          const auto it = level.find({2 * parent.first + dx, 2 * parent.second + dy});
+          if (it == level.end()) continue;
+          it->second.copyTo(children(cv::Rect(dx * static_cast<int>(t), dy * static_cast<int>(t), static_cast<int>(t),
+                                               static_cast<int>(t))));
+        }
+      }
+      cv::Mat mapped;
+      cv::Mat(children != kUnmapped).convertTo(mapped, CV_32F, 1.0 / 255.0);
+      cv::Mat values;
+      children.convertTo(values, CV_32F);
+      cv::Mat sum;
+      cv::Mat count;
+      const cv::Size half(static_cast<int>(t), static_cast<int>(t));
+      cv::resize(values, sum, half, 0, 0, cv::INTER_AREA);  // mean of the four, unmapped counted as 0
+      cv::resize(mapped, count, half, 0, 0, cv::INTER_AREA);  // fraction of the four mapped
+      cv::Mat mean;
+      cv::divide(sum, cv::max(count, 1e-6), mean);
+      cv::Mat out;
+      mean.convertTo(out, CV_8U);
+      cv::max(out, 1, out);
+      out.setTo(cv::Scalar(kUnmapped), count < 0.01);
+      parents[parent] = out;
+    }
+    level = std::move(parents);
+  }
+  if (progress) progress(1.0);
+}
+
+}  // namespace mosaicloc::mosaic

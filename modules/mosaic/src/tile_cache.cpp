@@ -1,0 +1,101 @@
+#include "mosaicloc/mosaic/tile_cache.hpp"
+
+#include <algorithm>
+#include <chrono>
+
+#include <opencv2/core.hpp>
+
+namespace mosaicloc::mosaic {
+
+TileCache::TileCache(const TileStore& store, std::size_t budget_bytes) : store_(store), budget_bytes_(budget_bytes) {}
+
+std::size_t TileCache::Bytes(const Tile& tile) {
+  constexpr std::size_t kOverhead = 256;  // entry, list node, shared_ptr control block
+  return kOverhead + tile.pixels.total() * tile.pixels.elemSize() + tile.problem.size();
+}
+
+std::shared_ptr<const Tile> TileCache::Peek(const TileKey& key) {
+  const std::lock_guard lock(mutex_);
+  const auto it = entries_.find(key);
+  if (it == entries_.end()) return nullptr;
+  lru_.splice(lru_.begin(), lru_, it->second.lru);
+  return it->second.tile;
+}
+
+bool TileCache::Contains(const TileKey& key) {
+  const std::lock_guard lock(mutex_);
+  return entries_.count(key) != 0;
+}
+
+std::shared_ptr<const Tile> TileCache::Get(const TileKey& key) {
+  {
+    const std::lock_guard lock(mutex_);
+    const auto it = entries_.find(key);
+    if (it != entries_.end()) {
+      ++stats_.hits;
+      lru_.splice(lru_.begin(), lru_, it->second.lru);
+      return it->second.tile;
+    }
+    ++stats_.misses;
+  }
+  const auto start = std::chrono::steady_clock::now();
+  TileRead read = store_.Read(key);
+  auto tile = std::make_shared<Tile>();
+  tile->status = read.status;
+  tile->problem = std::move(read.problem);
+  if (read.status == TileStatus::kOk) {
+    tile->pixels = std::move(read.pixels);
+    tile->fully_mapped = cv::countNonZero(tile->pixels) == static_cast<int>(tile->pixels.total());
+  }
+  const double load_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+
+  const std::lock_guard lock(mutex_);
+  ++stats_.loads;
+  stats_.load_ms_total += load_ms;
+  stats_.load_ms_max = std::max(stats_.load_ms_max, load_ms);
+  const auto it = entries_.find(key);
+  if (it != entries_.end()) return it->second.tile;  // another thread loaded it meanwhile
+  lru_.push_front(key);
+  const std::size_t bytes = Bytes(*tile);
+  entries_.emplace(key, Entry{tile, bytes, lru_.begin()});
+  stats_.bytes += bytes;
+  EvictLocked();
+  return tile;
+}
+
+void TileCache::EvictLocked() {
+  // Keep at least the tile just added, even if it alone exceeds a tiny budget.
+  while (stats_.bytes > budget_bytes_ && lru_.size() > 1) {
+    const TileKey victim = lru_.back();
+    lru_.pop_back();
+    const auto it = entries_.find(victim);
+    stats_.bytes -= it->second.bytes;
+    entries_.erase(it);
+    ++stats_.evictions;
+  }
+}
+
+void TileCache::Invalidate(const TileKey& key) {
+  const std::lock_guard lock(mutex_);
+  const auto it = entries_.find(key);
+  if (it == entries_.end()) return;
+  stats_.bytes -= it->second.bytes;
+  lru_.erase(it->second.lru);
+  entries_.erase(it);
+}
+
+void TileCache::Clear() {
+  const std::lock_guard lock(mutex_);
+  entries_.clear();
+  lru_.clear();
+  stats_.bytes = 0;
+}
+
+TileCacheStats TileCache::stats() const {
+  const std::lock_guard lock(mutex_);
+  TileCacheStats copy = stats_;
+  copy.tiles = entries_.size();
+  return copy;
+}
+
+}  // namespace mosaicloc::mosaic

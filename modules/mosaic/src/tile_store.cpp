@@ -1,0 +1,243 @@
+#include "mosaicloc/mosaic/tile_store.hpp"
+
+#include <sqlite3.h>
+#include <zlib.h>
+
+#include <charconv>
+#include <map>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "mosaicloc/core/error.hpp"
+
+namespace mosaicloc::mosaic {
+namespace {
+
+// A prepared statement that finalizes itself.
+class Statement {
+ public:
+  Statement(sqlite3* db, const char* sql, const std::filesystem::path& file) {
+    if (sqlite3_prepare_v2(db, sql, -1, &statement_, nullptr) != SQLITE_OK) {
+      core::ThrowRuntime(file.string() + ": SQLite cannot prepare '" + sql + "': " + sqlite3_errmsg(db));
+    }
+  }
+  ~Statement() { sqlite3_finalize(statement_); }
+  Statement(const Statement&) = delete;
+  Statement& operator=(const Statement&) = delete;
+  sqlite3_stmt* get() const { return statement_; }
+
+ private:
+  sqlite3_stmt* statement_ = nullptr;
+};
+
+std::string FormatDouble(double value) {
+  char buffer[64];
+  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);  // shortest round trip
+  return std::string(buffer, result.ptr);
+}
+
+}  // namespace
+
+TileStore::TileStore(std::filesystem::path file, sqlite3* db, MapGrid grid)
+    : file_(std::move(file)), db_(db), grid_(grid) {}
+
+TileStore::~TileStore() { sqlite3_close(db_); }
+
+void TileStore::Execute(const std::string& sql) const {
+  char* message = nullptr;
+  if (sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &message) != SQLITE_OK) {
+    const std::string reason = message ? message : "unknown error";
+    sqlite3_free(message);
+    core::ThrowRuntime(file_.string() + ": SQLite: " + reason);
+  }
+}
+
+std::unique_ptr<TileStore> TileStore::Create(const std::filesystem::path& file, const MapGrid& grid) {
+  std::string why;
+  if (!grid.Check(&why)) core::ThrowInvalidInput(file.string() + ": " + why);
+  std::error_code ec;
+  if (std::filesystem::exists(file, ec)) core::ThrowInvalidInput(file.string() + ": already exists");
+  sqlite3* db = nullptr;
+  if (sqlite3_open_v2(file.c_str(), &db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_FULLMUTEX, nullptr) !=
+      SQLITE_OK) {
+    const std::string reason = db ? sqlite3_errmsg(db) : "out of memory";
+    sqlite3_close(db);
+    core::ThrowRuntime(file.string() + ": cannot create the map: " + reason);
+  }
+  std::unique_ptr<TileStore> store(new TileStore(file, db, grid));
+  store->Execute("PRAGMA journal_mode=WAL; PRAGMA synchronous=FULL;");
+  store->Execute(
+      "BEGIN;"
+      "CREATE TABLE metadata (name TEXT PRIMARY KEY, value TEXT);"
+      "CREATE TABLE tiles (level INTEGER, col INTEGER, row INTEGER, data BLOB, crc32 INTEGER,"
+      " PRIMARY KEY (level, col, row));"
+      "INSERT INTO metadata VALUES ('format_version', '" + std::to_string(kMapFormatVersion) + "'),"
+      " ('mm_per_px', '" + FormatDouble(grid.mm_per_px) + "'),"
+      " ('origin_x_mm', '" + FormatDouble(grid.origin_x_mm) + "'),"
+      " ('origin_y_mm', '" + FormatDouble(grid.origin_y_mm) + "'),"
+      " ('tile_size_px', '" + std::to_string(grid.tile_size_px) + "'),"
+      " ('levels', '" + std::to_string(grid.levels) + "');"
+      "COMMIT;");
+  return store;
+}
+
+std::unique_ptr<TileStore> TileStore::Open(const std::filesystem::path& file, bool writable) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(file, ec)) core::ThrowInvalidInput(file.string() + ": no such map file");
+  sqlite3* db = nullptr;
+  const int flags = (writable ? SQLITE_OPEN_READWRITE : SQLITE_OPEN_READONLY) | SQLITE_OPEN_FULLMUTEX;
+  if (sqlite3_open_v2(file.c_str(), &db, flags, nullptr) != SQLITE_OK) {
+    const std::string reason = db ? sqlite3_errmsg(db) : "out of memory";
+    sqlite3_close(db);
+    core::ThrowInvalidInput(file.string() + ": cannot open the map: " + reason);
+  }
+  std::unique_ptr<TileStore> store(new TileStore(file, db, MapGrid{}));
+  std::map<std::string, std::string> metadata;
+  {
+    sqlite3_stmt* raw = nullptr;
+    if (sqlite3_prepare_v2(db, "SELECT name, value FROM metadata", -1, &raw, nullptr) != SQLITE_OK) {
+      const std::string reason = sqlite3_errmsg(db);
+      sqlite3_finalize(raw);
+      core::ThrowInvalidInput(file.string() + ": not a mosaicloc map (" + reason + ")");
+    }
+    while (sqlite3_step(raw) == SQLITE_ROW) {
+      const auto* name = reinterpret_cast<const char*>(sqlite3_column_text(raw, 0));
+      const auto* value = reinterpret_cast<const char*>(sqlite3_column_text(raw, 1));
+      if (name && value) metadata[name] = value;
+    }
+    sqlite3_finalize(raw);
+  }
+  const auto number = [&](const char* key) {
+    const auto it = metadata.find(key);
+    if (it == metadata.end()) core::ThrowInvalidInput(file.string() + ": metadata key '" + key + "' is missing");
+    double value = 0.0;
+    const char* end = it->second.data() + it->second.size();
+    const auto result = std::from_chars(it->second.data(), end, value);
+    if (result.ec != std::errc() || result.ptr != end) {
+      core::ThrowInvalidInput(file.string() + ": metadata key '" + key + "' is not a number: '" + it->second + "'");
+    }
+    return value;
+  };
+  const double version = number("format_version");
+  if (version != kMapFormatVersion) {
+    core::ThrowInvalidInput(file.string() + ": format_version " + metadata["format_version"] +
+                            " is not supported (this build reads version " + std::to_string(kMapFormatVersion) + ")");
+  }
+  MapGrid& grid = store->grid_;
+  grid.mm_per_px = number("mm_per_px");
+  grid.origin_x_mm = number("origin_x_mm");
+  grid.origin_y_mm = number("origin_y_mm");
+  grid.tile_size_px = static_cast<int>(number("tile_size_px"));
+  grid.levels = static_cast<int>(number("levels"));
+  std::string why;
+  if (!grid.Check(&why)) core::ThrowInvalidInput(file.string() + ": metadata: " + why);
+  if (writable) store->Execute("PRAGMA journal_mode=WAL; PRAGMA synchronous=FULL;");
+  return store;
+}
+
+std::vector<unsigned char> TileStore::Encode(const cv::Mat& pixels) {
+  std::vector<unsigned char> png;
+  if (!cv::imencode(".png", pixels, png, {cv::IMWRITE_PNG_COMPRESSION, 3})) {
+    core::ThrowRuntime("cannot encode a map tile as PNG");
+  }
+  return png;
+}
+
+std::uint32_t TileStore::Crc32(const std::vector<unsigned char>& data) {
+  return static_cast<std::uint32_t>(
+      crc32(crc32(0L, Z_NULL, 0), data.data(), static_cast<uInt>(data.size())));
+}
+
+TileRead TileStore::Read(const TileKey& key) const {
+  TileRead result;
+  std::vector<unsigned char> data;
+  std::int64_t stored_crc = 0;
+  {
+    const std::lock_guard lock(mutex_);
+    const Statement statement(db_, "SELECT data, crc32 FROM tiles WHERE level = ? AND col = ? AND row = ?", file_);
+    sqlite3_bind_int(statement.get(), 1, key.level);
+    sqlite3_bind_int64(statement.get(), 2, key.col);
+    sqlite3_bind_int64(statement.get(), 3, key.row);
+    const int step = sqlite3_step(statement.get());
+    if (step == SQLITE_DONE) return result;  // absent: unmapped
+    if (step != SQLITE_ROW) {
+      result.status = TileStatus::kCorrupt;
+      result.problem = file_.string() + ": tile " + key.ToString() + ": cannot be read: " + sqlite3_errmsg(db_);
+      return result;
+    }
+    const auto* blob = static_cast<const unsigned char*>(sqlite3_column_blob(statement.get(), 0));
+    data.assign(blob, blob + sqlite3_column_bytes(statement.get(), 0));
+    stored_crc = sqlite3_column_int64(statement.get(), 1);
+  }
+  const auto corrupt = [&](const std::string& reason) {
+    result.status = TileStatus::kCorrupt;
+    result.problem = file_.string() + ": tile " + key.ToString() + ": " + reason;
+    return result;
+  };
+  if (static_cast<std::int64_t>(Crc32(data)) != stored_crc) return corrupt("CRC32 mismatch (the tile data is damaged)");
+  cv::Mat pixels = cv::imdecode(data, cv::IMREAD_UNCHANGED);
+  if (pixels.empty()) return corrupt("not a decodable PNG");
+  if (pixels.type() != CV_8UC1 || pixels.rows != grid_.tile_size_px || pixels.cols != grid_.tile_size_px) {
+    return corrupt("is not an 8-bit grey " + std::to_string(grid_.tile_size_px) + " px square");
+  }
+  result.status = TileStatus::kOk;
+  result.pixels = pixels;
+  return result;
+}
+
+void TileStore::Write(const std::vector<TileWrite>& tiles) {
+  std::vector<std::vector<unsigned char>> encoded;
+  encoded.reserve(tiles.size());
+  for (const auto& tile : tiles) {
+    if (tile.pixels.type() != CV_8UC1 || tile.pixels.rows != grid_.tile_size_px ||
+        tile.pixels.cols != grid_.tile_size_px) {
+      core::ThrowInvalidInput(file_.string() + ": tile " + tile.key.ToString() + " to write has the wrong size or type");
+    }
+    encoded.push_back(Encode(tile.pixels));
+  }
+  const std::lock_guard lock(mutex_);
+  Execute("BEGIN IMMEDIATE;");
+  try {
+    const Statement statement(db_, "INSERT OR REPLACE INTO tiles VALUES (?, ?, ?, ?, ?)", file_);
+    for (std::size_t i = 0; i < tiles.size(); ++i) {
+      sqlite3_reset(statement.get());
+      sqlite3_bind_int(statement.get(), 1, tiles[i].key.level);
+      sqlite3_bind_int64(statement.get(), 2, tiles[i].key.col);
+      sqlite3_bind_int64(statement.get(), 3, tiles[i].key.row);
+      sqlite3_bind_blob(statement.get(), 4, encoded[i].data(), static_cast<int>(encoded[i].size()), SQLITE_STATIC);
+      sqlite3_bind_int64(statement.get(), 5, static_cast<std::int64_t>(Crc32(encoded[i])));
+      if (sqlite3_step(statement.get()) != SQLITE_DONE) {
+        core::ThrowRuntime(file_.string() + ": cannot write tile " + tiles[i].key.ToString() + ": " + sqlite3_errmsg(db_));
+      }
+    }
+    Execute("COMMIT;");
+  } catch (...) {
+    sqlite3_exec(db_, "ROLLBACK;", nullptr, nullptr, nullptr);
+    throw;
+  }
+}
+
+std::vector<TileKey> TileStore::List(int level) const {
+  const std::lock_guard lock(mutex_);
+  const Statement statement(db_,
+                            level < 0 ? "SELECT level, col, row FROM tiles ORDER BY level, row, col"
+                                      : "SELECT level, col, row FROM tiles WHERE level = ? ORDER BY level, row, col",
+                            file_);
+  if (level >= 0) sqlite3_bind_int(statement.get(), 1, level);
+  std::vector<TileKey> keys;
+  while (sqlite3_step(statement.get()) == SQLITE_ROW) {
+    keys.push_back({sqlite3_column_int(statement.get(), 0), sqlite3_column_int64(statement.get(), 1),
+                    sqlite3_column_int64(statement.get(), 2)});
+  }
+  return keys;
+}
+
+std::int64_t TileStore::Count(int level) const {
+  const std::lock_guard lock(mutex_);
+  const Statement statement(db_, level < 0 ? "SELECT COUNT(*) FROM tiles" : "SELECT COUNT(*) FROM tiles WHERE level = ?",
+                            file_);
+  if (level >= 0) sqlite3_bind_int(statement.get(), 1, level);
+  return sqlite3_step(statement.get()) == SQLITE_ROW ? sqlite3_column_int64(statement.get(), 0) : 0;
+}
+
+}  // namespace mosaicloc::mosaic

@@ -1,0 +1,355 @@
+#include <signal.h>
+#include <sqlite3.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <random>
+#include <thread>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "mosaicloc/core/error.hpp"
+#include "mosaicloc/mosaic/builder.hpp"
+#include "mosaicloc/mosaic/renderer.hpp"
+#include "mosaicloc/mosaic/tile_cache.hpp"
+#include "mosaicloc/mosaic/tile_store.hpp"
+#include "mosaicloc/test/test_support.hpp"
+
+namespace mosaicloc::mosaic {
+namespace {
+
+using ::testing::HasSubstr;
+namespace fs = std::filesystem;
+
+// A textured source image: the real asphalt when the shared data is there, else smoothed noise.
+cv::Mat SourceTexture(int size) {
+  if (const auto file = test::SharedTexture("asphalt_02_2048.jpg")) {
+    cv::Mat grey = cv::imread(file->string(), cv::IMREAD_GRAYSCALE);
+    return grey(cv::Rect(0, 0, size, size)).clone();
+  }
+  cv::Mat noise(size, size, CV_8UC1);
+  cv::RNG rng(5);
+  rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(noise, noise, cv::Size(0, 0), 1.5);
+  cv::normalize(noise, noise, 10, 250, cv::NORM_MINMAX);
+  return noise;
+}
+
+// Stores `image` as level-0 pixels [0, cols) x [0, rows) (values clamped to [1, 255]).
+void StoreImage(TileStore& store, const cv::Mat& image) {
+  const int t = store.grid().tile_size_px;
+  std::vector<TileWrite> tiles;
+  for (int tr = 0; tr * t < image.rows; ++tr) {
+    for (int tc = 0; tc * t < image.cols; ++tc) {
+      cv::Mat tile = cv::Mat::zeros(t, t, CV_8UC1);
+      const cv::Rect from(tc * t, tr * t, std::min(t, image.cols - tc * t), std::min(t, image.rows - tr * t));
+      cv::max(image(from), 1, tile(cv::Rect(0, 0, from.width, from.height)));
+      tiles.push_back({TileKey{0, tc, tr}, tile});
+    }
+  }
+  store.Write(tiles);
+}
+
+double Zncc(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
+  cv::Mat result;
+  cv::Mat fa, fb;
+  a.convertTo(fa, CV_32F);
+  b.convertTo(fb, CV_32F);
+  const cv::Scalar ma = cv::mean(fa, mask), mb = cv::mean(fb, mask);
+  cv::Mat da = fa - ma[0], db = fb - mb[0];
+  da.setTo(0, ~mask);
+  db.setTo(0, ~mask);
+  return da.dot(db) / std::sqrt(da.dot(da) * db.dot(db));
+}
+
+TEST(MapGrid, PixelCentresFollowTheDesign) {
+  MapGrid grid;
+  grid.mm_per_px = 0.25;
+  grid.origin_x_mm = -100.0;
+  grid.origin_y_mm = 50.0;
+  // Pixel (col 2, row 3) of level 0 has its centre at x0 + 2.5 r, y0 - 3.5 r.
+  const Eigen::Vector2d world = grid.RasterToWorld({2.0, 3.0}, 0);
+  EXPECT_DOUBLE_EQ(world.x(), -100.0 + 2.5 * 0.25);
+  EXPECT_DOUBLE_EQ(world.y(), 50.0 - 3.5 * 0.25);
+  // Level 2 pixel (0, 0) covers level-0 pixels [0, 4): its centre is at level-0 raster 1.5.
+  const Eigen::Vector2d level0 = grid.WorldToRaster(grid.RasterToWorld({0.0, 0.0}, 2), 0);
+  EXPECT_DOUBLE_EQ(level0.x(), 1.5);
+  EXPECT_DOUBLE_EQ(level0.y(), 1.5);
+  EXPECT_EQ(FloorDiv(-1, 256), -1);
+  EXPECT_EQ(FloorDiv(-256, 256), -1);
+  EXPECT_EQ(FloorDiv(255, 256), 0);
+}
+
+TEST(TileStore, RoundTripAndMetadata) {
+  test::ScratchDir dir;
+  MapGrid grid;
+  grid.mm_per_px = 0.2;
+  grid.origin_x_mm = 12.5;
+  grid.tile_size_px = 64;
+  {
+    auto store = TileStore::Create(dir / "a.mosaic", grid);
+    cv::Mat tile(64, 64, CV_8UC1);
+    cv::randu(tile, 1, 255);
+    store->Write({{TileKey{0, -3, 7}, tile}, {TileKey{1, 0, 0}, tile}});
+    EXPECT_EQ(store->Count(), 2);
+  }
+  auto store = TileStore::Open(dir / "a.mosaic", false);
+  EXPECT_DOUBLE_EQ(store->grid().mm_per_px, 0.2);
+  EXPECT_DOUBLE_EQ(store->grid().origin_x_mm, 12.5);
+  EXPECT_EQ(store->grid().tile_size_px, 64);
+  EXPECT_EQ(store->Read(TileKey{0, -3, 7}).status, TileStatus::kOk);
+  EXPECT_EQ(store->Read(TileKey{0, 0, 0}).status, TileStatus::kAbsent);
+  ASSERT_EQ(store->List(0).size(), 1u);
+  EXPECT_EQ(store->List(0)[0].col, -3);
+  EXPECT_THROW(TileStore::Create(dir / "a.mosaic", grid), core::Error);
+}
+
+void SqlOn(const fs::path& file, const std::string& sql) {
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(file.c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(db, sql.c_str(), nullptr, nullptr, nullptr), SQLITE_OK) << sqlite3_errmsg(db);
+  sqlite3_close(db);
+}
+
+TEST(TileStore, BadMetadataIsNamed) {
+  test::ScratchDir dir;
+  TileStore::Create(dir / "m.mosaic", MapGrid{});
+  SqlOn(dir / "m.mosaic", "UPDATE metadata SET value = '7' WHERE name = 'format_version'");
+  try {
+    TileStore::Open(dir / "m.mosaic", false);
+    FAIL();
+  } catch (const core::Error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("format_version 7 is not supported"));
+  }
+  SqlOn(dir / "m.mosaic", "UPDATE metadata SET value = '1' WHERE name = 'format_version'; DELETE FROM metadata WHERE name = 'levels'");
+  try {
+    TileStore::Open(dir / "m.mosaic", false);
+    FAIL();
+  } catch (const core::Error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("metadata key 'levels' is missing"));
+  }
+  test::WriteFile(dir / "junk.mosaic", "this is not a database");
+  EXPECT_THROW(TileStore::Open(dir / "junk.mosaic", false), core::Error);
+  EXPECT_THROW(TileStore::Open(dir / "none.mosaic", false), core::Error);
+}
+
+TEST(TileStore, CorruptTileIsNamedAndTheRestStillWorks) {
+  test::ScratchDir dir;
+  MapGrid grid;
+  grid.tile_size_px = 64;
+  {
+    auto store = TileStore::Create(dir / "c.mosaic", grid);
+    StoreImage(*store, SourceTexture(192));  // 3 x 3 tiles
+  }
+  // Flip bytes inside one tile's PNG, as a failing disk would.
+  SqlOn(dir / "c.mosaic",
+        "UPDATE tiles SET data = substr(data, 1, 100) || X'DEADBEEF' || substr(data, 105) WHERE col = 1 AND row = 2");
+  auto store = TileStore::Open(dir / "c.mosaic", false);
+  const TileRead bad = store->Read(TileKey{0, 1, 2});
+  EXPECT_EQ(bad.status, TileStatus::kCorrupt);
+  EXPECT_THAT(bad.problem, HasSubstr("tile level 0 col 1 row 2: CRC32 mismatch"));
+  EXPECT_TRUE(bad.pixels.empty());
+  // A view over the damaged tile renders the rest and reports the damage.
+  TileCache cache(*store);
+  const MapRenderer renderer(cache);
+  const RasterPatch patch = renderer.Region(0, 0, 0, 192, 192);
+  ASSERT_EQ(patch.problems.size(), 1u);
+  EXPECT_EQ(cv::countNonZero(patch.mask), 192 * 192 - 64 * 64);
+  EXPECT_EQ(cv::countNonZero(patch.image(cv::Rect(64, 128, 64, 64))), 0);
+}
+
+TEST(TileCache, StaysUnderBudgetAndCounts) {
+  test::ScratchDir dir;
+  MapGrid grid;
+  grid.tile_size_px = 64;
+  auto store = TileStore::Create(dir / "b.mosaic", grid);
+  StoreImage(*store, SourceTexture(512));  // 64 tiles of 4 KiB
+  TileCache cache(*store, 10 * (64 * 64 + 256));
+  for (int round = 0; round < 2; ++round) {
+    for (int r = 0; r < 8; ++r) {
+      for (int c = 0; c < 8; ++c) {
+        EXPECT_EQ(cache.Get(TileKey{0, c, r})->status, TileStatus::kOk);
+        EXPECT_LE(cache.stats().bytes, cache.budget_bytes());
+      }
+    }
+  }
+  const TileCacheStats stats = cache.stats();
+  EXPECT_EQ(stats.misses, 128);  // cyclic access larger than the cache: LRU always misses
+  EXPECT_EQ(stats.evictions, 118);
+  EXPECT_EQ(stats.tiles, 10u);
+  cache.Get(TileKey{0, 7, 7});
+  EXPECT_EQ(cache.stats().hits, 1);
+}
+
+TEST(TileCache, ConcurrentReadersAgree) {
+  test::ScratchDir dir;
+  MapGrid grid;
+  grid.tile_size_px = 64;
+  auto store = TileStore::Create(dir / "t.mosaic", grid);
+  const cv::Mat source = SourceTexture(512);
+  StoreImage(*store, source);
+  TileCache cache(*store, 16 * 4096);
+  std::vector<std::thread> threads;
+  std::atomic<int> mismatches{0};
+  for (int i = 0; i < 4; ++i) {
+    threads.emplace_back([&, i] {
+      std::mt19937 rng(i);
+      for (int n = 0; n < 300; ++n) {
+        const int c = static_cast<int>(rng() % 8), r = static_cast<int>(rng() % 8);
+        const auto tile = cache.Get(TileKey{0, c, r});
+        cv::Mat expected;
+        cv::max(source(cv::Rect(c * 64, r * 64, 64, 64)), 1, expected);
+        if (cv::norm(tile->pixels, expected, cv::NORM_INF) != 0) ++mismatches;
+      }
+    });
+  }
+  for (auto& thread : threads) thread.join();
+  EXPECT_EQ(mismatches.load(), 0);
+  EXPECT_LE(cache.stats().bytes, cache.budget_bytes());
+}
+
+TEST(MapRenderer, ViewEqualsADirectWarpOfTheSource) {
+  test::ScratchDir dir;
+  MapGrid grid;
+  grid.tile_size_px = 128;
+  auto store = TileStore::Create(dir / "r.mosaic", grid);
+  cv::Mat source = SourceTexture(1024);
+  cv::max(source, 1, source);
+  StoreImage(*store, source);
+  TileCache cache(*store);
+  const MapRenderer renderer(cache);
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> position(100.0, 156.0);  // keeps the view inside the source
+  std::uniform_real_distribution<double> yaw(-3.2, 3.2);
+  for (int trial = 0; trial < 20; ++trial) {
+    const core::Pose2 world_from_camera(position(rng), -position(rng), yaw(rng));
+    const double view_mm_per_px = trial % 2 ? 0.25 : 0.3;
+    const RenderedView view = renderer.RenderView(world_from_camera, 320, 240, view_mm_per_px, 0);
+    EXPECT_DOUBLE_EQ(view.mapped_fraction, 1.0);
+    // The same view by warping the whole source image directly (raster = source pixel).
+    cv::Mat map(2, 3, CV_64F);
+    const Eigen::Matrix2d r = world_from_camera.Rotation();
+    const double k = view_mm_per_px / grid.mm_per_px;
+    const Eigen::Vector2d centre = grid.WorldToRaster(world_from_camera.translation_mm(), 0);
+    map.at<double>(0, 0) = r(0, 0) * k;
+    map.at<double>(0, 1) = -r(0, 1) * k;
+    map.at<double>(1, 0) = -r(1, 0) * k;
+    map.at<double>(1, 1) = r(1, 1) * k;
+    map.at<double>(0, 2) = centre.x() - map.at<double>(0, 0) * 159.5 - map.at<double>(0, 1) * 119.5;
+    map.at<double>(1, 2) = centre.y() - map.at<double>(1, 0) * 159.5 - map.at<double>(1, 1) * 119.5;
+    cv::Mat direct;
+    cv::warpAffine(source, direct, map, cv::Size(320, 240), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP);
+    cv::Mat difference;
+    cv::absdiff(view.image, direct, difference);
+    EXPECT_LE(cv::norm(difference, cv::NORM_INF), 1.0) << "trial " << trial;
+    EXPECT_LT(cv::mean(difference)[0], 0.02) << "trial " << trial;
+  }
+}
+
+TEST(MapRenderer, MaskMarksUnmappedArea) {
+  test::ScratchDir dir;
+  MapGrid grid;
+  grid.tile_size_px = 64;
+  auto store = TileStore::Create(dir / "u.mosaic", grid);
+  StoreImage(*store, SourceTexture(128));  // 128 x 128 px = 32 x 32 mm mapped from (0, 0)
+  TileCache cache(*store);
+  const MapRenderer renderer(cache);
+  // A view centred on the map's right edge sees half mapped, half not.
+  const RenderedView view = renderer.RenderView(core::Pose2(32.0, -16.0, 0.0), 64, 64, 0.25, 0);
+  EXPECT_NEAR(view.mapped_fraction, 0.5, 0.02);
+  EXPECT_EQ(cv::countNonZero(view.image(cv::Rect(40, 0, 24, 64))), 0);
+  const RenderedView outside = renderer.RenderView(core::Pose2(500.0, 500.0, 0.0), 64, 64, 0.25, 0);
+  EXPECT_EQ(outside.mapped_fraction, 0.0);
+}
+
+TEST(MapBuilder, PaintedMapReproducesTheFrames) {
+  const cv::Mat source = SourceTexture(1024);  // the "floor": raster pixel = source pixel, 0.25 mm
+  MapGrid grid;
+  grid.tile_size_px = 128;
+  grid.levels = 3;
+  for (const Blend blend : {Blend::kFeather, Blend::kBestView}) {
+    MapBuilder builder(grid, blend);
+    std::vector<std::pair<core::Pose2, cv::Mat>> frames;
+    for (int i = 0; i < 12; ++i) {
+      // Overlapping frames along a gentle curve, each the exact view of the floor there.
+      const core::Pose2 pose(60.0 + 12.0 * i, -120.0 - 3.0 * i, 0.05 * i);
+      cv::Mat map(2, 3, CV_64F);
+      const Eigen::Matrix2d r = pose.Rotation();
+      const Eigen::Vector2d centre = grid.WorldToRaster(pose.translation_mm(), 0);
+      map.at<double>(0, 0) = r(0, 0);
+      map.at<double>(0, 1) = -r(0, 1);
+      map.at<double>(1, 0) = -r(1, 0);
+      map.at<double>(1, 1) = r(1, 1);
+      map.at<double>(0, 2) = centre.x() - map.at<double>(0, 0) * 159.5 - map.at<double>(0, 1) * 119.5;
+      map.at<double>(1, 2) = centre.y() - map.at<double>(1, 0) * 159.5 - map.at<double>(1, 1) * 119.5;
+      cv::Mat frame;
+      cv::warpAffine(source, frame, map, cv::Size(320, 240), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP);
+      builder.AddFrame(frame, pose, 0.25);
+      frames.emplace_back(pose, frame);
+    }
+    test::ScratchDir dir;
+    auto store = TileStore::Create(dir / "p.mosaic", grid);
+    builder.Write(*store);
+    EXPECT_GT(store->Count(2), 0);
+    TileCache cache(*store);
+    const MapRenderer renderer(cache);
+    for (const auto& [pose, frame] : frames) {
+      const RenderedView view = renderer.RenderView(pose, 320, 240, 0.25, 0);
+      EXPECT_GT(view.mapped_fraction, 0.99);
+      EXPECT_GT(Zncc(view.image, frame, view.mask), 0.98);
+    }
+  }
+}
+
+TEST(TileStore, KilledWriterLeavesEveryTileOldOrNew) {
+  test::ScratchDir dir;
+  MapGrid grid;
+  grid.tile_size_px = 64;
+  const fs::path file = dir / "k.mosaic";
+  {
+    auto store = TileStore::Create(file, grid);
+    std::vector<TileWrite> tiles;
+    for (int c = 0; c < 16; ++c) tiles.push_back({TileKey{0, c, 0}, cv::Mat(64, 64, CV_8UC1, cv::Scalar(10))});
+    store->Write(tiles);
+  }
+  int updated = 0;
+  for (int attempt = 0; attempt < 5; ++attempt) {
+    const pid_t child = fork();
+    ASSERT_GE(child, 0);
+    if (child == 0) {
+      // Rewrites all tiles again and again, each pass in one transaction, new value per pass.
+      auto store = TileStore::Open(file, true);
+      for (int pass = 0;; ++pass) {
+        std::vector<TileWrite> tiles;
+        for (int c = 0; c < 16; ++c) {
+          tiles.push_back({TileKey{0, c, 0}, cv::Mat(64, 64, CV_8UC1, cv::Scalar(20 + pass % 200))});
+        }
+        store->Write(tiles);
+      }
+    }
+    usleep(20000 + 15000 * attempt);
+    kill(child, SIGKILL);
+    waitpid(child, nullptr, 0);
+    auto store = TileStore::Open(file, false);
+    int first_value = -1;
+    for (int c = 0; c < 16; ++c) {
+      const TileRead read = store->Read(TileKey{0, c, 0});
+      ASSERT_EQ(read.status, TileStatus::kOk) << read.problem;
+      double lo = 0, hi = 0;
+      cv::minMaxLoc(read.pixels, &lo, &hi);
+      EXPECT_EQ(lo, hi);  // never a half-written tile
+      if (first_value < 0) first_value = static_cast<int>(lo);
+      EXPECT_EQ(static_cast<int>(lo), first_value);  // one transaction: all tiles from the same pass
+    }
+    if (first_value != 10) ++updated;
+  }
+  EXPECT_GT(updated, 0) << "the writer never committed before it was killed: the test proved nothing";
+}
+
+}  // namespace
+}  // namespace mosaicloc::mosaic
