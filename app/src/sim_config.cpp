@@ -26,12 +26,15 @@ void ReadSimulatorConfig(const YAML::Node& node, const std::string& file_name, s
 
   core::YamlMap route = root.OptionalMap("route");
   sim::RouteOptions& r = options->route;
-  route.Optional("name", &r.name, core::OneOf({"straight", "loop", "network"}));
+  route.Optional("name", &r.name, core::OneOf({"straight", "loop", "network", "serpentine"}));
   route.Optional("straight_length_m", &r.straight_length_m, Positive());
   route.Optional("loop_width_m", &r.loop_width_m, Positive());
   route.Optional("loop_height_m", &r.loop_height_m, Positive());
   route.Optional("corner_radius_m", &r.corner_radius_m, Positive());
   route.Optional("network_scale", &r.network_scale, InRange(0.05, 100.0));
+  route.Optional("serpentine_rows", &r.serpentine_rows, IntegerInRange(2, 10000));
+  route.Optional("serpentine_length_m", &r.serpentine_length_m, Positive());
+  route.Optional("serpentine_spacing_m", &r.serpentine_spacing_m, Positive());
   route.Optional("speed_mps", &r.speed_mps, InRange(0.001, 30.0));
   route.Optional("max_accel_mps2", &r.max_accel_mps2, Positive());
   route.Optional("max_lateral_accel_mps2", &r.max_lateral_accel_mps2, Positive());

@@ -89,8 +89,8 @@ Action AddSimulateCommand(CLI::App& app, const GlobalOptions& global) {
   command->add_option("--floor-mm-per-texel", args->floor_mm_per_texel,
                       "Floor texel size in mm (default 0.125 procedural, 0.25 image)")
       ->check(CLI::PositiveNumber);
-  command->add_option("--route", args->route, "straight, loop (default) or network")
-      ->check(CLI::IsMember({"straight", "loop", "network"}));
+  command->add_option("--route", args->route, "straight, loop (default), network or serpentine")
+      ->check(CLI::IsMember({"straight", "loop", "network", "serpentine"}));
   auto* frames = command->add_option("--frames", args->frames, "Frames to capture (default 900)")
                      ->check(CLI::PositiveNumber);
   command->add_option("--laps", args->laps, "Complete laps to drive, whatever the speed")

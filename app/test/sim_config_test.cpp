@@ -25,6 +25,9 @@ TEST(SimulatorConfig, DefaultFileEqualsCompiledDefaults) {
   EXPECT_EQ(loaded.route.loop_height_m, defaults.route.loop_height_m);
   EXPECT_EQ(loaded.route.corner_radius_m, defaults.route.corner_radius_m);
   EXPECT_EQ(loaded.route.network_scale, defaults.route.network_scale);
+  EXPECT_EQ(loaded.route.serpentine_rows, defaults.route.serpentine_rows);
+  EXPECT_EQ(loaded.route.serpentine_length_m, defaults.route.serpentine_length_m);
+  EXPECT_EQ(loaded.route.serpentine_spacing_m, defaults.route.serpentine_spacing_m);
   EXPECT_EQ(loaded.route.speed_mps, defaults.route.speed_mps);
   EXPECT_EQ(loaded.route.max_accel_mps2, defaults.route.max_accel_mps2);
   EXPECT_EQ(loaded.route.max_lateral_accel_mps2, defaults.route.max_lateral_accel_mps2);

@@ -41,9 +41,16 @@ const cv::Mat& MapBuilder::WeightMap(int width, int height) {
 void MapBuilder::AddFrame(const cv::Mat& image, const core::Pose2& world_from_camera, double mm_per_px) {
   if (image.type() != CV_8UC1 || image.empty()) core::ThrowInvalidInput("map builder: frames must be 8-bit grey");
   ++frames_;
+  // Warp (value x weight, weight) in one two-channel pass: interpolating both with the same
+  // kernel keeps value = channel 0 / channel 1 right even where the frame's edge is sampled.
+  // Bicubic, not bilinear: the map is rendered by a second (bilinear) interpolation, and two
+  // bilinear passes blur pixel-scale texture (real asphalt: frame-to-view ZNCC 0.970 -> 0.997).
   const cv::Mat& weights = WeightMap(image.cols, image.rows);
   cv::Mat values;
   image.convertTo(values, CV_32F);
+  cv::Mat weighted[2] = {values.mul(weights), weights};
+  cv::Mat prepared;
+  cv::merge(weighted, 2, prepared);
 
   // Level-0 raster (col, row) -> world -> image pixel: an affine map.
   const double res = grid_.mm_per_px;
@@ -92,43 +99,40 @@ void MapBuilder::AddFrame(const cv::Mat& image, const core::Pose2& world_from_ca
       map.at<double>(1, 0) = linear(1, 0);
       map.at<double>(1, 1) = linear(1, 1);
       map.at<double>(1, 2) = shifted.y();
-      cv::Mat frame_values;
-      cv::Mat frame_weights;
-      cv::warpAffine(values, frame_values, map, roi.size(), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP,
-                     cv::BORDER_REPLICATE);
-      cv::warpAffine(weights, frame_weights, map, roi.size(), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP,
-                     cv::BORDER_CONSTANT, cv::Scalar(0));
+      cv::Mat warped;
+      cv::warpAffine(prepared, warped, map, roi.size(), cv::INTER_CUBIC | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT,
+                     cv::Scalar(0, 0));
       auto [it, inserted] = accumulators_.try_emplace(TileKey{0, tc, tr});
-      if (inserted) {
-        it->second.value = cv::Mat::zeros(static_cast<int>(t), static_cast<int>(t), CV_32F);
-        it->second.weight = cv::Mat::zeros(static_cast<int>(t), static_cast<int>(t), CV_32F);
-      }
-      cv::Mat value = it->second.value(roi);
-      cv::Mat weight = it->second.weight(roi);
+      if (inserted) it->second = cv::Mat::zeros(static_cast<int>(t), static_cast<int>(t), CV_32FC2);
+      cv::Mat accumulator = it->second(roi);
       if (blend_ == Blend::kFeather) {
-        value += frame_values.mul(frame_weights);
-        weight += frame_weights;
-      } else {
-        const cv::Mat better = frame_weights > weight;
-        frame_values.copyTo(value, better);
-        frame_weights.copyTo(weight, better);
+        accumulator += warped;
+        continue;
+      }
+      for (int y = 0; y < roi.height; ++y) {
+        auto* best = accumulator.ptr<cv::Vec2f>(y);
+        const auto* candidate = warped.ptr<cv::Vec2f>(y);
+        for (int x = 0; x < roi.width; ++x) {
+          if (candidate[x][1] > best[x][1]) best[x] = cv::Vec2f(candidate[x][0] / candidate[x][1], candidate[x][1]);
+        }
       }
     }
   }
 }
 
 cv::Mat MapBuilder::FinishTile(const TileKey& key) const {
-  const Accumulator& acc = accumulators_.at(key);
+  cv::Mat channels[2];
+  cv::split(accumulators_.at(key), channels);
   cv::Mat mean;
   if (blend_ == Blend::kFeather) {
-    cv::divide(acc.value, cv::max(acc.weight, 1e-12), mean);
+    cv::divide(channels[0], cv::max(channels[1], 1e-12), mean);
   } else {
-    mean = acc.value;
+    mean = channels[0];
   }
   cv::Mat out;
   mean.convertTo(out, CV_8U);
   cv::max(out, 1, out);  // 0 means unmapped
-  out.setTo(cv::Scalar(kUnmapped), acc.weight <= 1e-6);
+  out.setTo(cv::Scalar(kUnmapped), channels[1] <= 1e-6);
   return out;
 }
 

@@ -13,7 +13,7 @@ RasterPatch MapRenderer::Region(int level, std::int64_t col0, std::int64_t row0,
   patch.level = level;
   patch.col0 = col0;
   patch.row0 = row0;
-  patch.image = cv::Mat::zeros(rows, cols, CV_8UC1);
+  patch.image.create(rows, cols, CV_8UC1);  // every pixel is written below
   bool all_full = true;
   const std::int64_t t = grid().tile_size_px;
   for (std::int64_t tr = FloorDiv(row0, t); tr <= FloorDiv(row0 + rows - 1, t); ++tr) {
@@ -24,12 +24,6 @@ RasterPatch MapRenderer::Region(int level, std::int64_t col0, std::int64_t row0,
         tile = cache_.Get(key);
         ++patch.tiles_loaded;
       }
-      if (tile->status == TileStatus::kCorrupt) patch.problems.push_back(tile->problem);
-      if (tile->status != TileStatus::kOk) {
-        all_full = false;
-        continue;
-      }
-      all_full = all_full && tile->fully_mapped;
       // Overlap of the tile with the region, in level pixels.
       const std::int64_t x0 = std::max(col0, tc * t);
       const std::int64_t y0 = std::max(row0, tr * t);
@@ -38,9 +32,17 @@ RasterPatch MapRenderer::Region(int level, std::int64_t col0, std::int64_t row0,
       const cv::Rect from(static_cast<int>(x0 - tc * t), static_cast<int>(y0 - tr * t), static_cast<int>(x1 - x0),
                           static_cast<int>(y1 - y0));
       const cv::Rect to(static_cast<int>(x0 - col0), static_cast<int>(y0 - row0), from.width, from.height);
+      if (tile->status == TileStatus::kCorrupt) patch.problems.push_back(tile->problem);
+      if (tile->status != TileStatus::kOk) {
+        all_full = false;
+        patch.image(to).setTo(cv::Scalar(kUnmapped));
+        continue;
+      }
+      all_full = all_full && tile->fully_mapped;
       tile->pixels(from).copyTo(patch.image(to));
     }
   }
+  patch.all_mapped = all_full;
   patch.mask = all_full ? cv::Mat(rows, cols, CV_8UC1, cv::Scalar(255)) : (patch.image != kUnmapped);
   return patch;
 }
@@ -98,7 +100,7 @@ RenderedView MapRenderer::RenderView(const core::Pose2& world_from_camera, int w
   const cv::Size size(width_px, height_px);
   cv::warpAffine(region.image, view.image, map, size, cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT,
                  cv::Scalar(kUnmapped));
-  if (cv::countNonZero(region.mask) == static_cast<int>(region.mask.total())) {
+  if (region.all_mapped) {
     view.mask = cv::Mat(size, CV_8UC1, cv::Scalar(255));
     view.mapped_fraction = 1.0;
     return view;

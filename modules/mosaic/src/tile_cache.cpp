@@ -10,8 +10,26 @@ namespace mosaicloc::mosaic {
 TileCache::TileCache(const TileStore& store, std::size_t budget_bytes) : store_(store), budget_bytes_(budget_bytes) {}
 
 std::size_t TileCache::Bytes(const Tile& tile) {
-  constexpr std::size_t kOverhead = 256;  // entry, list node, shared_ptr control block
+  constexpr std::size_t kOverhead = 512;  // entry, list node, control block, Mat header
   return kOverhead + tile.pixels.total() * tile.pixels.elemSize() + tile.problem.size();
+}
+
+cv::Mat TileCache::BufferPool::Take(int tile_size_px) {
+  constexpr int kSlabTiles = 64;
+  const std::lock_guard lock(mutex);
+  if (free.empty()) {
+    cv::Mat slab(kSlabTiles * tile_size_px, tile_size_px, CV_8UC1);
+    for (int i = 0; i < kSlabTiles; ++i) free.push_back(slab.rowRange(i * tile_size_px, (i + 1) * tile_size_px));
+    slabs.push_back(slab);
+  }
+  cv::Mat slot = free.back();
+  free.pop_back();
+  return slot;
+}
+
+void TileCache::BufferPool::Give(cv::Mat slot) {
+  const std::lock_guard lock(mutex);
+  free.push_back(std::move(slot));
 }
 
 std::shared_ptr<const Tile> TileCache::Peek(const TileKey& key) {
@@ -39,14 +57,7 @@ std::shared_ptr<const Tile> TileCache::Get(const TileKey& key) {
     ++stats_.misses;
   }
   const auto start = std::chrono::steady_clock::now();
-  TileRead read = store_.Read(key);
-  auto tile = std::make_shared<Tile>();
-  tile->status = read.status;
-  tile->problem = std::move(read.problem);
-  if (read.status == TileStatus::kOk) {
-    tile->pixels = std::move(read.pixels);
-    tile->fully_mapped = cv::countNonZero(tile->pixels) == static_cast<int>(tile->pixels.total());
-  }
+  std::shared_ptr<const Tile> tile = MakeTile(key);
   const double load_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 
   const std::lock_guard lock(mutex_);
@@ -61,6 +72,25 @@ std::shared_ptr<const Tile> TileCache::Get(const TileKey& key) {
   stats_.bytes += bytes;
   EvictLocked();
   return tile;
+}
+
+std::shared_ptr<const Tile> TileCache::MakeTile(const TileKey& key) {
+  // Decode straight into a slot; the tile's deleter gives the slot back.
+  cv::Mat slot = pool_->Take(store_.grid().tile_size_px);
+  TileRead read = store_.Read(key, slot);
+  std::weak_ptr<BufferPool> pool = pool_;
+  auto* tile = new Tile();
+  std::shared_ptr<Tile> shared(tile, [pool, slot](Tile* dying) {
+    delete dying;
+    if (const auto alive = pool.lock()) alive->Give(slot);
+  });
+  tile->status = read.status;
+  tile->problem = std::move(read.problem);
+  if (read.status == TileStatus::kOk) {
+    tile->pixels = std::move(read.pixels);
+    tile->fully_mapped = cv::countNonZero(tile->pixels) == static_cast<int>(tile->pixels.total());
+  }
+  return shared;
 }
 
 void TileCache::EvictLocked() {

@@ -148,7 +148,7 @@ std::uint32_t TileStore::Crc32(const std::vector<unsigned char>& data) {
       crc32(crc32(0L, Z_NULL, 0), data.data(), static_cast<uInt>(data.size())));
 }
 
-TileRead TileStore::Read(const TileKey& key) const {
+TileRead TileStore::Read(const TileKey& key, cv::Mat buffer) const {
   TileRead result;
   std::vector<unsigned char> data;
   std::int64_t stored_crc = 0;
@@ -175,7 +175,8 @@ TileRead TileStore::Read(const TileKey& key) const {
     return result;
   };
   if (static_cast<std::int64_t>(Crc32(data)) != stored_crc) return corrupt("CRC32 mismatch (the tile data is damaged)");
-  cv::Mat pixels = cv::imdecode(data, cv::IMREAD_UNCHANGED);
+  cv::Mat pixels = buffer;
+  cv::imdecode(data, cv::IMREAD_UNCHANGED, &pixels);
   if (pixels.empty()) return corrupt("not a decodable PNG");
   if (pixels.type() != CV_8UC1 || pixels.rows != grid_.tile_size_px || pixels.cols != grid_.tile_size_px) {
     return corrupt("is not an 8-bit grey " + std::to_string(grid_.tile_size_px) + " px square");

@@ -15,6 +15,7 @@
 
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/mosaic/builder.hpp"
+#include "mosaicloc/mosaic/prefetcher.hpp"
 #include "mosaicloc/mosaic/renderer.hpp"
 #include "mosaicloc/mosaic/tile_cache.hpp"
 #include "mosaicloc/mosaic/tile_store.hpp"
@@ -169,7 +170,7 @@ TEST(TileCache, StaysUnderBudgetAndCounts) {
   grid.tile_size_px = 64;
   auto store = TileStore::Create(dir / "b.mosaic", grid);
   StoreImage(*store, SourceTexture(512));  // 64 tiles of 4 KiB
-  TileCache cache(*store, 10 * (64 * 64 + 256));
+  TileCache cache(*store, 10 * (64 * 64 + 512));
   for (int round = 0; round < 2; ++round) {
     for (int r = 0; r < 8; ++r) {
       for (int c = 0; c < 8; ++c) {
@@ -193,7 +194,7 @@ TEST(TileCache, ConcurrentReadersAgree) {
   auto store = TileStore::Create(dir / "t.mosaic", grid);
   const cv::Mat source = SourceTexture(512);
   StoreImage(*store, source);
-  TileCache cache(*store, 16 * 4096);
+  TileCache cache(*store, 16 * (64 * 64 + 512));
   std::vector<std::thread> threads;
   std::atomic<int> mismatches{0};
   for (int i = 0; i < 4; ++i) {
@@ -349,6 +350,41 @@ TEST(TileStore, KilledWriterLeavesEveryTileOldOrNew) {
     if (first_value != 10) ++updated;
   }
   EXPECT_GT(updated, 0) << "the writer never committed before it was killed: the test proved nothing";
+}
+
+}  // namespace
+}  // namespace mosaicloc::mosaic
+
+namespace mosaicloc::mosaic {
+namespace {
+
+TEST(TilePrefetcher, WarmsTheTilesAheadSoRendersDoNotWait) {
+  test::ScratchDir dir;
+  MapGrid grid;
+  grid.tile_size_px = 64;
+  auto store = TileStore::Create(dir / "f.mosaic", grid);
+  StoreImage(*store, SourceTexture(1024));  // 256 x 256 mm from (0, 0) to (256, -256)
+  TileCache cache(*store);
+  const MapRenderer renderer(cache);
+  PrefetchOptions options;
+  options.view_radius_mm = 30.0;  // a 160 x 120 px view at 0.25 mm is 40 x 30 mm: half diagonal 25 mm
+  options.horizon_s = 1.0;
+  TilePrefetcher prefetcher(cache, options);
+  // Driving along y = -128 mm at 100 mm/s: predict, let the prefetcher work, then render
+  // where the vehicle will be half a second later.
+  int waited = 0;
+  for (double x = 40.0; x <= 200.0; x += 20.0) {
+    const core::Pose2 pose(x, -128.0, 0.0);
+    prefetcher.Predict(pose, {100.0, 0.0}, 0.0);
+    prefetcher.WaitIdle();
+    waited += renderer.RenderView(core::Pose2(x + 50.0, -128.0, 0.0), 160, 120, 0.25, 0).tiles_loaded;
+  }
+  EXPECT_EQ(waited, 0);
+  EXPECT_GT(prefetcher.tiles_requested(), 0);
+  // Without a prediction the render ahead has to load.
+  TileCache cold(*store);
+  const MapRenderer cold_renderer(cold);
+  EXPECT_GT(cold_renderer.RenderView(core::Pose2(90.0, -128.0, 0.0), 160, 120, 0.25, 0).tiles_loaded, 0);
 }
 
 }  // namespace

@@ -36,6 +36,16 @@ std::vector<Primitive> LapPrimitives(const RouteOptions& o) {
       lap.push_back(Line((side % 2 == 0 ? o.loop_width_m : o.loop_height_m) - 2.0 * r));
       lap.push_back(Arc(r, kPi / 2));
     }
+  } else if (o.name == "serpentine") {
+    const double r = 0.5 * o.serpentine_spacing_m;
+    for (int row = 0; row < o.serpentine_rows; ++row) {
+      lap.push_back(Line(o.serpentine_length_m));
+      // Half turns alternate right and left; after the last row, back up the side.
+      if (row + 1 < o.serpentine_rows) lap.push_back(Arc(r, row % 2 == 0 ? -kPi : kPi));
+    }
+    lap.push_back(Arc(r, -kPi / 2));
+    if (o.serpentine_rows > 2) lap.push_back(Line((o.serpentine_rows - 2) * o.serpentine_spacing_m));
+    lap.push_back(Arc(r, -kPi / 2));
   } else {  // network: see RouteOptions; unit layout 12 m x 6 m, turns of radius 1 m
     const double k = o.network_scale;
     const auto line = [&](double m, int direction = 1) { lap.push_back(Line(m * k, direction)); };
@@ -57,8 +67,12 @@ std::vector<Primitive> LapPrimitives(const RouteOptions& o) {
 }  // namespace
 
 bool RouteOptions::Check(std::string* why) const {
-  if (name != "straight" && name != "loop" && name != "network") {
-    *why = "route must be straight, loop or network, got '" + name + "'";
+  if (name != "straight" && name != "loop" && name != "network" && name != "serpentine") {
+    *why = "route must be straight, loop, network or serpentine, got '" + name + "'";
+    return false;
+  }
+  if (serpentine_rows < 2 || serpentine_rows % 2 != 0 || !(serpentine_length_m > 0.0) || !(serpentine_spacing_m > 0.0)) {
+    *why = "serpentine_rows must be even and >= 2, serpentine_length_m and serpentine_spacing_m > 0";
     return false;
   }
   if (!(speed_mps > 0.0 && speed_mps <= 30.0)) {

@@ -53,6 +53,20 @@ TEST(Drive, NetworkLapClosesReversesInTheSpurAndHasJunctions) {
   EXPECT_TRUE(at_spur_end);
 }
 
+TEST(Drive, SerpentineCoversRowsAndCloses) {
+  RouteOptions options = Route("serpentine");
+  options.lateral_deviation_mm = 0.0;
+  const Drive drive(options, 2, 1);
+  // 6 rows of 4 m, 5 half turns and two quarter turns of radius 0.25 m, 2 m back up the side.
+  EXPECT_NEAR(drive.lap_length_m(), 6 * 4.0 + 6 * std::numbers::pi * 0.25 + 2.0, 1e-9);
+  const core::Pose2 start = drive.At(0.0).world_from_vehicle;
+  EXPECT_LT(core::Distance(start, drive.At(drive.duration_s()).world_from_vehicle), 1e-5);
+  // The rows lie 0.5 m apart: y reaches -2.5 m.
+  double min_y = 0.0;
+  for (double t = 0.0; t < drive.duration_s(); t += 0.05) min_y = std::min(min_y, drive.At(t).world_from_vehicle.y_mm());
+  EXPECT_NEAR(min_y, -2500.0, 1.0);
+}
+
 TEST(Drive, SpeedProfileRespectsLimits) {
   RouteOptions options = Route("loop");
   options.speed_mps = 2.0;

@@ -39,10 +39,9 @@ class MapBuilder {
   cv::Mat FinishTile(const TileKey& key) const;
 
  private:
-  struct Accumulator {
-    cv::Mat value;   ///< CV_32F: weighted sum (feather) or best value (best view)
-    cv::Mat weight;  ///< CV_32F
-  };
+  /// Per pixel, CV_32FC2: feather (sum of value x weight, sum of weight); best view
+  /// (value, weight) of the best frame so far.
+  using Accumulator = cv::Mat;
   const cv::Mat& WeightMap(int width, int height);
 
   MapGrid grid_;

@@ -25,6 +25,7 @@ struct RenderedView {
 struct RasterPatch {
   cv::Mat image;  ///< CV_8UC1
   cv::Mat mask;   ///< CV_8UC1, 255 where mapped
+  bool all_mapped = false;  ///< every pixel is mapped (then mask is all 255)
   std::int64_t col0 = 0;  ///< level pixel of image (0, 0)
   std::int64_t row0 = 0;
   int level = 0;

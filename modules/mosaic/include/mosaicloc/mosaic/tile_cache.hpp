@@ -8,6 +8,7 @@
 #include <mutex>
 #include <string>
 #include <unordered_map>
+#include <vector>
 
 #include <opencv2/core/mat.hpp>
 
@@ -39,6 +40,12 @@ struct TileCacheStats {
 /// writer (Invalidate after a store update). Loading happens outside the cache lock, so a
 /// slow load never blocks hits on other tiles. A corrupt tile is cached as corrupt (with the
 /// reason) and never used as pixels.
+///
+/// Tile pixels live in slabs of 64 tiles and evicted tiles' slots are recycled: with one
+/// heap allocation per tile, the compressed blobs and decoder state allocated between them
+/// while loading left holes the heap kept (measured: 45 MiB held free beyond a 256 MiB
+/// budget). A tile's pixels are valid while the Tile is held; keep the shared_ptr, not a
+/// copy of the Mat header.
 class TileCache {
  public:
   TileCache(const TileStore& store, std::size_t budget_bytes = std::size_t{256} << 20);
@@ -65,8 +72,20 @@ class TileCache {
   static std::size_t Bytes(const Tile& tile);
   void EvictLocked();
 
+  /// Tile-sized slots carved from slabs. Shared with the tiles' deleters, so a tile that
+  /// outlives the cache keeps its slab alive.
+  struct BufferPool {
+    cv::Mat Take(int tile_size_px);
+    void Give(cv::Mat slot);
+    std::mutex mutex;
+    std::vector<cv::Mat> slabs;
+    std::vector<cv::Mat> free;
+  };
+  std::shared_ptr<const Tile> MakeTile(const TileKey& key);
+
   const TileStore& store_;
   std::size_t budget_bytes_;
+  std::shared_ptr<BufferPool> pool_ = std::make_shared<BufferPool>();
   mutable std::mutex mutex_;
   std::list<TileKey> lru_;  ///< most recent first
   std::unordered_map<TileKey, Entry, TileKeyHash> entries_;

@@ -55,7 +55,8 @@ class TileStore {
   const std::filesystem::path& file() const { return file_; }
 
   /// Reads and verifies a tile (CRC, PNG decode, size, type). Never throws for a bad tile.
-  TileRead Read(const TileKey& key) const;
+  /// A `buffer` of the tile's size and type is decoded into rather than allocating.
+  TileRead Read(const TileKey& key, cv::Mat buffer = cv::Mat()) const;
   /// Writes tiles in one transaction (all or none). Throws core::Error on failure.
   void Write(const std::vector<TileWrite>& tiles);
   /// Every tile of a level (all levels when level < 0), ordered by level, row, col.

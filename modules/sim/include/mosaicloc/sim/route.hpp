@@ -12,13 +12,18 @@ namespace mosaicloc::sim {
 struct RouteOptions {
   /// "straight": one straight run; "loop": a rounded rectangle driven anticlockwise;
   /// "network": a guidepath network with two junctions, a cross aisle and a dead-end spur
-  /// the vehicle enters forwards and leaves in reverse (a figure-of-eight tour per lap).
+  /// the vehicle enters forwards and leaves in reverse (a figure-of-eight tour per lap);
+  /// "serpentine": parallel rows joined by half turns, covering an area as a site survey
+  /// does, closed by a return leg to the first row.
   std::string name = "loop";
   double straight_length_m = 20.0;
   double loop_width_m = 4.0;
   double loop_height_m = 2.0;
   double corner_radius_m = 0.5;   ///< loop corners and network turns
   double network_scale = 0.5;     ///< network size: 1.0 is a 12 m x 6 m site, 84 m per lap
+  int serpentine_rows = 6;        ///< even number of rows
+  double serpentine_length_m = 4.0;   ///< length of a row
+  double serpentine_spacing_m = 0.5;  ///< distance between rows (twice the turn radius)
   double speed_mps = 1.0;         ///< cruise speed
   double max_accel_mps2 = 1.0;    ///< longitudinal acceleration and braking
   double max_lateral_accel_mps2 = 1.5;  ///< bounds the speed in turns: v <= sqrt(a / curvature)
