@@ -21,4 +21,9 @@ echo "== replay: dead reckoning from the wheel encoders (the drift a mosaic fix 
 rm -rf "$OUT/report"
 "$MOSAICLOC" replay --dataset "$OUT/dataset" --out "$OUT/report" --mode dead-reckoning
 echo
-echo "Report: $(pwd)/$OUT/report (metrics.json, estimate.tum, trajectory.png, position_error.png, heading_error.png)"
+echo "== map: paint the frames at their true poses into a mosaic, and export it to look at"
+"$MOSAICLOC" map build --dataset "$OUT/dataset" --out "$OUT/floor.mosaic" --overwrite
+"$MOSAICLOC" map export "$OUT/floor.mosaic" --out "$OUT/report/map.png" --level 2
+echo
+echo "Report: $(pwd)/$OUT/report (metrics.json, estimate.tum, trajectory.png, position_error.png,"
+echo "        heading_error.png, map.png); map: $(pwd)/$OUT/floor.mosaic"
