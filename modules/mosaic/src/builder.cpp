@@ -1,6 +1,7 @@
 #include "mosaicloc/mosaic/builder.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
 #include <set>
@@ -9,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "mosaicloc/core/error.hpp"
+#include "pyramid.hpp"
 
 namespace mosaicloc::mosaic {
 
@@ -164,35 +166,52 @@ void MapBuilder::Write(TileStore& store, const std::function<void(double)>& prog
     std::set<std::pair<std::int64_t, std::int64_t>> parent_keys;
     for (const auto& [index, pixels] : level) parent_keys.insert({FloorDiv(index.first, 2), FloorDiv(index.second, 2)});
     for (const auto& parent : parent_keys) {
-      cv::Mat children = cv::Mat::zeros(static_cast<int>(2 * t), static_cast<int>(2 * t), CV_8UC1);
-      for (int dy = 0; dy < 2; ++dy) {
-        for (int dx = 0; dx < 2; ++dx) {
-          const auto it = level.find({2 * parent.first + dx, 2 * parent.second + dy});
-          if (it == level.end()) continue;
-          it->second.copyTo(children(cv::Rect(dx * static_cast<int>(t), dy * static_cast<int>(t), static_cast<int>(t),
-                                               static_cast<int>(t))));
-        }
+      std::array<cv::Mat, 4> children;
+      for (int i = 0; i < 4; ++i) {
+        const auto it = level.find({2 * parent.first + i % 2, 2 * parent.second + i / 2});
+        if (it != level.end()) children[static_cast<std::size_t>(i)] = it->second;
       }
-      cv::Mat mapped;
-      cv::Mat(children != kUnmapped).convertTo(mapped, CV_32F, 1.0 / 255.0);
-      cv::Mat values;
-      children.convertTo(values, CV_32F);
-      cv::Mat sum;
-      cv::Mat count;
-      const cv::Size half(static_cast<int>(t), static_cast<int>(t));
-      cv::resize(values, sum, half, 0, 0, cv::INTER_AREA);  // mean of the four, unmapped counted as 0
-      cv::resize(mapped, count, half, 0, 0, cv::INTER_AREA);  // fraction of the four mapped
-      cv::Mat mean;
-      cv::divide(sum, cv::max(count, 1e-6), mean);
-      cv::Mat out;
-      mean.convertTo(out, CV_8U);
-      cv::max(out, 1, out);
-      out.setTo(cv::Scalar(kUnmapped), count < 0.01);
-      parents[parent] = out;
+      parents[parent] = internal::Downsample(children, static_cast<int>(t));
     }
     level = std::move(parents);
   }
   if (progress) progress(1.0);
+}
+
+}  // namespace mosaicloc::mosaic
+
+namespace mosaicloc::mosaic {
+
+void WriteWithPyramid(TileStore& store, const std::vector<TileWrite>& level0) {
+  const MapGrid& grid = store.grid();
+  std::vector<TileWrite> all = level0;
+  // The tiles of the level being processed, new content first, then the store's.
+  std::map<std::pair<std::int64_t, std::int64_t>, cv::Mat> changed;
+  for (const auto& tile : level0) {
+    if (tile.key.level != 0) core::ThrowInvalidInput("WriteWithPyramid takes level-0 tiles only");
+    changed[{tile.key.col, tile.key.row}] = tile.pixels;
+  }
+  for (int k = 1; k < grid.levels; ++k) {
+    std::set<std::pair<std::int64_t, std::int64_t>> parent_keys;
+    for (const auto& [index, pixels] : changed) parent_keys.insert({FloorDiv(index.first, 2), FloorDiv(index.second, 2)});
+    std::map<std::pair<std::int64_t, std::int64_t>, cv::Mat> parents;
+    for (const auto& parent : parent_keys) {
+      std::array<cv::Mat, 4> children;
+      for (int i = 0; i < 4; ++i) {
+        const std::pair<std::int64_t, std::int64_t> child{2 * parent.first + i % 2, 2 * parent.second + i / 2};
+        if (const auto it = changed.find(child); it != changed.end()) {
+          children[static_cast<std::size_t>(i)] = it->second;
+        } else if (const TileRead read = store.Read(TileKey{k - 1, child.first, child.second});
+                   read.status == TileStatus::kOk) {
+          children[static_cast<std::size_t>(i)] = read.pixels;
+        }
+      }
+      parents[parent] = internal::Downsample(children, grid.tile_size_px);
+      all.push_back({TileKey{k, parent.first, parent.second}, parents[parent]});
+    }
+    changed = std::move(parents);
+  }
+  store.Write(all);  // one transaction: level 0 and the pyramid change together or not at all
 }
 
 }  // namespace mosaicloc::mosaic

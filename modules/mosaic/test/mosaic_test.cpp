@@ -389,3 +389,42 @@ TEST(TilePrefetcher, WarmsTheTilesAheadSoRendersDoNotWait) {
 
 }  // namespace
 }  // namespace mosaicloc::mosaic
+
+namespace mosaicloc::mosaic {
+namespace {
+
+TEST(WriteWithPyramid, UpdatedTileKeepsEveryLevelConsistent) {
+  test::ScratchDir dir;
+  MapGrid grid;
+  grid.tile_size_px = 64;
+  grid.levels = 4;
+  // A map built from a texture, then one level-0 tile replaced by a flat patch.
+  const cv::Mat source = SourceTexture(512);
+  auto store = TileStore::Create(dir / "w.mosaic", grid);
+  StoreImage(*store, source);
+  std::vector<TileWrite> level0;
+  for (const auto& key : store->List(0)) level0.push_back({key, store->Read(key).pixels});
+  WriteWithPyramid(*store, level0);
+  EXPECT_EQ(store->Count(1), 16);
+  EXPECT_EQ(store->Count(3), 1);
+
+  WriteWithPyramid(*store, {{TileKey{0, 5, 2}, cv::Mat(64, 64, CV_8UC1, cv::Scalar(200))}});
+  // Every level's pixels equal the 2^k x 2^k mean of level 0 (all mapped here).
+  TileCache cache(*store);
+  const MapRenderer renderer(cache);
+  const RasterPatch level_0 = renderer.Region(0, 0, 0, 512, 512);
+  for (int k = 1; k < 4; ++k) {
+    const int size = 512 >> k;
+    cv::Mat expected = level_0.image.clone();
+    for (int i = 0; i < k; ++i) cv::resize(expected, expected, cv::Size(expected.cols / 2, expected.rows / 2), 0, 0, cv::INTER_AREA);
+    const RasterPatch level_k = renderer.Region(k, 0, 0, size, size);
+    cv::Mat difference;
+    cv::absdiff(level_k.image, expected, difference);
+    EXPECT_LE(cv::norm(difference, cv::NORM_INF), k) << "level " << k;  // rounding at each level
+  }
+  // The changed area shows at level 3: tile (5, 2) of level 0 is pixels 40..47 x 16..23 there.
+  EXPECT_NEAR(cv::mean(renderer.Region(3, 40, 16, 8, 8).image)[0], 200.0, 1.0);
+}
+
+}  // namespace
+}  // namespace mosaicloc::mosaic

@@ -4,6 +4,7 @@
 #include <functional>
 #include <string>
 #include <unordered_map>
+#include <vector>
 
 #include <opencv2/core/mat.hpp>
 
@@ -50,5 +51,10 @@ class MapBuilder {
   std::unordered_map<TileKey, Accumulator, TileKeyHash> accumulators_;
   cv::Mat weight_map_;
 };
+
+/// Replaces level-0 tiles and recomputes every pyramid tile above them (reading their
+/// unchanged siblings from the store), all in one transaction: a crash leaves either the old
+/// map or the new one, never a pyramid that disagrees with level 0.
+void WriteWithPyramid(TileStore& store, const std::vector<TileWrite>& level0);
 
 }  // namespace mosaicloc::mosaic
