@@ -14,21 +14,11 @@
 #include "mosaicloc/mosaic/renderer.hpp"
 #include "mosaicloc/sim/imaging.hpp"
 #include "mosaicloc/sim/simulator.hpp"
+#include "mosaicloc/test/test_support.hpp"
 
 namespace {
 
 using namespace mosaicloc;
-
-double Zncc(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
-  cv::Mat fa, fb;
-  a.convertTo(fa, CV_64F);
-  b.convertTo(fb, CV_64F);
-  fa -= cv::mean(fa, mask)[0];
-  fb -= cv::mean(fb, mask)[0];
-  fa.setTo(0, ~mask);
-  fb.setTo(0, ~mask);
-  return fa.dot(fb) / std::sqrt(fa.dot(fa) * fb.dot(fb));
-}
 
 // Gradient energy of a over that of b, inside mask: below 1 means a is blurrier.
 double Sharpness(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
@@ -98,7 +88,7 @@ int main(int argc, char** argv) {
     for (std::size_t i = 5; i + 5 < poses.size(); i += 10) {
       const mosaic::RenderedView view = renderer.RenderView(poses[i], camera.width_px(), camera.height_px(), camera.mm_per_px(), 0);
       const cv::Mat clean = truth.RenderClean(poses[i]);
-      const double z = Zncc(view.image, clean, view.mask);
+      const double z = test::Zncc(view.image, clean, view.mask);
       zncc_sum += z;
       zncc_min = std::min(zncc_min, z);
       sharp_sum += Sharpness(view.image, clean, view.mask);

@@ -16,18 +16,6 @@
 namespace mosaicloc {
 namespace {
 
-// Zero-normalized cross-correlation over the pixels where mask is set.
-double Zncc(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
-  cv::Mat fa, fb;
-  a.convertTo(fa, CV_64F);
-  b.convertTo(fb, CV_64F);
-  fa -= cv::mean(fa, mask)[0];
-  fb -= cv::mean(fb, mask)[0];
-  fa.setTo(0, ~mask);
-  fb.setTo(0, ~mask);
-  return fa.dot(fb) / std::sqrt(fa.dot(fa) * fb.dot(fb));
-}
-
 class MapRoundTrip : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(MapRoundTrip, RenderedViewsMatchTheFrames) {
@@ -77,7 +65,7 @@ TEST_P(MapRoundTrip, RenderedViewsMatchTheFrames) {
     cv::pyrDown(view.image, a);
     cv::pyrDown(frame->image, b);
     cv::resize(view.mask, m, a.size(), 0, 0, cv::INTER_NEAREST);
-    worst = std::min(worst, Zncc(a, b, m == 255));
+    worst = std::min(worst, test::Zncc(a, b, m == 255));
     ++compared;
   }
   RecordProperty("worst_zncc", std::to_string(worst));

@@ -56,18 +56,6 @@ void StoreImage(TileStore& store, const cv::Mat& image) {
   store.Write(tiles);
 }
 
-double Zncc(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
-  cv::Mat result;
-  cv::Mat fa, fb;
-  a.convertTo(fa, CV_32F);
-  b.convertTo(fb, CV_32F);
-  const cv::Scalar ma = cv::mean(fa, mask), mb = cv::mean(fb, mask);
-  cv::Mat da = fa - ma[0], db = fb - mb[0];
-  da.setTo(0, ~mask);
-  db.setTo(0, ~mask);
-  return da.dot(db) / std::sqrt(da.dot(da) * db.dot(db));
-}
-
 TEST(MapGrid, PixelCentresFollowTheDesign) {
   MapGrid grid;
   grid.mm_per_px = 0.25;
@@ -302,7 +290,7 @@ TEST(MapBuilder, PaintedMapReproducesTheFrames) {
     for (const auto& [pose, frame] : frames) {
       const RenderedView view = renderer.RenderView(pose, 320, 240, 0.25, 0);
       EXPECT_GT(view.mapped_fraction, 0.99);
-      EXPECT_GT(Zncc(view.image, frame, view.mask), 0.98);
+      EXPECT_GT(test::Zncc(view.image, frame, view.mask), 0.98);
     }
   }
 }

@@ -1,8 +1,11 @@
 #include "mosaicloc/test/test_support.hpp"
 
+#include <opencv2/core.hpp>
+
 #include <unistd.h>
 
 #include <atomic>
+#include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
@@ -59,6 +62,18 @@ void WriteFile(const std::filesystem::path& file, const std::string& content) {
   std::ofstream out(file, std::ios::binary | std::ios::trunc);
   if (!out) throw std::runtime_error("cannot write " + file.string());
   out << content;
+}
+
+double Zncc(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask) {
+  cv::Mat fa;
+  cv::Mat fb;
+  a.convertTo(fa, CV_64F);
+  b.convertTo(fb, CV_64F);
+  fa -= cv::mean(fa, mask)[0];
+  fb -= cv::mean(fb, mask)[0];
+  fa.setTo(0, mask == 0);
+  fb.setTo(0, mask == 0);
+  return fa.dot(fb) / std::sqrt(fa.dot(fa) * fb.dot(fb));
 }
 
 }  // namespace mosaicloc::test

@@ -4,6 +4,8 @@
 #include <optional>
 #include <string>
 
+#include <opencv2/core/mat.hpp>
+
 namespace mosaicloc::test {
 
 /// A fresh directory under the system temporary directory, removed on destruction.
@@ -31,5 +33,9 @@ std::string SharedDataMissingMessage();
 std::string ReadFile(const std::filesystem::path& file);
 /// Writes (replaces) a file.
 void WriteFile(const std::filesystem::path& file, const std::string& content);
+
+/// Zero-normalized cross-correlation of two images of the same size over the pixels where
+/// mask (CV_8UC1) is non-zero; 1 for images equal up to gain and offset.
+double Zncc(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask);
 
 }  // namespace mosaicloc::test
