@@ -25,5 +25,5 @@ echo "== map: paint the frames at their true poses into a mosaic, and export it 
 "$MOSAICLOC" map build --dataset "$OUT/dataset" --out "$OUT/floor.mosaic" --overwrite
 "$MOSAICLOC" map export "$OUT/floor.mosaic" --out "$OUT/report/map.png" --level 2
 echo
-echo "Report: $(pwd)/$OUT/report (metrics.json, estimate.tum, trajectory.png, position_error.png,"
-echo "        heading_error.png, map.png); map: $(pwd)/$OUT/floor.mosaic"
+echo "Report: $(pwd)/$OUT/report (metrics.json, estimate.tum, fixes.csv, trajectory.png,"
+echo "        position_error.png, heading_error.png, map.png); map: $(pwd)/$OUT/floor.mosaic"

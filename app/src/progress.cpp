@@ -34,6 +34,7 @@ void ProgressBar::Update(double fraction) {
 
 void ProgressBar::Finish() {
   if (quiet_ || finished_) return;
+  Update(1.0);  // the work may end between two updates: always show completion
   finished_ = true;
   if (terminal_ && last_percent_ >= 0) std::fprintf(stderr, "\n");
 }
