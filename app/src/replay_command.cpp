@@ -9,6 +9,7 @@
 #include "mosaicloc/core/file.hpp"
 #include "mosaicloc/core/log.hpp"
 #include "mosaicloc/dataset/dataset.hpp"
+#include "mosaicloc/dataset/evaluation.hpp"
 #include "mosaicloc/estimation/odometry.hpp"
 #include "progress.hpp"
 #include "report.hpp"
@@ -22,15 +23,6 @@ struct ReplayArgs {
   std::string mode = "dead-reckoning";
   double required_overlap = 0.5;
 };
-
-double Percentile(std::vector<double> values, double p) {
-  if (values.empty()) return 0.0;
-  std::sort(values.begin(), values.end());
-  const double h = (static_cast<double>(values.size()) - 1.0) * p / 100.0;
-  const auto lo = static_cast<std::size_t>(h);
-  const std::size_t hi = std::min(lo + 1, values.size() - 1);
-  return values[lo] + (h - static_cast<double>(lo)) * (values[hi] - values[lo]);
-}
 
 // Dead reckoning: integrate the wheel encoders from the starting pose, and report the pose
 // at every frame's time. This is the baseline the mosaic fix removes the drift from.
@@ -94,8 +86,9 @@ void RunDeadReckoning(const ReplayArgs& args, const GlobalOptions& global) {
   metrics.fixes = 0;  // dead reckoning makes no visual fix
   metrics.fix_rate = 0.0;
   metrics.processing_fps = elapsed_s > 0.0 ? static_cast<double>(frames) / elapsed_s : 0.0;
-  metrics.latency_p50_ms = Percentile(latency_ms, 50.0);
-  metrics.latency_p99_ms = Percentile(latency_ms, 99.0);
+  std::sort(latency_ms.begin(), latency_ms.end());  // not empty: estimate has a frame
+  metrics.latency_p50_ms = dataset::Percentile(latency_ms, 50.0);
+  metrics.latency_p99_ms = dataset::Percentile(latency_ms, 99.0);
   // Overlap speed limit (founding paper, section 2.2): V < (footprint along travel / T) (1 - beta).
   const camera::IdealCamera camera(
       camera::IdealCameraOptions{info.camera.width_px, info.camera.height_px, info.camera.mm_per_px});

@@ -18,14 +18,6 @@ namespace {
 
 constexpr double kDegPerRad = 180.0 / std::numbers::pi;
 
-// Linear interpolation between closest ranks; `sorted` is ascending and not empty.
-double Percentile(const std::vector<double>& sorted, double percent) {
-  const double h = static_cast<double>(sorted.size() - 1) * percent / 100.0;
-  const auto below = static_cast<std::size_t>(std::floor(h));
-  const std::size_t above = std::min(below + 1, sorted.size() - 1);
-  return sorted[below] + (h - static_cast<double>(below)) * (sorted[above] - sorted[below]);
-}
-
 double Rms(const std::vector<double>& values) {
   double sum = 0.0;
   for (double v : values) sum += v * v;
@@ -211,6 +203,13 @@ nlohmann::ordered_json ToJson(const std::optional<T>& value) {
 }
 
 }  // namespace
+
+double Percentile(const std::vector<double>& sorted, double percent) {
+  const double h = static_cast<double>(sorted.size() - 1) * percent / 100.0;
+  const auto below = static_cast<std::size_t>(std::floor(h));
+  const std::size_t above = std::min(below + 1, sorted.size() - 1);
+  return sorted[below] + (h - static_cast<double>(below)) * (sorted[above] - sorted[below]);
+}
 
 bool EvaluationOptions::Check(std::string* why) const {
   std::string reason;

@@ -70,6 +70,10 @@ struct Evaluation {
   Metrics metrics;
 };
 
+/// The percent-th percentile of ascending, non-empty `sorted`, interpolating linearly between
+/// closest ranks (NumPy's default), as every report figure uses.
+double Percentile(const std::vector<double>& sorted, double percent);
+
 /// Associates each estimate with the ground truth interpolated at its time (PoseAt with
 /// options.max_gap: estimates outside the ground truth's time range, or inside a gap longer than
 /// max_gap, are left out) and computes the errors and metrics.
