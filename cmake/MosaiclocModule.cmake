@@ -4,8 +4,14 @@
 # in include/mosaicloc/<name>/, our compile options, and one GoogleTest executable
 # mosaicloc_<name>_test from TESTS, registered with CTest under the label "unit".
 
+# mosaicloc_target_options(<target> [STANDARD <n>]): C++20 unless told otherwise (the
+# ViSP-facing C++17 island), warnings as errors, sanitizers when MOSAICLOC_SANITIZE is on.
 function(mosaicloc_target_options target)
-  target_compile_features(${target} PUBLIC cxx_std_20)
+  cmake_parse_arguments(ARG "" "STANDARD" "" ${ARGN})
+  if(NOT ARG_STANDARD)
+    set(ARG_STANDARD 20)
+  endif()
+  target_compile_features(${target} PUBLIC cxx_std_${ARG_STANDARD})
   set_target_properties(${target} PROPERTIES CXX_EXTENSIONS OFF)
   target_compile_options(${target} PRIVATE -Wall -Wextra -Wpedantic -Wshadow
     -Wnon-virtual-dtor -Wold-style-cast -Wcast-align -Woverloaded-virtual -Werror)

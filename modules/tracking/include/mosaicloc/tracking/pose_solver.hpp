@@ -1,0 +1,63 @@
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "mosaicloc/camera/ideal_camera.hpp"
+#include "mosaicloc/core/pose2.hpp"
+
+namespace mosaicloc::tracking {
+
+/// A point of the camera floor frame C matched to a point of the world, both mm.
+struct Correspondence {
+  Eigen::Vector2d camera_mm = Eigen::Vector2d::Zero();
+  Eigen::Vector2d world_mm = Eigen::Vector2d::Zero();
+  /// Standard deviation of world_mm along each axis, mm (used for the covariance, and to
+  /// weight correspondences relative to each other).
+  double sigma_mm = 0.01;
+};
+
+enum class RobustLoss { kNone, kHuber, kCauchy };
+
+struct PoseSolverOptions {
+  RobustLoss loss = RobustLoss::kCauchy;
+  /// Scale of the robust loss, mm: residuals well below it count fully.
+  double loss_scale_mm = 0.05;
+  /// A correspondence whose residual exceeds this after the robust solve is an outlier; the
+  /// pose is then solved again from the inliers alone.
+  double outlier_threshold_mm = 0.15;
+  int min_inliers = 3;
+  int max_iterations = 50;
+  bool Check(std::string* why) const;
+};
+
+enum class PoseFailure { kNone, kTooFewInliers, kNotConverged };
+const char* ToString(PoseFailure failure);
+
+struct PoseSolution {
+  PoseFailure failure = PoseFailure::kNone;
+  bool ok() const { return failure == PoseFailure::kNone; }
+  core::Pose2 world_from_camera;
+  /// Covariance of (x_mm, y_mm, yaw_rad) of world_from_camera.
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
+  std::vector<bool> inlier;       ///< per correspondence
+  std::vector<double> residual_mm;  ///< per correspondence, at the solution
+  int inliers = 0;
+  int iterations = 0;
+  double rms_residual_mm = 0.0;   ///< over inliers
+};
+
+/// Planar pose of the camera from correspondences: Ceres, analytic Jacobians, robust loss,
+/// an outlier pass, and the covariance from ceres::Covariance. Needs two correspondences for a
+/// pose (one fixes the translation only and keeps the initial yaw). Never throws for bad data.
+PoseSolution SolvePlanarPose(const std::vector<Correspondence>& correspondences, const core::Pose2& initial,
+                             const PoseSolverOptions& options);
+
+/// The residual of one correspondence and its Jacobian with respect to (x, y, yaw); exposed
+/// for the Jacobian test. residual = R(yaw) camera + t - world, mm, divided by `scale`.
+void PlanarResidual(const double* pose, const Correspondence& c, double scale, double* residual,
+                    double* jacobian_row_major);
+
+}  // namespace mosaicloc::tracking

@@ -1,0 +1,60 @@
+#pragma once
+
+#include <cstdint>
+
+#include <Eigen/Core>
+#include <opencv2/core/mat.hpp>
+
+#include "mosaicloc/core/pose2.hpp"
+#include "mosaicloc/mosaic/renderer.hpp"
+
+namespace mosaicloc::tracking {
+
+/// What a live frame is registered against: an 8-bit raster of the floor whose placement in
+/// the world is known exactly. Raster pixel (col, row) has its centre at
+///   world_mm = A (col, row)^T + b,   [A | b] = RasterToWorld().
+/// Pixel value mosaic::kUnmapped (0) means "no data here". Implementations are const and
+/// thread-safe.
+class ReferenceRaster {
+ public:
+  virtual ~ReferenceRaster() = default;
+  /// The 2x3 affine map raster (col, row) -> world mm.
+  virtual Eigen::Matrix<double, 2, 3> RasterToWorld() const = 0;
+  /// Pixels [col0, col0 + cols) x [row0, row0 + rows) with a mask of known pixels.
+  virtual mosaic::RasterPatch Region(std::int64_t col0, std::int64_t row0, int cols, int rows) const = 0;
+  /// Size of a raster pixel on the floor, mm.
+  double mm_per_px() const;
+  /// world mm -> raster (col, row), the inverse of RasterToWorld().
+  Eigen::Matrix<double, 2, 3> WorldToRaster() const;
+};
+
+/// One level of the mosaic map.
+class MapReference final : public ReferenceRaster {
+ public:
+  MapReference(const mosaic::MapRenderer& renderer, int level) : renderer_(renderer), level_(level) {}
+  Eigen::Matrix<double, 2, 3> RasterToWorld() const override;
+  mosaic::RasterPatch Region(std::int64_t col0, std::int64_t row0, int cols, int rows) const override;
+  int level() const { return level_; }
+
+ private:
+  const mosaic::MapRenderer& renderer_;
+  int level_;
+};
+
+/// A single ideal image placed in the world at world_from_camera (design.md section 3): the
+/// previous frame for visual odometry, or a reference image in tests and benchmarks. Pixels
+/// outside the image are unknown. The image is shared, not copied.
+class ImageReference final : public ReferenceRaster {
+ public:
+  /// Throws core::Error (invalid input) unless `image` is a non-empty CV_8UC1 and mm_per_px > 0.
+  ImageReference(cv::Mat image, const core::Pose2& world_from_camera, double mm_per_px);
+  Eigen::Matrix<double, 2, 3> RasterToWorld() const override;
+  mosaic::RasterPatch Region(std::int64_t col0, std::int64_t row0, int cols, int rows) const override;
+
+ private:
+  cv::Mat image_;
+  core::Pose2 world_from_camera_;
+  double mm_per_px_;
+};
+
+}  // namespace mosaicloc::tracking

@@ -1,0 +1,102 @@
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/core/mat.hpp>
+
+#include "mosaicloc/camera/ideal_camera.hpp"
+#include "mosaicloc/core/pose2.hpp"
+#include "mosaicloc/tracking/pose_solver.hpp"
+#include "mosaicloc/tracking/reference.hpp"
+#include "mosaicloc/tracking/refine.hpp"
+#include "mosaicloc/tracking/templates.hpp"
+#include "mosaicloc/tracking/zncc_search.hpp"
+
+namespace mosaicloc::tracking {
+
+struct TrackerOptions {
+  TemplateOptions templates;
+  SearchOptions search;
+  RefineOptions refine;
+  PoseSolverOptions solver;
+  /// Search half-range = search_sigmas x the prior's standard deviation at the template
+  /// (position and yaw), clamped to [min_search_px, max_search_px].
+  double search_sigmas = 3.0;
+  int min_search_px = 3;
+  int max_search_px = 96;
+  double min_peak = 0.5;       ///< coarse ZNCC below this: no match
+  double max_ambiguity = 0.9;  ///< second peak / peak above this: ambiguous, not used
+  double min_zncc = 0.7;       ///< refined ZNCC below this: not used
+  /// Rounds of refinement; each re-linearises around the latest pose (the first corrects the
+  /// coarse yaw, the second is at the final yaw).
+  int refine_passes = 2;
+  /// Share of a template's search window that must be mapped, or the template is off the map.
+  double min_window_mapped = 0.5;
+  bool Check(std::string* why) const;
+};
+
+/// Why a frame got no fix. Every failure is a normal outcome of the frame loop.
+enum class TrackFailure {
+  kNone,
+  kNoTexture,      ///< no template of the frame has enough texture
+  kOffMap,         ///< the predicted view is (mostly) not in the map
+  kAmbiguous,      ///< every candidate match has an equally good second place (repetitive floor)
+  kNoMatch,        ///< the templates were not found in their search windows
+  kTooFewInliers,  ///< the matches disagree about the pose
+  kNotConverged,   ///< the pose solver did not converge
+};
+const char* ToString(TrackFailure failure);
+
+/// What happened to one template, for diagnostics and the benchmark.
+struct TemplateReport {
+  TemplateSpot spot;
+  int search_range_px = 0;
+  SearchPeak coarse;
+  RefinedMatch refined;
+  bool inlier = false;
+  std::string rejected;  ///< empty when used
+};
+
+struct TrackResult {
+  TrackFailure failure = TrackFailure::kNone;
+  bool ok() const { return failure == TrackFailure::kNone; }
+  std::string reason;  ///< one line, empty when ok
+  core::Pose2 world_from_camera;
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();  ///< (x_mm, y_mm, yaw_rad)
+  int inliers = 0;
+  double rms_residual_mm = 0.0;
+  double mean_zncc = 0.0;
+  std::vector<TemplateReport> templates;
+};
+
+/// Registers a live ideal frame against a reference raster (the map, or a previous frame):
+/// templates where the frame is textured, a ZNCC search for each around its predicted place,
+/// sub-pixel refinement, and a robust planar pose solve. Const: one Tracker may serve several
+/// threads (ViSP trackers are created per call).
+class Tracker {
+ public:
+  /// Throws core::Error (invalid input) when options fail Check().
+  Tracker(const camera::IdealCamera& camera, const TrackerOptions& options);
+
+  /// `prior` is the predicted world_from_camera and `prior_covariance` its covariance
+  /// (x_mm, y_mm, yaw_rad), which sizes the search. Never throws for a frame that cannot be
+  /// registered: the result says why.
+  TrackResult Track(const cv::Mat& frame, const core::Pose2& prior, const Eigen::Matrix3d& prior_covariance,
+                    const ReferenceRaster& reference) const;
+
+  const camera::IdealCamera& camera() const { return camera_; }
+  const TrackerOptions& options() const { return options_; }
+
+ private:
+  camera::IdealCamera camera_;
+  TrackerOptions options_;
+};
+
+/// Frame-to-frame visual odometry with the same matcher: the previous frame is the reference.
+/// Returns previous_from_current as the result's world_from_camera.
+TrackResult RegisterFrames(const Tracker& tracker, const cv::Mat& previous, const cv::Mat& current,
+                           const core::Pose2& prior_previous_from_current, const Eigen::Matrix3d& prior_covariance);
+
+}  // namespace mosaicloc::tracking

@@ -1,0 +1,83 @@
+#include "mosaicloc/tracking/reference.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/LU>
+#include <opencv2/core.hpp>
+
+#include "mosaicloc/core/error.hpp"
+#include "mosaicloc/mosaic/tile_store.hpp"
+
+namespace mosaicloc::tracking {
+
+double ReferenceRaster::mm_per_px() const {
+  const Eigen::Matrix<double, 2, 3> a = RasterToWorld();
+  return std::sqrt(std::abs(a.leftCols<2>().determinant()));
+}
+
+Eigen::Matrix<double, 2, 3> ReferenceRaster::WorldToRaster() const {
+  const Eigen::Matrix<double, 2, 3> a = RasterToWorld();
+  const Eigen::Matrix2d inverse = a.leftCols<2>().inverse();
+  Eigen::Matrix<double, 2, 3> result;
+  result.leftCols<2>() = inverse;
+  result.col(2) = -inverse * a.col(2);
+  return result;
+}
+
+Eigen::Matrix<double, 2, 3> MapReference::RasterToWorld() const {
+  // design.md section 3: x = x0 + (col + 0.5) r, y = y0 - (row + 0.5) r.
+  const mosaic::MapGrid& g = renderer_.grid();
+  const double r = g.LevelMmPerPx(level_);
+  Eigen::Matrix<double, 2, 3> a;
+  a << r, 0.0, g.origin_x_mm + 0.5 * r, 0.0, -r, g.origin_y_mm - 0.5 * r;
+  return a;
+}
+
+mosaic::RasterPatch MapReference::Region(std::int64_t col0, std::int64_t row0, int cols, int rows) const {
+  return renderer_.Region(level_, col0, row0, cols, rows);
+}
+
+ImageReference::ImageReference(cv::Mat image, const core::Pose2& world_from_camera, double mm_per_px)
+    : image_(std::move(image)), world_from_camera_(world_from_camera), mm_per_px_(mm_per_px) {
+  if (image_.empty() || image_.type() != CV_8UC1) {
+    core::ThrowInvalidInput("reference image: expected a non-empty 8-bit grey image");
+  }
+  if (!(mm_per_px_ > 0.0)) core::ThrowInvalidInput("reference image: mm_per_px must be > 0");
+}
+
+Eigen::Matrix<double, 2, 3> ImageReference::RasterToWorld() const {
+  // world = R diag(s, -s) ((u, v) - c) + t  (the ideal camera of design.md section 3).
+  const double cx = 0.5 * (image_.cols - 1);
+  const double cy = 0.5 * (image_.rows - 1);
+  Eigen::Matrix2d linear = world_from_camera_.Rotation();
+  linear.col(0) *= mm_per_px_;
+  linear.col(1) *= -mm_per_px_;
+  Eigen::Matrix<double, 2, 3> a;
+  a.leftCols<2>() = linear;
+  a.col(2) = world_from_camera_.translation_mm() - linear * Eigen::Vector2d(cx, cy);
+  return a;
+}
+
+mosaic::RasterPatch ImageReference::Region(std::int64_t col0, std::int64_t row0, int cols, int rows) const {
+  mosaic::RasterPatch patch;
+  patch.col0 = col0;
+  patch.row0 = row0;
+  patch.image = cv::Mat(rows, cols, CV_8UC1, cv::Scalar(mosaic::kUnmapped));
+  patch.mask = cv::Mat(rows, cols, CV_8UC1, cv::Scalar(0));
+  const std::int64_t x0 = std::max<std::int64_t>(col0, 0);
+  const std::int64_t y0 = std::max<std::int64_t>(row0, 0);
+  const std::int64_t x1 = std::min<std::int64_t>(col0 + cols, image_.cols);
+  const std::int64_t y1 = std::min<std::int64_t>(row0 + rows, image_.rows);
+  if (x1 > x0 && y1 > y0) {
+    const cv::Rect from(static_cast<int>(x0), static_cast<int>(y0), static_cast<int>(x1 - x0),
+                        static_cast<int>(y1 - y0));
+    const cv::Rect to(static_cast<int>(x0 - col0), static_cast<int>(y0 - row0), from.width, from.height);
+    image_(from).copyTo(patch.image(to));
+    patch.mask(to).setTo(cv::Scalar(255));
+  }
+  patch.all_mapped = x0 == col0 && y0 == row0 && x1 == col0 + cols && y1 == row0 + rows;
+  return patch;
+}
+
+}  // namespace mosaicloc::tracking

@@ -1,0 +1,224 @@
+#include "mosaicloc/tracking/tracker.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/Eigenvalues>
+#include <opencv2/core.hpp>
+
+#include "mosaicloc/core/error.hpp"
+
+namespace mosaicloc::tracking {
+namespace {
+
+using Affine = Eigen::Matrix<double, 2, 3>;
+
+// [B | c] o [A | b]
+Affine Compose(const Affine& outer, const Affine& inner) {
+  Affine result;
+  result.leftCols<2>() = outer.leftCols<2>() * inner.leftCols<2>();
+  result.col(2) = outer.leftCols<2>() * inner.col(2) + outer.col(2);
+  return result;
+}
+
+Eigen::Vector2d Apply(const Affine& a, const Eigen::Vector2d& p) { return a.leftCols<2>() * p + a.col(2); }
+
+Eigen::Vector2d CentreOf(const cv::Rect& r) { return {r.x + 0.5 * (r.width - 1), r.y + 0.5 * (r.height - 1)}; }
+
+}  // namespace
+
+bool TrackerOptions::Check(std::string* why) const {
+  if (!templates.Check(why) || !search.Check(why) || !refine.Check(why) || !solver.Check(why)) return false;
+  auto fail = [why](const char* message) {
+    if (why != nullptr) *why = message;
+    return false;
+  };
+  if (!(search_sigmas > 0.0)) return fail("search_sigmas must be > 0");
+  if (min_search_px < 1 || max_search_px < min_search_px) return fail("need 1 <= min_search_px <= max_search_px");
+  if (!(min_peak > -1.0 && min_peak < 1.0)) return fail("min_peak must be in (-1, 1)");
+  if (!(max_ambiguity > 0.0 && max_ambiguity <= 1.0)) return fail("max_ambiguity must be in (0, 1]");
+  if (!(min_zncc > -1.0 && min_zncc < 1.0)) return fail("min_zncc must be in (-1, 1)");
+  if (refine_passes < 0 || refine_passes > 5) return fail("refine_passes must be in [0, 5]");
+  if (!(min_window_mapped > 0.0 && min_window_mapped <= 1.0)) return fail("min_window_mapped must be in (0, 1]");
+  return true;
+}
+
+const char* ToString(TrackFailure failure) {
+  switch (failure) {
+    case TrackFailure::kNone: return "ok";
+    case TrackFailure::kNoTexture: return "no texture";
+    case TrackFailure::kOffMap: return "off map";
+    case TrackFailure::kAmbiguous: return "ambiguous";
+    case TrackFailure::kNoMatch: return "no match";
+    case TrackFailure::kTooFewInliers: return "too few inliers";
+    case TrackFailure::kNotConverged: return "not converged";
+  }
+  return "unknown";
+}
+
+Tracker::Tracker(const camera::IdealCamera& camera, const TrackerOptions& options)
+    : camera_(camera), options_(options) {
+  std::string why;
+  if (!options_.Check(&why)) core::ThrowInvalidInput("tracker options: " + why);
+}
+
+TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const Eigen::Matrix3d& prior_covariance,
+                           const ReferenceRaster& reference) const {
+  TrackResult result;
+  result.world_from_camera = prior;
+  auto fail = [&result](TrackFailure failure, std::string reason) {
+    result.failure = failure;
+    result.reason = std::move(reason);
+    return result;
+  };
+  if (frame.empty() || frame.type() != CV_8UC1 || frame.cols != camera_.width_px() ||
+      frame.rows != camera_.height_px()) {
+    return fail(TrackFailure::kNoTexture, "the frame is not an 8-bit " + std::to_string(camera_.width_px()) + "x" +
+                                              std::to_string(camera_.height_px()) + " image");
+  }
+  const std::vector<TemplateSpot> spots = SelectTemplates(frame, options_.templates);
+  if (spots.empty()) return fail(TrackFailure::kNoTexture, "no template of the frame has enough texture");
+
+  const Affine world_to_raster = reference.WorldToRaster();
+  const Affine raster_to_world = reference.RasterToWorld();
+  const double s = camera_.mm_per_px();
+  const Eigen::Vector2d image_centre(camera_.cx(), camera_.cy());
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> position_eigen(prior_covariance.topLeftCorner<2, 2>());
+  const double sigma_position_px = std::sqrt(std::max(position_eigen.eigenvalues().maxCoeff(), 0.0)) / s;
+  const double sigma_yaw = std::sqrt(std::max(prior_covariance(2, 2), 0.0));
+
+  // Coarse: each template searched around its predicted place in a window rendered in the
+  // frame's orientation.
+  const Affine prior_to_raster = Compose(world_to_raster, camera_.PixelToWorldAffine(prior));
+  std::vector<Correspondence> coarse;
+  std::vector<std::size_t> coarse_template;
+  int off_map = 0, ambiguous = 0, no_match = 0;
+  for (const TemplateSpot& spot : spots) {
+    TemplateReport report;
+    report.spot = spot;
+    const Eigen::Vector2d centre = CentreOf(spot.rect);
+    const double sigma_px = sigma_position_px + sigma_yaw * (centre - image_centre).norm();
+    const int range = std::clamp(static_cast<int>(std::ceil(options_.search_sigmas * sigma_px)) + 1,
+                                 options_.min_search_px, options_.max_search_px);
+    report.search_range_px = range;
+    const cv::Point origin(spot.rect.x - range, spot.rect.y - range);
+    cv::Mat mask;
+    cv::Mat window = RenderWindow(reference, prior_to_raster, origin,
+                                  cv::Size(spot.rect.width + 2 * range, spot.rect.height + 2 * range), &mask);
+    const int known = cv::countNonZero(mask);
+    if (static_cast<double>(known) < options_.min_window_mapped * static_cast<double>(mask.total())) {
+      report.rejected = "off map";
+      ++off_map;
+      result.templates.push_back(std::move(report));
+      continue;
+    }
+    if (known < static_cast<int>(mask.total())) window.setTo(cv::mean(window, mask), ~mask);
+    report.coarse = SearchZncc(frame(spot.rect), window, options_.search);
+    if (!report.coarse.found || report.coarse.peak < options_.min_peak) {
+      report.rejected = "no match";
+      ++no_match;
+    } else if (report.coarse.ambiguity > options_.max_ambiguity) {
+      report.rejected = "ambiguous";
+      ++ambiguous;
+    } else {
+      // Window pixel (offset + template centre) shows the raster point the centre matches.
+      const Eigen::Vector2d local = report.coarse.offset_px + (centre - Eigen::Vector2d(spot.rect.x, spot.rect.y));
+      const Eigen::Vector2d frame_px = Eigen::Vector2d(origin.x, origin.y) + local;
+      Correspondence c;
+      c.camera_mm = camera_.PixelToCamera(centre);
+      c.world_mm = Apply(raster_to_world, Apply(prior_to_raster, frame_px));
+      c.sigma_mm = 0.3 * s;
+      coarse.push_back(c);
+      coarse_template.push_back(result.templates.size());
+    }
+    result.templates.push_back(std::move(report));
+  }
+  if (coarse.empty()) {
+    if (off_map > 0 && off_map >= static_cast<int>(spots.size()) / 2 + 1) {
+      return fail(TrackFailure::kOffMap, std::to_string(off_map) + " of " + std::to_string(spots.size()) +
+                                             " templates fall outside the map");
+    }
+    if (ambiguous > 0) {
+      return fail(TrackFailure::kAmbiguous, std::to_string(ambiguous) + " templates match in several places");
+    }
+    return fail(TrackFailure::kNoMatch, "no template was found in its search window");
+  }
+
+  // Coarse pose. Its outlier threshold is set by the coarse accuracy (a pixel or two).
+  PoseSolverOptions coarse_solver = options_.solver;
+  coarse_solver.loss_scale_mm = std::max(options_.solver.loss_scale_mm, 1.0 * s);
+  coarse_solver.outlier_threshold_mm = std::max(options_.solver.outlier_threshold_mm, 3.0 * s);
+  coarse_solver.min_inliers = std::min(options_.solver.min_inliers, static_cast<int>(coarse.size()));
+  if (static_cast<int>(coarse.size()) < options_.solver.min_inliers && options_.refine_passes > 0) {
+    return fail(TrackFailure::kTooFewInliers, std::to_string(coarse.size()) + " usable templates, " +
+                                                  std::to_string(options_.solver.min_inliers) + " needed");
+  }
+  PoseSolution pose = SolvePlanarPose(coarse, prior, coarse_solver);
+  if (!pose.ok()) return fail(TrackFailure::kTooFewInliers, std::string("coarse pose: ") + ToString(pose.failure));
+
+  std::vector<std::size_t> used = coarse_template;
+  for (std::size_t i = 0; i < used.size(); ++i) result.templates[used[i]].inlier = pose.inlier[i];
+  for (int pass = 0; pass < options_.refine_passes; ++pass) {
+    const Affine frame_to_raster = Compose(world_to_raster, camera_.PixelToWorldAffine(pose.world_from_camera));
+    std::vector<Correspondence> fine;
+    std::vector<std::size_t> fine_template;
+    for (const std::size_t index : used) {
+      TemplateReport& report = result.templates[index];
+      report.refined = RefineTemplate(frame, report.spot.rect, reference, frame_to_raster, options_.refine);
+      if (!report.refined.ok()) {
+        report.rejected = std::string("refinement ") + ToString(report.refined.failure);
+        continue;
+      }
+      if (report.refined.zncc < options_.min_zncc) {
+        report.rejected = "weak match";
+        continue;
+      }
+      report.rejected.clear();
+      Correspondence c;
+      c.camera_mm = camera_.PixelToCamera(CentreOf(report.spot.rect));
+      c.world_mm = Apply(raster_to_world, report.refined.centre_raster);
+      const double raster_mm = reference.mm_per_px();
+      c.sigma_mm = std::sqrt(0.5 * report.refined.covariance_px2.trace()) * raster_mm;
+      fine.push_back(c);
+      fine_template.push_back(index);
+    }
+    if (static_cast<int>(fine.size()) < options_.solver.min_inliers) {
+      return fail(TrackFailure::kTooFewInliers, std::to_string(fine.size()) + " templates refined, " +
+                                                    std::to_string(options_.solver.min_inliers) + " needed");
+    }
+    PoseSolution refined = SolvePlanarPose(fine, pose.world_from_camera, options_.solver);
+    if (!refined.ok()) {
+      return fail(refined.failure == PoseFailure::kNotConverged ? TrackFailure::kNotConverged
+                                                                : TrackFailure::kTooFewInliers,
+                  std::string("pose: ") + ToString(refined.failure));
+    }
+    for (std::size_t i = 0; i < fine_template.size(); ++i) {
+      result.templates[fine_template[i]].inlier = refined.inlier[i];
+      if (!refined.inlier[i]) result.templates[fine_template[i]].rejected = "outlier";
+    }
+    pose = std::move(refined);
+    used = fine_template;
+  }
+
+  result.world_from_camera = pose.world_from_camera;
+  result.covariance = pose.covariance;
+  result.inliers = pose.inliers;
+  result.rms_residual_mm = pose.rms_residual_mm;
+  double zncc_sum = 0.0;
+  int zncc_count = 0;
+  for (const TemplateReport& report : result.templates) {
+    if (!report.inlier) continue;
+    zncc_sum += options_.refine_passes > 0 ? report.refined.zncc : report.coarse.peak;
+    ++zncc_count;
+  }
+  result.mean_zncc = zncc_count > 0 ? zncc_sum / zncc_count : 0.0;
+  return result;
+}
+
+TrackResult RegisterFrames(const Tracker& tracker, const cv::Mat& previous, const cv::Mat& current,
+                           const core::Pose2& prior_previous_from_current, const Eigen::Matrix3d& prior_covariance) {
+  const ImageReference reference(previous, core::Pose2::Identity(), tracker.camera().mm_per_px());
+  return tracker.Track(current, prior_previous_from_current, prior_covariance, reference);
+}
+
+}  // namespace mosaicloc::tracking

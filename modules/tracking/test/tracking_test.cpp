@@ -1,0 +1,454 @@
+#include <cmath>
+#include <numbers>
+#include <random>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "mosaicloc/core/error.hpp"
+#include "mosaicloc/sim/resample.hpp"
+#include "mosaicloc/test/test_support.hpp"
+#include "mosaicloc/tracking/tracker.hpp"
+
+namespace mosaicloc::tracking {
+namespace {
+
+using core::Pose2;
+using Affine = Eigen::Matrix<double, 2, 3>;
+constexpr double kMmPerPx = 0.25;
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+Affine Compose(const Affine& outer, const Affine& inner) {
+  Affine r;
+  r.leftCols<2>() = outer.leftCols<2>() * inner.leftCols<2>();
+  r.col(2) = outer.leftCols<2>() * inner.col(2) + outer.col(2);
+  return r;
+}
+
+// A reference image cut from a real texture and live frames of it at exactly known poses.
+// The texture is sampled at half resolution (2x2 area average of exact bicubic samples), like
+// a camera seeing a continuous floor. The world frame is the reference image's camera frame.
+class Scene {
+ public:
+  explicit Scene(cv::Mat texture, cv::Size reference_size = {960, 800})
+      : texture_(std::move(texture)), camera_(camera::IdealCameraOptions{}) {
+    source_from_reference_ << 2.0, 0.0, 0.5 + 40.0, 0.0, 2.0, 0.5 + 40.0;
+    cv::Mat exact = sim::ResampleExact(texture_, source_from_reference_, reference_size, 2);
+    exact.convertTo(reference_image_, CV_8UC1);
+    reference_ = std::make_unique<ImageReference>(reference_image_, Pose2::Identity(), kMmPerPx);
+  }
+
+  // The live frame at world_from_camera, with gain, offset and Gaussian noise.
+  cv::Mat Frame(const Pose2& world_from_camera, double noise = 0.0, double gain = 1.0, double offset = 0.0,
+                std::uint64_t seed = 1) const {
+    const Affine reference_from_view =
+        Compose(reference_->WorldToRaster(), camera_.PixelToWorldAffine(world_from_camera));
+    cv::Mat exact = sim::ResampleExact(texture_, Compose(source_from_reference_, reference_from_view),
+                                       cv::Size(camera_.width_px(), camera_.height_px()), 2);
+    exact = exact * gain + offset;
+    if (noise > 0.0) {
+      cv::Mat n(exact.size(), CV_32FC1);
+      cv::RNG rng(seed);
+      rng.fill(n, cv::RNG::NORMAL, 0.0, noise);
+      exact += n;
+    }
+    cv::Mat frame;
+    exact.convertTo(frame, CV_8UC1);
+    return frame;
+  }
+
+  const camera::IdealCamera& camera() const { return camera_; }
+  const ImageReference& reference() const { return *reference_; }
+  const cv::Mat& reference_image() const { return reference_image_; }
+
+ private:
+  cv::Mat texture_;
+  camera::IdealCamera camera_;
+  Affine source_from_reference_;
+  cv::Mat reference_image_;
+  std::unique_ptr<ImageReference> reference_;
+};
+
+std::optional<cv::Mat> Asphalt() {
+  const auto file = test::SharedTexture("asphalt_02_2048.jpg");
+  if (!file) return std::nullopt;
+  return cv::imread(file->string(), cv::IMREAD_GRAYSCALE);
+}
+
+#define REQUIRE_ASPHALT(texture)                                   \
+  const std::optional<cv::Mat> texture = Asphalt();                \
+  if (!texture) GTEST_SKIP() << test::SharedDataMissingMessage();
+
+Eigen::Matrix3d PriorCovariance(double sigma_px, double sigma_deg) {
+  return Eigen::Vector3d(std::pow(sigma_px * kMmPerPx, 2), std::pow(sigma_px * kMmPerPx, 2),
+                         std::pow(sigma_deg * kDeg, 2))
+      .asDiagonal();
+}
+
+// ---------------------------------------------------------------------------------------
+// Templates
+
+TEST(Templates, SpreadPicksTexturedWindowsInDistinctCells) {
+  cv::Mat frame(480, 640, CV_8UC1, cv::Scalar(128));
+  cv::Mat noise(480, 240, CV_8UC1);
+  cv::RNG(3).fill(noise, cv::RNG::UNIFORM, 0, 256);
+  noise.copyTo(frame(cv::Rect(400, 0, 240, 480)));  // only the right part has texture
+  TemplateOptions options;
+  options.count = 4;
+  const std::vector<TemplateSpot> spots = SelectTemplates(frame, options);
+  ASSERT_EQ(spots.size(), 2u) << "the two cells of the blank half must give nothing";
+  for (const TemplateSpot& spot : spots) {
+    EXPECT_GE(spot.rect.x + spot.rect.width, 400 + 40) << "a template sits on the blank part";
+    EXPECT_EQ(spot.rect.width, 96);
+    EXPECT_GT(spot.texture, options.min_texture);
+  }
+  EXPECT_NE(spots[0].rect.y, spots[1].rect.y);
+}
+
+TEST(Templates, TiledCoversTheFrame) {
+  cv::Mat frame(480, 640, CV_8UC1);
+  cv::RNG(4).fill(frame, cv::RNG::UNIFORM, 0, 256);
+  TemplateOptions options;
+  options.mode = TemplateMode::kTiled;
+  const std::vector<TemplateSpot> spots = SelectTemplates(frame, options);
+  ASSERT_EQ(spots.size(), 12u);
+  int area = 0;
+  for (const TemplateSpot& s : spots) area += s.rect.area();
+  EXPECT_GT(area, 0.97 * 640 * 480);
+}
+
+TEST(Templates, RejectsBadOptions) {
+  TemplateOptions options;
+  options.size_px = 4;
+  std::string why;
+  EXPECT_FALSE(options.Check(&why));
+  EXPECT_NE(why.find("size_px"), std::string::npos);
+  cv::Mat frame(480, 640, CV_8UC1, cv::Scalar(0));
+  EXPECT_THROW(SelectTemplates(frame, options), core::Error);
+}
+
+// ---------------------------------------------------------------------------------------
+// ZNCC search
+
+TEST(ZnccSearch, FindsIntegerAndSubPixelOffsets) {
+  cv::Mat window(200, 200, CV_8UC1);
+  cv::RNG(5).fill(window, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(window, window, cv::Size(0, 0), 1.2);
+  const cv::Mat templ = window(cv::Rect(57, 71, 64, 64)).clone();
+  const SearchPeak peak = SearchZncc(templ, window, SearchOptions{});
+  ASSERT_TRUE(peak.found);
+  EXPECT_NEAR(peak.offset_px.x(), 57.0, 0.05);
+  EXPECT_NEAR(peak.offset_px.y(), 71.0, 0.05);
+  EXPECT_GT(peak.peak, 0.99);
+  EXPECT_LT(peak.ambiguity, 0.6);
+  EXPECT_GT(peak.sharpness, 0.2);
+  EXPECT_GT(peak.levels, 1) << "a +-68 px range must go coarse-to-fine";
+}
+
+TEST(ZnccSearch, RepeatingPatternIsAmbiguous) {
+  cv::Mat cell(20, 20, CV_8UC1);
+  cv::RNG(6).fill(cell, cv::RNG::UNIFORM, 0, 256);
+  cv::Mat window;
+  cv::repeat(cell, 8, 8, window);
+  const SearchPeak peak = SearchZncc(window(cv::Rect(30, 30, 64, 64)).clone(), window(cv::Rect(0, 0, 130, 130)),
+                                     SearchOptions{});
+  ASSERT_TRUE(peak.found);
+  EXPECT_GT(peak.ambiguity, 0.99);
+}
+
+// ---------------------------------------------------------------------------------------
+// Reference rasters
+
+TEST(Reference, ImageReferenceGeometryMatchesTheIdealCamera) {
+  cv::Mat image(480, 640, CV_8UC1, cv::Scalar(7));
+  const Pose2 world_from_camera(100.0, -50.0, 0.3);
+  const ImageReference reference(image, world_from_camera, kMmPerPx);
+  const camera::IdealCamera camera{camera::IdealCameraOptions{}};
+  for (const Eigen::Vector2d& pixel : {Eigen::Vector2d(0, 0), Eigen::Vector2d(639, 479), Eigen::Vector2d(12.5, 300.25)}) {
+    const Eigen::Vector2d expected = camera.PixelToWorld(pixel, world_from_camera);
+    const Affine a = reference.RasterToWorld();
+    EXPECT_NEAR((a.leftCols<2>() * pixel + a.col(2) - expected).norm(), 0.0, 1e-9);
+    const Affine b = reference.WorldToRaster();
+    EXPECT_NEAR((b.leftCols<2>() * expected + b.col(2) - pixel).norm(), 0.0, 1e-9);
+  }
+  EXPECT_NEAR(reference.mm_per_px(), kMmPerPx, 1e-12);
+  const mosaic::RasterPatch outside = reference.Region(630, 470, 20, 20);
+  EXPECT_FALSE(outside.all_mapped);
+  EXPECT_EQ(cv::countNonZero(outside.mask), 100);
+}
+
+TEST(Reference, RenderWindowAtIdentityIsTheImage) {
+  cv::Mat image(100, 120, CV_8UC1);
+  cv::RNG(7).fill(image, cv::RNG::UNIFORM, 0, 256);
+  const ImageReference reference(image, Pose2::Identity(), 1.0);
+  Affine identity;
+  identity << 1, 0, 0, 0, 1, 0;
+  cv::Mat mask;
+  const cv::Mat window = RenderWindow(reference, identity, cv::Point(10, 20), cv::Size(50, 40), &mask);
+  EXPECT_EQ(cv::norm(window, image(cv::Rect(10, 20, 50, 40)), cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::countNonZero(mask), 50 * 40);
+}
+
+// ---------------------------------------------------------------------------------------
+// Pose solver
+
+TEST(PoseSolver, AnalyticJacobianMatchesNumeric) {
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<double> u(-100.0, 100.0);
+  for (int trial = 0; trial < 20; ++trial) {
+    Correspondence c;
+    c.camera_mm = {u(rng), u(rng)};
+    c.world_mm = {u(rng), u(rng)};
+    const double pose[3] = {u(rng), u(rng), u(rng) * 0.03};
+    const double scale = 0.5 + std::abs(u(rng)) / 100.0;
+    double r[2], j[6];
+    PlanarResidual(pose, c, scale, r, j);
+    for (int p = 0; p < 3; ++p) {
+      const double h = 1e-6;
+      double plus[3] = {pose[0], pose[1], pose[2]}, minus[3] = {pose[0], pose[1], pose[2]};
+      plus[p] += h;
+      minus[p] -= h;
+      double rp[2], rm[2];
+      PlanarResidual(plus, c, scale, rp, nullptr);
+      PlanarResidual(minus, c, scale, rm, nullptr);
+      for (int k = 0; k < 2; ++k) {
+        EXPECT_NEAR(j[k * 3 + p], (rp[k] - rm[k]) / (2 * h), 1e-6) << "residual " << k << " parameter " << p;
+      }
+    }
+  }
+}
+
+std::vector<Correspondence> MakeCorrespondences(const Pose2& truth, int n, double noise_mm, std::mt19937* rng) {
+  std::uniform_real_distribution<double> u(-80.0, 80.0);
+  std::normal_distribution<double> g(0.0, noise_mm);
+  std::vector<Correspondence> cs;
+  for (int i = 0; i < n; ++i) {
+    Correspondence c;
+    c.camera_mm = {u(*rng), u(*rng) * 0.75};
+    c.world_mm = truth * c.camera_mm + Eigen::Vector2d(g(*rng), g(*rng));
+    c.sigma_mm = std::max(noise_mm, 1e-6);
+    cs.push_back(c);
+  }
+  return cs;
+}
+
+TEST(PoseSolver, ThirtyPercentOutliersDoNotMoveThePose) {
+  std::mt19937 rng(9);
+  const Pose2 truth(1234.5, -678.9, 0.7);
+  std::vector<Correspondence> cs = MakeCorrespondences(truth, 20, 0.0, &rng);
+  const PoseSolution clean = SolvePlanarPose(cs, Pose2(1234.0, -679.5, 0.69), PoseSolverOptions{});
+  ASSERT_TRUE(clean.ok());
+  std::uniform_real_distribution<double> wild(-5.0, 5.0);
+  for (int i = 0; i < 6; ++i) cs[static_cast<std::size_t>(3 * i)].world_mm += Eigen::Vector2d(wild(rng), wild(rng)) + Eigen::Vector2d(1.0, 0.0);
+  const PoseSolution solution = SolvePlanarPose(cs, Pose2(1234.0, -679.5, 0.69), PoseSolverOptions{});
+  ASSERT_TRUE(solution.ok()) << ToString(solution.failure);
+  EXPECT_LT(Distance(solution.world_from_camera, truth), 0.01);
+  EXPECT_LT(std::abs(YawDifference(solution.world_from_camera, truth)), 1e-5);
+  EXPECT_EQ(solution.inliers, 14);
+  for (int i = 0; i < 6; ++i) EXPECT_FALSE(solution.inlier[static_cast<std::size_t>(3 * i)]);
+}
+
+TEST(PoseSolver, CovarianceFollowsTheNoise) {
+  std::mt19937 rng(10);
+  const Pose2 truth(10.0, 20.0, -0.2);
+  // Empirical scatter over repeated noisy solves against the reported covariance.
+  const double noise_mm = 0.01;
+  double sum_sq = 0.0, reported = 0.0;
+  const int trials = 200;
+  for (int t = 0; t < trials; ++t) {
+    const std::vector<Correspondence> cs = MakeCorrespondences(truth, 8, noise_mm, &rng);
+    const PoseSolution s = SolvePlanarPose(cs, truth, PoseSolverOptions{});
+    ASSERT_TRUE(s.ok());
+    sum_sq += std::pow(s.world_from_camera.x_mm() - truth.x_mm(), 2);
+    reported += s.covariance(0, 0);
+  }
+  const double ratio = std::sqrt(sum_sq / trials) / std::sqrt(reported / trials);
+  EXPECT_NEAR(ratio, 1.0, 0.2);
+}
+
+TEST(PoseSolver, SaysWhyItFailed) {
+  std::mt19937 rng(11);
+  const std::vector<Correspondence> two = MakeCorrespondences(Pose2(), 2, 0.0, &rng);
+  EXPECT_EQ(SolvePlanarPose(two, Pose2(), PoseSolverOptions{}).failure, PoseFailure::kTooFewInliers);
+  // Three correspondences that disagree by millimetres: nothing is an inlier of anything.
+  std::vector<Correspondence> scattered = MakeCorrespondences(Pose2(), 3, 0.0, &rng);
+  scattered[0].world_mm.x() += 3.0;
+  scattered[1].world_mm.y() -= 3.0;
+  EXPECT_EQ(SolvePlanarPose(scattered, Pose2(), PoseSolverOptions{}).failure, PoseFailure::kTooFewInliers);
+}
+
+// ---------------------------------------------------------------------------------------
+// Refinement: ours and ViSP's, every method and warp
+
+class RefineMethods : public ::testing::TestWithParam<std::tuple<RefineMethod, RefineWarp>> {};
+
+TEST_P(RefineMethods, RecoversASubPixelShift) {
+  REQUIRE_ASPHALT(texture);
+  const Scene scene(*texture);
+  const Pose2 truth(0.37 * kMmPerPx, -0.61 * kMmPerPx, 0.0);
+  const cv::Mat frame = scene.Frame(truth, 1.0, 1.1, -8.0);
+  RefineOptions options;
+  options.method = std::get<0>(GetParam());
+  options.warp = std::get<1>(GetParam());
+  options.max_iterations = 50;
+  const Affine frame_to_raster =
+      Compose(scene.reference().WorldToRaster(), scene.camera().PixelToWorldAffine(Pose2::Identity()));
+  const cv::Rect rect(250, 180, 96, 96);
+  const RefinedMatch match = RefineTemplate(frame, rect, scene.reference(), frame_to_raster, options);
+  ASSERT_TRUE(match.ok()) << ToString(match.failure) << " " << match.detail;
+  const Eigen::Vector2d centre(rect.x + 47.5, rect.y + 47.5);
+  const Eigen::Vector2d expected = scene.reference().WorldToRaster().leftCols<2>() *
+                                       scene.camera().PixelToWorld(centre, truth) +
+                                   scene.reference().WorldToRaster().col(2);
+  const double tolerance = options.method == RefineMethod::kDirect ? 0.03 : 0.1;
+  EXPECT_NEAR(match.centre_raster.x(), expected.x(), tolerance);
+  EXPECT_NEAR(match.centre_raster.y(), expected.y(), tolerance);
+  EXPECT_GT(match.zncc, 0.95);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    AllMethods, RefineMethods,
+    ::testing::Values(std::make_tuple(RefineMethod::kDirect, RefineWarp::kTranslation),
+                      std::make_tuple(RefineMethod::kVispSsd, RefineWarp::kTranslation),
+                      std::make_tuple(RefineMethod::kVispSsd, RefineWarp::kSrt),
+                      std::make_tuple(RefineMethod::kVispSsd, RefineWarp::kHomography),
+                      std::make_tuple(RefineMethod::kVispZncc, RefineWarp::kTranslation),
+                      std::make_tuple(RefineMethod::kVispZncc, RefineWarp::kSrt),
+                      std::make_tuple(RefineMethod::kVispZncc, RefineWarp::kHomography)));
+
+TEST(Refine, TemplateLeavingTheReferenceIsAFailureNotACrash) {
+  REQUIRE_ASPHALT(texture);
+  const Scene scene(*texture, {400, 400});
+  // The frame centre sits near the reference's corner: most templates fall off it.
+  const Pose2 prior(45.0, -45.0, 0.0);
+  const cv::Mat frame = scene.Frame(Pose2(45.0, -45.0, 0.0));
+  const Affine frame_to_raster =
+      Compose(scene.reference().WorldToRaster(), scene.camera().PixelToWorldAffine(prior));
+  for (const RefineMethod method : {RefineMethod::kDirect, RefineMethod::kVispSsd, RefineMethod::kVispZncc}) {
+    RefineOptions options;
+    options.method = method;
+    const RefinedMatch match = RefineTemplate(frame, cv::Rect(400, 60, 96, 96), scene.reference(), frame_to_raster,
+                                              options);
+    EXPECT_FALSE(match.ok());
+  }
+}
+
+// ---------------------------------------------------------------------------------------
+// The tracker
+
+TEST(Tracker, RecoversSyntheticWarpsOfARealTexture) {
+  REQUIRE_ASPHALT(texture);
+  const Scene scene(*texture);
+  const Tracker tracker(scene.camera(), TrackerOptions{});
+  std::mt19937 rng(12);
+  std::uniform_real_distribution<double> shift(-8.0, 8.0), turn(-3.0, 3.0);
+  double sum_sq_px = 0.0, sum_sq_deg = 0.0;
+  const int trials = 12;
+  for (int t = 0; t < trials; ++t) {
+    const Pose2 truth(shift(rng) * kMmPerPx, shift(rng) * kMmPerPx, turn(rng) * kDeg);
+    const cv::Mat frame = scene.Frame(truth, 2.0, 0.9, 12.0, static_cast<std::uint64_t>(t));
+    const TrackResult r = tracker.Track(frame, Pose2::Identity(), PriorCovariance(8.0 / 3.0, 1.0), scene.reference());
+    ASSERT_TRUE(r.ok()) << "trial " << t << ": " << r.reason;
+    const double error_px = Distance(r.world_from_camera, truth) / kMmPerPx;
+    const double error_deg = std::abs(YawDifference(r.world_from_camera, truth)) / kDeg;
+    EXPECT_LT(error_px, 0.06) << "trial " << t;
+    sum_sq_px += error_px * error_px;
+    sum_sq_deg += error_deg * error_deg;
+  }
+  const double rms_px = std::sqrt(sum_sq_px / trials);
+  const double rms_deg = std::sqrt(sum_sq_deg / trials);
+  RecordProperty("rms_px", std::to_string(rms_px));
+  EXPECT_LE(rms_px, 0.02);
+  EXPECT_LE(rms_deg, 0.01);
+}
+
+TEST(Tracker, ReportsACovarianceConsistentWithItsError) {
+  REQUIRE_ASPHALT(texture);
+  const Scene scene(*texture);
+  const Tracker tracker(scene.camera(), TrackerOptions{});
+  const Pose2 truth(1.0, -0.5, 1.0 * kDeg);
+  const TrackResult r =
+      tracker.Track(scene.Frame(truth, 2.0), Pose2::Identity(), PriorCovariance(3.0, 1.0), scene.reference());
+  ASSERT_TRUE(r.ok()) << r.reason;
+  const double sigma_mm = std::sqrt(r.covariance(0, 0));
+  EXPECT_GT(sigma_mm, 1e-4);
+  EXPECT_LT(sigma_mm, 0.01);
+  EXPECT_LT(std::abs(r.world_from_camera.x_mm() - truth.x_mm()), 5.0 * sigma_mm + 0.002);
+}
+
+TEST(Tracker, BlankFrameHasNoTexture) {
+  REQUIRE_ASPHALT(texture);
+  const Scene scene(*texture);
+  const Tracker tracker(scene.camera(), TrackerOptions{});
+  const cv::Mat blank(480, 640, CV_8UC1, cv::Scalar(120));
+  const TrackResult r = tracker.Track(blank, Pose2::Identity(), PriorCovariance(2.0, 0.2), scene.reference());
+  EXPECT_EQ(r.failure, TrackFailure::kNoTexture);
+}
+
+TEST(Tracker, FrameOffTheMapSaysSo) {
+  REQUIRE_ASPHALT(texture);
+  const Scene scene(*texture);
+  const Tracker tracker(scene.camera(), TrackerOptions{});
+  const cv::Mat frame = scene.Frame(Pose2::Identity());
+  const TrackResult r = tracker.Track(frame, Pose2(2000.0, 0.0, 0.0), PriorCovariance(2.0, 0.2), scene.reference());
+  EXPECT_EQ(r.failure, TrackFailure::kOffMap) << r.reason;
+}
+
+TEST(Tracker, RepetitiveFloorIsAmbiguousNotMatchedWrongly) {
+  // A floor that repeats every 24 px: with a search range beyond the period every template
+  // matches in several places, and the tracker must say so rather than pick one.
+  REQUIRE_ASPHALT(texture);
+  cv::Mat cell = (*texture)(cv::Rect(500, 500, 48, 48)).clone();
+  cv::Mat periodic;
+  cv::repeat(cell, 44, 44, periodic);
+  const Scene scene(periodic);
+  const Tracker tracker(scene.camera(), TrackerOptions{});
+  const Pose2 truth(1.0, 1.0, 0.0);
+  const TrackResult r =
+      tracker.Track(scene.Frame(truth, 1.0), Pose2::Identity(), PriorCovariance(12.0, 0.1), scene.reference());
+  EXPECT_EQ(r.failure, TrackFailure::kAmbiguous) << r.reason;
+  for (const TemplateReport& t : r.templates) {
+    EXPECT_FALSE(t.rejected.empty()) << "template at " << t.spot.rect.x << "," << t.spot.rect.y << " used: peak "
+                                     << t.coarse.peak << " second " << t.coarse.second << " range "
+                                     << t.search_range_px;
+  }
+}
+
+TEST(Tracker, AnyRefinementMethodGivesThePose) {
+  REQUIRE_ASPHALT(texture);
+  const Scene scene(*texture);
+  const Pose2 truth(-1.2, 0.8, -1.5 * kDeg);
+  const cv::Mat frame = scene.Frame(truth, 1.0);
+  for (const RefineMethod method : {RefineMethod::kVispSsd, RefineMethod::kVispZncc}) {
+    for (const RefineWarp warp : {RefineWarp::kTranslation, RefineWarp::kSrt, RefineWarp::kHomography}) {
+      TrackerOptions options;
+      options.refine.method = method;
+      options.refine.warp = warp;
+      const Tracker tracker(scene.camera(), options);
+      const TrackResult r = tracker.Track(frame, Pose2::Identity(), PriorCovariance(3.0, 1.0), scene.reference());
+      ASSERT_TRUE(r.ok()) << r.reason;
+      EXPECT_LT(Distance(r.world_from_camera, truth) / kMmPerPx, 0.15);
+    }
+  }
+}
+
+TEST(VisualOdometry, RegistersConsecutiveFrames) {
+  REQUIRE_ASPHALT(texture);
+  const Scene scene(*texture);
+  // A quarter-frame move takes some templates out of the previous frame: use nine.
+  TrackerOptions options;
+  options.templates.count = 9;
+  const Tracker tracker(scene.camera(), options);
+  const Pose2 first(-10.0, 5.0, 0.02);
+  const Pose2 second = first * Pose2(30.0, 2.0, 0.01);  // 120 px forward, a quarter of the frame
+  const TrackResult r = RegisterFrames(tracker, scene.Frame(first, 2.0, 1.0, 0.0, 1), scene.Frame(second, 2.0, 1.0, 0.0, 2),
+                                       Pose2(29.0, 2.5, 0.0), PriorCovariance(4.0, 0.5));
+  ASSERT_TRUE(r.ok()) << r.reason;
+  const Pose2 truth = Between(first, second);
+  EXPECT_LT(Distance(r.world_from_camera, truth), 0.01);
+  EXPECT_LT(std::abs(YawDifference(r.world_from_camera, truth)), 2e-5);
+}
+
+}  // namespace
+}  // namespace mosaicloc::tracking
