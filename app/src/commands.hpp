@@ -21,5 +21,6 @@ Action AddDatasetCommand(CLI::App& app, const GlobalOptions& global);
 Action AddEvaluateCommand(CLI::App& app, const GlobalOptions& global);
 Action AddReplayCommand(CLI::App& app, const GlobalOptions& global);
 Action AddMapCommand(CLI::App& app, const GlobalOptions& global);
+Action AddBenchCommand(CLI::App& app, const GlobalOptions& global);
 
 }  // namespace mosaicloc::app

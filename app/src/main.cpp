@@ -38,6 +38,7 @@ int main(int argc, char** argv) {
   add(app::AddEvaluateCommand);
   add(app::AddReplayCommand);
   add(app::AddMapCommand);
+  add(app::AddBenchCommand);
 
   try {
     app.parse(argc, argv);

@@ -5,6 +5,7 @@
 
 #include <Eigen/LU>
 #include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/mosaic/tile_store.hpp"
@@ -34,29 +35,45 @@ Eigen::Matrix<double, 2, 3> MapReference::RasterToWorld() const {
   return a;
 }
 
+std::unique_ptr<const ReferenceRaster> MapReference::Coarser() const {
+  if (level_ + 1 >= renderer_.grid().levels) return nullptr;
+  return std::make_unique<MapReference>(renderer_, level_ + 1);
+}
+
 mosaic::RasterPatch MapReference::Region(std::int64_t col0, std::int64_t row0, int cols, int rows) const {
   return renderer_.Region(level_, col0, row0, cols, rows);
 }
 
 ImageReference::ImageReference(cv::Mat image, const core::Pose2& world_from_camera, double mm_per_px)
-    : image_(std::move(image)), world_from_camera_(world_from_camera), mm_per_px_(mm_per_px) {
+    : image_(std::move(image)) {
   if (image_.empty() || image_.type() != CV_8UC1) {
     core::ThrowInvalidInput("reference image: expected a non-empty 8-bit grey image");
   }
-  if (!(mm_per_px_ > 0.0)) core::ThrowInvalidInput("reference image: mm_per_px must be > 0");
-}
-
-Eigen::Matrix<double, 2, 3> ImageReference::RasterToWorld() const {
+  if (!(mm_per_px > 0.0)) core::ThrowInvalidInput("reference image: mm_per_px must be > 0");
   // world = R diag(s, -s) ((u, v) - c) + t  (the ideal camera of design.md section 3).
   const double cx = 0.5 * (image_.cols - 1);
   const double cy = 0.5 * (image_.rows - 1);
-  Eigen::Matrix2d linear = world_from_camera_.Rotation();
-  linear.col(0) *= mm_per_px_;
-  linear.col(1) *= -mm_per_px_;
-  Eigen::Matrix<double, 2, 3> a;
-  a.leftCols<2>() = linear;
-  a.col(2) = world_from_camera_.translation_mm() - linear * Eigen::Vector2d(cx, cy);
-  return a;
+  Eigen::Matrix2d linear = world_from_camera.Rotation();
+  linear.col(0) *= mm_per_px;
+  linear.col(1) *= -mm_per_px;
+  raster_to_world_.leftCols<2>() = linear;
+  raster_to_world_.col(2) = world_from_camera.translation_mm() - linear * Eigen::Vector2d(cx, cy);
+}
+
+ImageReference::ImageReference(cv::Mat image, const Eigen::Matrix<double, 2, 3>& raster_to_world)
+    : image_(std::move(image)), raster_to_world_(raster_to_world) {}
+
+Eigen::Matrix<double, 2, 3> ImageReference::RasterToWorld() const { return raster_to_world_; }
+
+std::unique_ptr<const ReferenceRaster> ImageReference::Coarser() const {
+  if (image_.cols < 4 || image_.rows < 4) return nullptr;
+  cv::Mat half;
+  cv::resize(image_, half, cv::Size(image_.cols / 2, image_.rows / 2), 0, 0, cv::INTER_AREA);
+  // Pixel i of the half image is centred on pixel 2i + 0.5 of this one.
+  Eigen::Matrix<double, 2, 3> coarser;
+  coarser.leftCols<2>() = 2.0 * raster_to_world_.leftCols<2>();
+  coarser.col(2) = raster_to_world_.col(2) + raster_to_world_.leftCols<2>() * Eigen::Vector2d(0.5, 0.5);
+  return std::unique_ptr<const ReferenceRaster>(new ImageReference(std::move(half), coarser));
 }
 
 mosaic::RasterPatch ImageReference::Region(std::int64_t col0, std::int64_t row0, int cols, int rows) const {

@@ -136,50 +136,78 @@ RefinedMatch RefineDirect(const cv::Mat& frame, const cv::Rect& rect, const Refe
     return match;
   }
 
-  std::vector<double> sampled(n);
-  std::vector<unsigned char> valid(n);
+  // With the template normalised (sum T = 0, sum T^2 = n) and e_k = (M_k - mu) / sigma - T_k:
+  //   sum_k J_k e_k = (sum_k J_k M_k - mu sum_k J_k) / sigma - sum_k J_k T_k,
+  //   sum_k e_k^2  = 2 n - 2 sum_k M_k T_k / sigma,
+  // so one pass of five running sums per iteration does it, with no per-pixel storage.
+  // Off-map samples (only near the map's edge) take the general path with their own sums.
+  double sum_jx = 0.0, sum_jy = 0.0, sum_jxt = 0.0, sum_jyt = 0.0;
+  for (std::size_t k = 0; k < n; ++k) {
+    sum_jx += jac_x[k];
+    sum_jy += jac_y[k];
+    sum_jxt += jac_x[k] * templ[k];
+    sum_jyt += jac_y[k] * templ[k];
+  }
+  const float* pixels = raster.ptr<float>(0);
+  const std::size_t stride = raster.step1();
+  const int max_col = raster.cols - 2, max_row = raster.rows - 2;
   Eigen::Vector2d t = Eigen::Vector2d::Zero();
   double sum_e2 = 0.0;
   std::size_t used = 0;
   bool converged = false;
   for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
     match.iterations = iteration + 1;
-    double s = 0.0, s2 = 0.0;
+    double sm = 0.0, smm = 0.0, sjxm = 0.0, sjym = 0.0, smt = 0.0;
+    double pjx = sum_jx, pjy = sum_jy, pjxt = sum_jxt, pjyt = sum_jyt, stt = static_cast<double>(n), st = 0.0;
+    Eigen::Matrix2d h = hessian;
     used = 0;
     for (std::size_t k = 0; k < n; ++k) {
-      double v = 0.0;
-      valid[k] = Sample<float>(raster, raster_mask, all_known, base_x[k] + t.x(), base_y[k] + t.y(), &v);
-      sampled[k] = v;
-      if (valid[k]) {
-        s += v;
-        s2 += v * v;
-        ++used;
+      const double x = base_x[k] + t.x(), y = base_y[k] + t.y();
+      const int ix = static_cast<int>(x), iy = static_cast<int>(y);  // x, y > 0 by the margin
+      bool ok = ix >= 0 && iy >= 0 && ix <= max_col && iy <= max_row;
+      if (ok && !all_known) {
+        const std::uint8_t* m0 = raster_mask.ptr<std::uint8_t>(iy) + ix;
+        const std::uint8_t* m1 = raster_mask.ptr<std::uint8_t>(iy + 1) + ix;
+        ok = (m0[0] & m0[1] & m1[0] & m1[1]) != 0;
       }
+      if (!ok) {
+        // Take this sample out of the precomputed sums.
+        pjx -= jac_x[k];
+        pjy -= jac_y[k];
+        pjxt -= jac_x[k] * templ[k];
+        pjyt -= jac_y[k] * templ[k];
+        stt -= templ[k] * templ[k];
+        st -= templ[k];
+        h(0, 0) -= jac_x[k] * jac_x[k];
+        h(0, 1) -= jac_x[k] * jac_y[k];
+        h(1, 1) -= jac_y[k] * jac_y[k];
+        continue;
+      }
+      const float* p0 = pixels + static_cast<std::size_t>(iy) * stride + ix;
+      const float* p1 = p0 + stride;
+      const double fx = x - ix, fy = y - iy;
+      const double top = p0[0] + fx * (p0[1] - p0[0]);
+      const double bottom = p1[0] + fx * (p1[1] - p1[0]);
+      const double v = top + fy * (bottom - top);
+      sm += v;
+      smm += v * v;
+      sjxm += jac_x[k] * v;
+      sjym += jac_y[k] * v;
+      smt += v * templ[k];
+      ++used;
     }
     if (static_cast<double>(used) < options.min_mapped_fraction * static_cast<double>(n)) {
       match.failure = RefineFailure::kOffMap;
       return match;
     }
-    const double mean_m = s / static_cast<double>(used);
-    const double std_m = std::sqrt(std::max(s2 / static_cast<double>(used) - mean_m * mean_m, 1e-12));
-    Eigen::Vector2d gradient = Eigen::Vector2d::Zero();
-    Eigen::Matrix2d h = hessian;
-    const bool partial = used < n;
-    if (partial) h.setZero();
-    sum_e2 = 0.0;
-    for (std::size_t k = 0; k < n; ++k) {
-      if (!valid[k]) continue;
-      const double e = (sampled[k] - mean_m) / std_m - templ[k];
-      sum_e2 += e * e;
-      gradient.x() += jac_x[k] * e;
-      gradient.y() += jac_y[k] * e;
-      if (partial) {
-        h(0, 0) += jac_x[k] * jac_x[k];
-        h(0, 1) += jac_x[k] * jac_y[k];
-        h(1, 1) += jac_y[k] * jac_y[k];
-      }
-    }
-    if (partial) h(1, 0) = h(0, 1);
+    h(1, 0) = h(0, 1);
+    const double count = static_cast<double>(used);
+    const double mean_m = sm / count;
+    const double std_m = std::sqrt(std::max(smm / count - mean_m * mean_m, 1e-12));
+    const Eigen::Vector2d gradient((sjxm - mean_m * pjx) / std_m - pjxt, (sjym - mean_m * pjy) / std_m - pjyt);
+    // sum e^2 over the used samples; st, stt correct for samples left out (their T is not
+    // re-normalised: near the edge the score is slightly pessimistic, never the position).
+    sum_e2 = std::max(0.0, count + stt - 2.0 * (smt - mean_m * st) / std_m);
     const Eigen::Vector2d delta = -(h.inverse() * gradient);
     t += delta;
     if (!t.allFinite() || t.norm() > options.max_shift_px) {
@@ -285,6 +313,7 @@ RefinedMatch RefineVisp(const cv::Mat& frame, const cv::Rect& rect, const Refere
   }
   const Eigen::Vector2d centre(rect.x + 0.5 * (rect.width - 1), rect.y + 0.5 * (rect.height - 1));
   match.centre_raster = Apply(frame_to_raster, centre + moved);
+  match.rotation_rad = answer.rotation_rad;
   // Score: our own ZNCC at the solution (ViSP has no public cost getter for its ZNCC trackers).
   match.zncc = SubPixelZncc(frame, rect, window, origin, moved, options.prefilter_sigma_px);
   // ViSP exposes no information matrix: take an isotropic 0.02 px floor grown by the

@@ -59,73 +59,87 @@ double TextureStrength(const cv::Mat& region) {
 }
 
 std::vector<TemplateSpot> SelectTemplates(const cv::Mat& frame, const TemplateOptions& options) {
+  cv::Mat half;
+  if (!frame.empty()) cv::resize(frame, half, cv::Size(frame.cols / 2, frame.rows / 2), 0, 0, cv::INTER_AREA);
+  return SelectTemplates(frame, half, options);
+}
+
+std::vector<TemplateSpot> SelectTemplates(const cv::Mat& frame, const cv::Mat& half, const TemplateOptions& options) {
   std::string why;
   if (!options.Check(&why)) core::ThrowInvalidInput("template options: " + why);
   if (frame.empty() || frame.type() != CV_8UC1) core::ThrowInvalidInput("templates: expected an 8-bit grey frame");
-  const int b = options.border_px;
+  if (half.type() != CV_8UC1 || half.cols != frame.cols / 2 || half.rows != frame.rows / 2) {
+    core::ThrowInvalidInput("templates: the half-resolution frame does not match the frame");
+  }
+  // Rectangles start on even pixels and have even sizes, so they map exactly onto the
+  // half-resolution frame the coarse search uses.
+  const int b = (options.border_px + 1) & ~1;
+  const auto texture_of = [&half](const cv::Rect& rect) {
+    return TextureStrength(half(cv::Rect(rect.x / 2, rect.y / 2, rect.width / 2, rect.height / 2)));
+  };
   std::vector<TemplateSpot> spots;
   if (options.mode == TemplateMode::kTiled) {
-    const int w = (frame.cols - 2 * b) / options.tile_cols;
-    const int h = (frame.rows - 2 * b) / options.tile_rows;
-    if (w < 8 || h < 8) core::ThrowInvalidInput("templates: the frame is too small for the tile grid");
+    const int w = ((frame.cols - 2 * b) / options.tile_cols) & ~1;
+    const int h = ((frame.rows - 2 * b) / options.tile_rows) & ~1;
+    if (w < 16 || h < 16) core::ThrowInvalidInput("templates: the frame is too small for the tile grid");
     for (int r = 0; r < options.tile_rows; ++r) {
       for (int c = 0; c < options.tile_cols; ++c) {
         const cv::Rect rect(b + c * w, b + r * h, w, h);
-        const double texture = TextureStrength(frame(rect));
+        const double texture = texture_of(rect);
         if (texture >= options.min_texture) spots.push_back({rect, texture});
       }
     }
     return spots;
   }
 
-  const int s = options.size_px;
+  const int s = options.size_px & ~1;
   if (s + 2 * b > frame.cols || s + 2 * b > frame.rows) {
     core::ThrowInvalidInput("templates: size_px " + std::to_string(s) + " does not fit in a " +
                             std::to_string(frame.cols) + "x" + std::to_string(frame.rows) + " frame");
   }
-  // Box-filtered structure tensor at quarter resolution keeps the search cheap: the tensor
-  // of a window is the mean of its cells.
+  // Structure tensor of the half-resolution frame, box-averaged over half-size windows
+  // at a quarter of that resolution: the tensor of a window is the mean of its cells.
   cv::Mat gx, gy;
-  cv::Sobel(frame, gx, CV_32F, 1, 0, 3, 0.125);
-  cv::Sobel(frame, gy, CV_32F, 0, 1, 3, 0.125);
-  cv::Mat gxx = gx.mul(gx), gxy = gx.mul(gy), gyy = gy.mul(gy);
-  constexpr int kStep = 4;
+  cv::Sobel(half, gx, CV_32F, 1, 0, 3, 0.125);
+  cv::Sobel(half, gy, CV_32F, 0, 1, 3, 0.125);
+  constexpr int kCell = 4;  // half-resolution pixels per cell = 8 frame pixels
+  const cv::Size cells(half.cols / kCell, half.rows / kCell);
   cv::Mat sxx, sxy, syy;
-  const cv::Size small(frame.cols / kStep, frame.rows / kStep);
-  cv::resize(gxx, sxx, small, 0, 0, cv::INTER_AREA);
-  cv::resize(gxy, sxy, small, 0, 0, cv::INTER_AREA);
-  cv::resize(gyy, syy, small, 0, 0, cv::INTER_AREA);
-  const int k = std::max(1, s / kStep);
+  cv::resize(gx.mul(gx), sxx, cells, 0, 0, cv::INTER_AREA);
+  cv::resize(gx.mul(gy), sxy, cells, 0, 0, cv::INTER_AREA);
+  cv::resize(gy.mul(gy), syy, cells, 0, 0, cv::INTER_AREA);
+  const int k = std::max(1, s / (2 * kCell));
   cv::Mat mxx, mxy, myy;
   cv::boxFilter(sxx, mxx, -1, cv::Size(k, k), cv::Point(0, 0), true, cv::BORDER_REPLICATE);
   cv::boxFilter(sxy, mxy, -1, cv::Size(k, k), cv::Point(0, 0), true, cv::BORDER_REPLICATE);
   cv::boxFilter(syy, myy, -1, cv::Size(k, k), cv::Point(0, 0), true, cv::BORDER_REPLICATE);
 
+  constexpr int kStep = 2 * kCell;  // frame pixels between candidate corners
   const cv::Size grid = CellGrid(options.count, frame.cols, frame.rows);
-  const int max_x = frame.cols - b - s;
-  const int max_y = frame.rows - b - s;
+  const int max_x = (frame.cols - b - s) & ~1;
+  const int max_y = (frame.rows - b - s) & ~1;
   for (int gr = 0; gr < grid.height; ++gr) {
     for (int gc = 0; gc < grid.width; ++gc) {
-      if (static_cast<int>(spots.size()) + 0 >= options.count) break;
-      // Template top-left corners whose centre lies in this cell.
+      if (gr * grid.width + gc >= options.count) break;
+      // Template corners whose centre lies in this cell.
       const int cx0 = gc * frame.cols / grid.width, cx1 = (gc + 1) * frame.cols / grid.width;
       const int cy0 = gr * frame.rows / grid.height, cy1 = (gr + 1) * frame.rows / grid.height;
       const int x_lo = std::clamp(cx0 - s / 2, b, max_x), x_hi = std::clamp(cx1 - s / 2, b, max_x);
       const int y_lo = std::clamp(cy0 - s / 2, b, max_y), y_hi = std::clamp(cy1 - s / 2, b, max_y);
       double best = -1.0;
-      cv::Point best_at(x_lo, y_lo);
+      cv::Point best_at(x_lo & ~1, y_lo & ~1);
       for (int y = y_lo; y <= y_hi; y += kStep) {
         for (int x = x_lo; x <= x_hi; x += kStep) {
-          const int sx = std::min(x / kStep, small.width - 1), sy = std::min(y / kStep, small.height - 1);
+          const int sx = std::min(x / kStep, cells.width - 1), sy = std::min(y / kStep, cells.height - 1);
           const double e = MinEigen(mxx.at<float>(sy, sx), mxy.at<float>(sy, sx), myy.at<float>(sy, sx));
           if (e > best) {
             best = e;
-            best_at = {x, y};
+            best_at = {x & ~1, y & ~1};
           }
         }
       }
       const cv::Rect rect(best_at.x, best_at.y, s, s);
-      const double texture = TextureStrength(frame(rect));
+      const double texture = texture_of(rect);
       if (texture >= options.min_texture) spots.push_back({rect, texture});
     }
   }

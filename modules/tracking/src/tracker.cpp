@@ -5,6 +5,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "mosaicloc/core/error.hpp"
 
@@ -76,7 +77,9 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
     return fail(TrackFailure::kNoTexture, "the frame is not an 8-bit " + std::to_string(camera_.width_px()) + "x" +
                                               std::to_string(camera_.height_px()) + " image");
   }
-  const std::vector<TemplateSpot> spots = SelectTemplates(frame, options_.templates);
+  cv::Mat half;
+  cv::resize(frame, half, cv::Size(frame.cols / 2, frame.rows / 2), 0, 0, cv::INTER_AREA);
+  const std::vector<TemplateSpot> spots = SelectTemplates(frame, half, options_.templates);
   if (spots.empty()) return fail(TrackFailure::kNoTexture, "no template of the frame has enough texture");
 
   const Affine world_to_raster = reference.WorldToRaster();
@@ -87,9 +90,21 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
   const double sigma_position_px = std::sqrt(std::max(position_eigen.eigenvalues().maxCoeff(), 0.0)) / s;
   const double sigma_yaw = std::sqrt(std::max(prior_covariance(2, 2), 0.0));
 
-  // Coarse: each template searched around its predicted place in a window rendered in the
-  // frame's orientation.
-  const Affine prior_to_raster = Compose(world_to_raster, camera_.PixelToWorldAffine(prior));
+  // Coarse: each template searched around its predicted place at half resolution (the
+  // reference's next level against the frame's 2x2 average), in a window rendered in the
+  // frame's orientation. Half-pixel accuracy there is all the refinement needs, at a quarter
+  // of the cost, and the averaging keeps a degree of rotation from decorrelating fine detail.
+  std::unique_ptr<const ReferenceRaster> coarser = reference.Coarser();
+  const bool use_half = coarser != nullptr;
+  const ReferenceRaster& search_reference = use_half ? *coarser : reference;
+  const cv::Mat& search_frame = use_half ? half : frame;
+  const int scale = use_half ? 2 : 1;
+  // Search-frame pixel -> frame pixel: p = scale q + (scale - 1) / 2.
+  Affine search_to_frame;
+  search_to_frame << scale, 0.0, 0.5 * (scale - 1), 0.0, scale, 0.5 * (scale - 1);
+  const Affine prior_to_raster =
+      Compose(search_reference.WorldToRaster(), Compose(camera_.PixelToWorldAffine(prior), search_to_frame));
+  const Affine search_raster_to_world = search_reference.RasterToWorld();
   std::vector<Correspondence> coarse;
   std::vector<std::size_t> coarse_template;
   int off_map = 0, ambiguous = 0, no_match = 0;
@@ -101,10 +116,12 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
     const int range = std::clamp(static_cast<int>(std::ceil(options_.search_sigmas * sigma_px)) + 1,
                                  options_.min_search_px, options_.max_search_px);
     report.search_range_px = range;
-    const cv::Point origin(spot.rect.x - range, spot.rect.y - range);
+    const cv::Rect rect(spot.rect.x / scale, spot.rect.y / scale, spot.rect.width / scale, spot.rect.height / scale);
+    const int search_range = (range + scale - 1) / scale + 1;
+    const cv::Point origin(rect.x - search_range, rect.y - search_range);
     cv::Mat mask;
-    cv::Mat window = RenderWindow(reference, prior_to_raster, origin,
-                                  cv::Size(spot.rect.width + 2 * range, spot.rect.height + 2 * range), &mask);
+    cv::Mat window = RenderWindow(search_reference, prior_to_raster, origin,
+                                  cv::Size(rect.width + 2 * search_range, rect.height + 2 * search_range), &mask);
     const int known = cv::countNonZero(mask);
     if (static_cast<double>(known) < options_.min_window_mapped * static_cast<double>(mask.total())) {
       report.rejected = "off map";
@@ -113,7 +130,7 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
       continue;
     }
     if (known < static_cast<int>(mask.total())) window.setTo(cv::mean(window, mask), ~mask);
-    report.coarse = SearchZncc(frame(spot.rect), window, options_.search);
+    report.coarse = SearchZncc(search_frame(rect), window, options_.search);
     if (!report.coarse.found || report.coarse.peak < options_.min_peak) {
       report.rejected = "no match";
       ++no_match;
@@ -122,12 +139,12 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
       ++ambiguous;
     } else {
       // Window pixel (offset + template centre) shows the raster point the centre matches.
-      const Eigen::Vector2d local = report.coarse.offset_px + (centre - Eigen::Vector2d(spot.rect.x, spot.rect.y));
-      const Eigen::Vector2d frame_px = Eigen::Vector2d(origin.x, origin.y) + local;
+      const Eigen::Vector2d local = report.coarse.offset_px + 0.5 * Eigen::Vector2d(rect.width - 1, rect.height - 1);
+      const Eigen::Vector2d search_px = Eigen::Vector2d(origin.x, origin.y) + local;
       Correspondence c;
       c.camera_mm = camera_.PixelToCamera(centre);
-      c.world_mm = Apply(raster_to_world, Apply(prior_to_raster, frame_px));
-      c.sigma_mm = 0.3 * s;
+      c.world_mm = Apply(search_raster_to_world, Apply(prior_to_raster, search_px));
+      c.sigma_mm = 0.3 * scale * s;
       coarse.push_back(c);
       coarse_template.push_back(result.templates.size());
     }
@@ -146,8 +163,8 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
 
   // Coarse pose. Its outlier threshold is set by the coarse accuracy (a pixel or two).
   PoseSolverOptions coarse_solver = options_.solver;
-  coarse_solver.loss_scale_mm = std::max(options_.solver.loss_scale_mm, 1.0 * s);
-  coarse_solver.outlier_threshold_mm = std::max(options_.solver.outlier_threshold_mm, 3.0 * s);
+  coarse_solver.loss_scale_mm = std::max(options_.solver.loss_scale_mm, 1.0 * scale * s);
+  coarse_solver.outlier_threshold_mm = std::max(options_.solver.outlier_threshold_mm, 3.0 * scale * s);
   coarse_solver.min_inliers = std::min(options_.solver.min_inliers, static_cast<int>(coarse.size()));
   if (static_cast<int>(coarse.size()) < options_.solver.min_inliers && options_.refine_passes > 0) {
     return fail(TrackFailure::kTooFewInliers, std::to_string(coarse.size()) + " usable templates, " +
@@ -196,8 +213,18 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
       result.templates[fine_template[i]].inlier = refined.inlier[i];
       if (!refined.inlier[i]) result.templates[fine_template[i]].rejected = "outlier";
     }
+    // Each template's translation absorbs a change of position; only a change of yaw alters
+    // the linearisation, by turning the template against the reference about its centre.
+    double radius_px = 0.0;
+    for (const std::size_t index : fine_template) {
+      const cv::Rect& r = result.templates[index].spot.rect;
+      radius_px = std::max(radius_px, 0.5 * std::hypot(r.width, r.height));
+    }
+    const double turned_px =
+        std::abs(YawDifference(refined.world_from_camera, pose.world_from_camera)) * radius_px;
     pose = std::move(refined);
     used = fine_template;
+    if (turned_px < options_.repeat_below_px) break;
   }
 
   result.world_from_camera = pose.world_from_camera;

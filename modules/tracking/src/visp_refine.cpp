@@ -87,6 +87,11 @@ VispAnswer TrackWithVisp(const cv::Mat& templ_image, const cv::Mat& window, cons
     warp->warpX(from, to, p);
     answer.centre_u = to[0];
     answer.centre_v = to[1];
+    vpColVector along(2), along_to(2);
+    along[0] = from[0] + 0.5 * request.zone.width;
+    along[1] = from[1];
+    warp->warpX(along, along_to, p);
+    answer.rotation_rad = std::atan2(along_to[1] - to[1], along_to[0] - to[0]);
     answer.diverged = tracker->getDiverge() || !std::isfinite(to[0]) || !std::isfinite(to[1]);
     answer.ok = !answer.diverged;
     if (answer.diverged) answer.message = "ViSP tracker diverged";

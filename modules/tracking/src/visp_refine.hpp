@@ -30,6 +30,7 @@ struct VispAnswer {
   int iterations = 0;
   double centre_u = 0.0;  ///< where the zone's centre lies in the window, px
   double centre_v = 0.0;
+  double rotation_rad = 0.0;  ///< of the zone's x axis through the warp
 };
 
 /// Tracks `zone` of `templ_image` into `window` (both CV_8UC1) with ViSP. Never throws.

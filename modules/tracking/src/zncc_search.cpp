@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
@@ -32,14 +33,18 @@ ScoreMap Match(const cv::Mat& templ, const cv::Mat& window) {
   return m;
 }
 
-// Best score at least `radius` (Chebyshev) away from `centre`.
+// Best local maximum (3x3) at least `radius` (Chebyshev) away from `centre`: a broad main
+// lobe is not a second place, a separate bump is.
 double SecondPeak(const cv::Mat& scores, cv::Point centre, int radius) {
+  cv::Mat dilated;
+  cv::dilate(scores, dilated, cv::Mat());
   double second = -1.0;
   for (int y = 0; y < scores.rows; ++y) {
     const float* row = scores.ptr<float>(y);
+    const float* top = dilated.ptr<float>(y);
     const bool near_row = std::abs(y - centre.y) < radius;
     for (int x = 0; x < scores.cols; ++x) {
-      if (near_row && std::abs(x - centre.x) < radius) continue;
+      if (row[x] < top[x] || (near_row && std::abs(x - centre.x) < radius)) continue;
       second = std::max(second, static_cast<double>(row[x]));
     }
   }
@@ -67,53 +72,48 @@ bool SearchOptions::Check(std::string* why) const {
 SearchPeak SearchZncc(const cv::Mat& raw_templ, const cv::Mat& raw_window, const SearchOptions& options) {
   SearchPeak result;
   if (raw_templ.empty() || raw_window.cols < raw_templ.cols || raw_window.rows < raw_templ.rows) return result;
-  cv::Mat templ = raw_templ, window = raw_window;
+  // Pyramid by 2x2 area averaging: level k pixel i covers level-0 pixels [2^k i, 2^k (i + 1)),
+  // so a template offset scales exactly by 2^k between levels.
+  std::vector<cv::Mat> templ{raw_templ}, window{raw_window};
   if (options.prefilter_sigma_px > 0.0) {
     const double sigma = options.prefilter_sigma_px;
-    cv::GaussianBlur(raw_templ, templ, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
-    cv::GaussianBlur(raw_window, window, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
+    cv::GaussianBlur(raw_templ, templ[0], cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
+    cv::GaussianBlur(raw_window, window[0], cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
   }
-  const int range = std::max(window.cols - templ.cols, window.rows - templ.rows) / 2;
-
-  // Coarse levels: halve until the range fits, keeping at least 16 px of template.
-  int levels = 1;
-  while ((range >> (levels - 1)) > options.max_direct_range_px && (templ.cols >> levels) >= 16 &&
-         (templ.rows >> levels) >= 16) {
-    ++levels;
+  const int range = std::max(raw_window.cols - raw_templ.cols, raw_window.rows - raw_templ.rows) / 2;
+  const auto can_halve = [&](int level) {
+    return (raw_templ.cols >> (level + 1)) >= 16 && (raw_templ.rows >> (level + 1)) >= 16;
+  };
+  constexpr int finest = 0;
+  int coarsest = finest;
+  while ((range >> coarsest) > options.max_direct_range_px && can_halve(coarsest)) ++coarsest;
+  for (int level = 1; level <= coarsest; ++level) {
+    cv::Mat t, w;
+    cv::resize(templ.back(), t, cv::Size(templ.back().cols / 2, templ.back().rows / 2), 0, 0, cv::INTER_AREA);
+    cv::resize(window.back(), w, cv::Size(window.back().cols / 2, window.back().rows / 2), 0, 0, cv::INTER_AREA);
+    templ.push_back(t);
+    window.push_back(w);
   }
-  result.levels = levels;
+  result.coarsest_level = coarsest;
 
-  // `scores` holds ZNCC for template positions origin + (x, y) of the window.
-  ScoreMap full;
-  cv::Point origin(0, 0);
-  double judged_peak = 0.0;  // the peak at the level where `second` was found
-  if (levels == 1) {
-    full = Match(templ, window);
-    result.second = SecondPeak(full.scores, full.best, options.exclusion_radius_px);
-    judged_peak = full.peak;
-  } else {
-    const double f = 1.0 / (1 << (levels - 1));
-    cv::Mat small_templ, small_window;
-    cv::resize(templ, small_templ, cv::Size(), f, f, cv::INTER_AREA);
-    cv::resize(window, small_window, cv::Size(), f, f, cv::INTER_AREA);
-    const ScoreMap coarse = Match(small_templ, small_window);
-    // Ambiguity is judged at the coarse level, where the whole range was seen.
-    result.second = SecondPeak(coarse.scores, coarse.best, options.exclusion_radius_px);
-    judged_peak = coarse.peak;
-    // Refine at full resolution in a small window around the upsampled peak.
-    const int scale = 1 << (levels - 1);
-    const int slack = scale + 2;
-    const int x0 = std::clamp(coarse.best.x * scale - slack, 0, window.cols - templ.cols);
-    const int y0 = std::clamp(coarse.best.y * scale - slack, 0, window.rows - templ.rows);
-    const int x1 = std::clamp(coarse.best.x * scale + slack, 0, window.cols - templ.cols);
-    const int y1 = std::clamp(coarse.best.y * scale + slack, 0, window.rows - templ.rows);
+  // The whole range at the coarsest level; ambiguity is judged there.
+  ScoreMap at = Match(templ[static_cast<std::size_t>(coarsest)], window[static_cast<std::size_t>(coarsest)]);
+  cv::Point origin(0, 0);  // `at.scores` holds positions origin + (x, y) of the level's window
+  result.second = SecondPeak(at.scores, at.best, options.exclusion_radius_px);
+  const double judged_peak = at.peak;
+  for (int level = coarsest - 1; level >= finest; --level) {
+    const cv::Mat& t = templ[static_cast<std::size_t>(level)];
+    const cv::Mat& w = window[static_cast<std::size_t>(level)];
+    const cv::Point guess = 2 * (origin + at.best);
+    const int x0 = std::clamp(guess.x - 2, 0, w.cols - t.cols), x1 = std::clamp(guess.x + 3, 0, w.cols - t.cols);
+    const int y0 = std::clamp(guess.y - 2, 0, w.rows - t.rows), y1 = std::clamp(guess.y + 3, 0, w.rows - t.rows);
     origin = {x0, y0};
-    full = Match(templ, window(cv::Rect(x0, y0, x1 - x0 + templ.cols, y1 - y0 + templ.rows)));
+    at = Match(t, w(cv::Rect(x0, y0, x1 - x0 + t.cols, y1 - y0 + t.rows)));
   }
 
-  const cv::Mat& s = full.scores;
-  const cv::Point best = full.best;
-  result.peak = full.peak;
+  const cv::Mat& s = at.scores;
+  const cv::Point best = at.best;
+  result.peak = at.peak;
   double dx = 0.0, dy = 0.0;
   if (best.x > 0 && best.x + 1 < s.cols) {
     dx = ParabolaVertex(s.at<float>(best.y, best.x - 1), s.at<float>(best), s.at<float>(best.y, best.x + 1));
@@ -121,7 +121,7 @@ SearchPeak SearchZncc(const cv::Mat& raw_templ, const cv::Mat& raw_window, const
   if (best.y > 0 && best.y + 1 < s.rows) {
     dy = ParabolaVertex(s.at<float>(best.y - 1, best.x), s.at<float>(best), s.at<float>(best.y + 1, best.x));
   }
-  result.offset_px = {origin.x + best.x + dx, origin.y + best.y + dy};
+  result.offset_px = Eigen::Vector2d(origin.x + best.x + dx, origin.y + best.y + dy);
   double ring = 0.0;
   int ring_count = 0;
   for (const cv::Point d : {cv::Point(2, 0), cv::Point(-2, 0), cv::Point(0, 2), cv::Point(0, -2)}) {

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 
 #include <Eigen/Core>
 #include <opencv2/core/mat.hpp>
@@ -22,6 +23,9 @@ class ReferenceRaster {
   virtual Eigen::Matrix<double, 2, 3> RasterToWorld() const = 0;
   /// Pixels [col0, col0 + cols) x [row0, row0 + rows) with a mask of known pixels.
   virtual mosaic::RasterPatch Region(std::int64_t col0, std::int64_t row0, int cols, int rows) const = 0;
+  /// The same floor at half the resolution (2x2 area averages: pixel i covers pixels 2i and
+  /// 2i + 1 of this raster), or nullptr when there is none. The coarse search runs there.
+  virtual std::unique_ptr<const ReferenceRaster> Coarser() const = 0;
   /// Size of a raster pixel on the floor, mm.
   double mm_per_px() const;
   /// world mm -> raster (col, row), the inverse of RasterToWorld().
@@ -34,6 +38,7 @@ class MapReference final : public ReferenceRaster {
   MapReference(const mosaic::MapRenderer& renderer, int level) : renderer_(renderer), level_(level) {}
   Eigen::Matrix<double, 2, 3> RasterToWorld() const override;
   mosaic::RasterPatch Region(std::int64_t col0, std::int64_t row0, int cols, int rows) const override;
+  std::unique_ptr<const ReferenceRaster> Coarser() const override;
   int level() const { return level_; }
 
  private:
@@ -50,11 +55,13 @@ class ImageReference final : public ReferenceRaster {
   ImageReference(cv::Mat image, const core::Pose2& world_from_camera, double mm_per_px);
   Eigen::Matrix<double, 2, 3> RasterToWorld() const override;
   mosaic::RasterPatch Region(std::int64_t col0, std::int64_t row0, int cols, int rows) const override;
+  /// Built on each call (a 2x2 area average of the image).
+  std::unique_ptr<const ReferenceRaster> Coarser() const override;
 
  private:
+  ImageReference(cv::Mat image, const Eigen::Matrix<double, 2, 3>& raster_to_world);
   cv::Mat image_;
-  core::Pose2 world_from_camera_;
-  double mm_per_px_;
+  Eigen::Matrix<double, 2, 3> raster_to_world_;
 };
 
 }  // namespace mosaicloc::tracking

@@ -31,7 +31,7 @@ struct RefineOptions {
   /// Largest correction accepted, px: beyond it the refinement is reported as diverged.
   double max_shift_px = 8.0;
   /// Use every `sampling`-th pixel in both directions (ViSP: setSampling(n, n)).
-  int sampling = 1;
+  int sampling = 2;
   /// ViSP pyramid levels; > 1 when the coarse error can exceed a few pixels.
   int visp_pyramid_levels = 1;
   /// Gaussian low-pass (sigma, px) applied alike to the template and the reference before
@@ -55,6 +55,9 @@ struct RefinedMatch {
   /// Covariance of centre_raster, raster px^2, from the Gauss-Newton information and the
   /// residual noise (kDirect); from the final ZNCC residual for the ViSP methods.
   Eigen::Matrix2d covariance_px2 = Eigen::Matrix2d::Identity();
+  /// Rotation of the template found by the warp (ViSP SRT and homography), rad in the frame's
+  /// pixel axes; 0 for the translation-only methods.
+  double rotation_rad = 0.0;
   double zncc = 0.0;  ///< between the template and the reference at the solution
   int iterations = 0;
   std::string detail;  ///< e.g. ViSP's exception text

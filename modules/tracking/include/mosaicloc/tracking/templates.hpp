@@ -20,9 +20,10 @@ struct TemplateOptions {
   int tile_cols = 4;    ///< kTiled
   int tile_rows = 3;    ///< kTiled
   int border_px = 2;    ///< kept clear of the frame edge (gradients need a neighbour)
-  /// Minimum texture (mean smallest eigenvalue of the structure tensor, grey levels^2 per
-  /// pixel) for a template to be used: a blank patch cannot be registered.
-  double min_texture = 4.0;
+  /// Minimum texture (smallest eigenvalue of the mean structure tensor of the template at
+  /// half resolution, grey levels^2 per pixel^2) for a template to be used: a blank patch
+  /// cannot be registered.
+  double min_texture = 2.0;
   bool Check(std::string* why) const;
 };
 
@@ -35,8 +36,11 @@ struct TemplateSpot {
 /// Picks templates in an 8-bit grey frame. kSpread divides the frame into a near-square grid of
 /// `count` cells and keeps, in each, the window of size_px with the largest smallest eigenvalue
 /// of its structure tensor (strong texture in both directions, so the match is defined in x
-/// and y). Windows below min_texture are dropped, so fewer than `count` may come back.
+/// and y), judged at half resolution. Windows below min_texture are dropped, so fewer than
+/// `count` may come back. Rectangles have even corners and sizes.
 std::vector<TemplateSpot> SelectTemplates(const cv::Mat& frame, const TemplateOptions& options);
+/// The same with the frame's 2x2 area average (`half`, frame size / 2) already computed.
+std::vector<TemplateSpot> SelectTemplates(const cv::Mat& frame, const cv::Mat& half, const TemplateOptions& options);
 
 /// Smallest eigenvalue of the mean structure tensor of an 8-bit image region, grey levels^2.
 double TextureStrength(const cv::Mat& region);

@@ -26,12 +26,13 @@ struct TrackerOptions {
   double search_sigmas = 3.0;
   int min_search_px = 3;
   int max_search_px = 96;
-  double min_peak = 0.5;       ///< coarse ZNCC below this: no match
+  double min_peak = 0.3;       ///< coarse ZNCC below this: no match
   double max_ambiguity = 0.9;  ///< second peak / peak above this: ambiguous, not used
   double min_zncc = 0.7;       ///< refined ZNCC below this: not used
-  /// Rounds of refinement; each re-linearises around the latest pose (the first corrects the
-  /// coarse yaw, the second is at the final yaw).
+  /// Most rounds of refinement; each re-linearises around the latest pose. A round whose yaw
+  /// change turns a template by less than repeat_below_px at its corners ends them.
   int refine_passes = 2;
+  double repeat_below_px = 0.05;
   /// Share of a template's search window that must be mapped, or the template is off the map.
   double min_window_mapped = 0.5;
   bool Check(std::string* why) const;

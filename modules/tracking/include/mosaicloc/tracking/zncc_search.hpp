@@ -8,14 +8,12 @@
 namespace mosaicloc::tracking {
 
 struct SearchOptions {
-  /// Above this many pixels of search range on either side, the search runs first on
-  /// downsampled copies (halving until the range fits) and then refines at full resolution.
-  int max_direct_range_px = 24;
-  /// Peaks closer than this to the best one (px, at the level searched) count as the same peak.
-  int exclusion_radius_px = 4;
-  /// Gaussian low-pass (sigma, px) of template and window before correlating; 0 = off. On
-  /// floors with pixel-scale detail a rotation of a degree or two decorrelates the raw
-  /// pixels, not the smoothed ones.
+  /// Above this many pixels of search range on either side (at the level searched), the
+  /// search starts at coarser levels (halving until the range fits) and refines downwards.
+  int max_direct_range_px = 16;
+  /// Local maxima closer than this to the best one (px, at the coarsest level) are the same peak.
+  int exclusion_radius_px = 2;
+  /// Gaussian low-pass (sigma, px) of template and window before correlating; 0 = off.
   double prefilter_sigma_px = 1.0;
   bool Check(std::string* why) const;
 };
@@ -27,13 +25,13 @@ struct SearchPeak {
   /// peak and its neighbours).
   Eigen::Vector2d offset_px = Eigen::Vector2d::Zero();
   double peak = 0.0;        ///< ZNCC at the best integer position, in [-1, 1]
-  double second = -1.0;     ///< best ZNCC outside the exclusion radius (-1 if none)
+  double second = -1.0;     ///< best other local maximum of ZNCC (-1 if none)
   /// second / peak (both at the level where the whole range was searched) for a positive
   /// peak: near 1 means two places match equally well.
   double ambiguity = 1.0;
   /// peak minus the mean ZNCC two pixels away in x and y: how well defined the peak is.
   double sharpness = 0.0;
-  int levels = 1;           ///< 1 = searched at full resolution only
+  int coarsest_level = 0;   ///< pyramid level (0 = as given) where the whole range was searched
 };
 
 /// Finds where `templ` (CV_8UC1) best matches inside `window` (CV_8UC1, at least as large).
