@@ -154,7 +154,16 @@ std::vector<Method> MakeMethods(const camera::IdealCamera& camera) {
     return [tracker, &camera, c, prior](const Pair& pair) {
       const tracking::ImageReference reference(pair.reference, core::Pose2::Identity(), kMmPerPx);
       const tracking::TrackResult r = tracker->Track(pair.live, core::Pose2::Identity(), prior, reference);
-      if (!r.ok()) return Estimate{};
+      if (!r.ok()) {
+        std::string detail;
+        for (const tracking::TemplateReport& t : r.templates) {
+          detail += " [" + std::to_string(t.spot.rect.x) + "," + std::to_string(t.spot.rect.y) + " peak " +
+                    std::to_string(t.coarse.peak) + " ambiguity " + std::to_string(t.coarse.ambiguity) + " zncc " +
+                    std::to_string(t.refined.zncc) + " " + (t.rejected.empty() ? "used" : t.rejected) + "]";
+        }
+        core::Log().debug("tracker declined a pair: {}:{}", r.reason, detail);
+        return Estimate{};
+      }
       const Affine world_from_live = camera.PixelToWorldAffine(r.world_from_camera);
       return FromAffine(Compose(reference.WorldToRaster(), world_from_live), c);
     };

@@ -35,6 +35,7 @@ bool TrackerOptions::Check(std::string* why) const {
     return false;
   };
   if (!(search_sigmas > 0.0)) return fail("search_sigmas must be > 0");
+  if (spare_templates < 0 || spare_templates > 64) return fail("spare_templates must be in [0, 64]");
   if (min_search_px < 1 || max_search_px < min_search_px) return fail("need 1 <= min_search_px <= max_search_px");
   if (!(min_peak > -1.0 && min_peak < 1.0)) return fail("min_peak must be in (-1, 1)");
   if (!(max_ambiguity > 0.0 && max_ambiguity <= 1.0)) return fail("max_ambiguity must be in (0, 1]");
@@ -79,8 +80,28 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
   }
   cv::Mat half;
   cv::resize(frame, half, cv::Size(frame.cols / 2, frame.rows / 2), 0, 0, cv::INTER_AREA);
-  const std::vector<TemplateSpot> spots = SelectTemplates(frame, half, options_.templates);
+  std::vector<TemplateSpot> spots = SelectTemplates(frame, half, options_.templates);
   if (spots.empty()) return fail(TrackFailure::kNoTexture, "no template of the frame has enough texture");
+  const std::size_t wanted = spots.size();
+  // Spare templates, chosen only when the coarse search rejects some of the first ones
+  // (ambiguous, off the map): a finer grid, most textured first, away from those tried.
+  bool spares_added = options_.templates.mode != TemplateMode::kSpread || options_.spare_templates == 0;
+  const auto add_spares = [&] {
+    spares_added = true;
+    TemplateOptions more = options_.templates;
+    more.count += options_.spare_templates;
+    std::vector<TemplateSpot> extra = SelectTemplates(frame, half, more);
+    std::stable_sort(extra.begin(), extra.end(),
+                     [](const TemplateSpot& a, const TemplateSpot& b) { return a.texture > b.texture; });
+    const std::size_t tried = spots.size();
+    for (const TemplateSpot& candidate : extra) {
+      bool overlaps = false;
+      for (std::size_t i = 0; i < tried && !overlaps; ++i) {
+        overlaps = (candidate.rect & spots[i].rect).area() * 2 > candidate.rect.area();
+      }
+      if (!overlaps) spots.push_back(candidate);
+    }
+  };
 
   const Affine world_to_raster = reference.WorldToRaster();
   const Affine raster_to_world = reference.RasterToWorld();
@@ -108,7 +129,14 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
   std::vector<Correspondence> coarse;
   std::vector<std::size_t> coarse_template;
   int off_map = 0, ambiguous = 0, no_match = 0;
-  for (const TemplateSpot& spot : spots) {
+  for (std::size_t index = 0; index < spots.size() || !spares_added; ++index) {
+    if (index == spots.size()) {
+      if (coarse.size() >= wanted) break;
+      add_spares();
+      if (index == spots.size()) break;
+    }
+    if (coarse.size() >= wanted) break;
+    const TemplateSpot spot = spots[index];
     TemplateReport report;
     report.spot = spot;
     const Eigen::Vector2d centre = CentreOf(spot.rect);
@@ -123,7 +151,12 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
     cv::Mat window = RenderWindow(search_reference, prior_to_raster, origin,
                                   cv::Size(rect.width + 2 * search_range, rect.height + 2 * search_range), &mask);
     const int known = cv::countNonZero(mask);
-    if (static_cast<double>(known) < options_.min_window_mapped * static_cast<double>(mask.total())) {
+    // The template's predicted footprint must be mapped as the refinement will demand.
+    const cv::Mat footprint = mask(cv::Rect(search_range, search_range, rect.width, rect.height));
+    const double footprint_mapped =
+        static_cast<double>(cv::countNonZero(footprint)) / static_cast<double>(footprint.total());
+    if (static_cast<double>(known) < options_.min_window_mapped * static_cast<double>(mask.total()) ||
+        footprint_mapped < options_.refine.min_mapped_fraction) {
       report.rejected = "off map";
       ++off_map;
       result.templates.push_back(std::move(report));
@@ -151,8 +184,8 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
     result.templates.push_back(std::move(report));
   }
   if (coarse.empty()) {
-    if (off_map > 0 && off_map >= static_cast<int>(spots.size()) / 2 + 1) {
-      return fail(TrackFailure::kOffMap, std::to_string(off_map) + " of " + std::to_string(spots.size()) +
+    if (off_map > 0 && off_map >= static_cast<int>(result.templates.size()) / 2 + 1) {
+      return fail(TrackFailure::kOffMap, std::to_string(off_map) + " of " + std::to_string(result.templates.size()) +
                                              " templates fall outside the map");
     }
     if (ambiguous > 0) {

@@ -74,11 +74,16 @@ SearchPeak SearchZncc(const cv::Mat& raw_templ, const cv::Mat& raw_window, const
   if (raw_templ.empty() || raw_window.cols < raw_templ.cols || raw_window.rows < raw_templ.rows) return result;
   // Pyramid by 2x2 area averaging: level k pixel i covers level-0 pixels [2^k i, 2^k (i + 1)),
   // so a template offset scales exactly by 2^k between levels.
-  std::vector<cv::Mat> templ{raw_templ}, window{raw_window};
+  // Fresh buffers: a header copy of the inputs would share their pixels, and blurring into
+  // it would blur the caller's images.
+  std::vector<cv::Mat> templ(1), window(1);
   if (options.prefilter_sigma_px > 0.0) {
     const double sigma = options.prefilter_sigma_px;
     cv::GaussianBlur(raw_templ, templ[0], cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
     cv::GaussianBlur(raw_window, window[0], cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
+  } else {
+    templ[0] = raw_templ;
+    window[0] = raw_window;
   }
   const int range = std::max(raw_window.cols - raw_templ.cols, raw_window.rows - raw_templ.rows) / 2;
   const auto can_halve = [&](int level) {

@@ -127,7 +127,11 @@ TEST(Templates, TiledCoversTheFrame) {
   ASSERT_EQ(spots.size(), 12u);
   int area = 0;
   for (const TemplateSpot& s : spots) area += s.rect.area();
-  EXPECT_GT(area, 0.97 * 640 * 480);
+  const int b = options.border_px;
+  EXPECT_GT(area, 0.97 * (640 - 2 * b) * (480 - 2 * b)) << "everything inside the border is used";
+  for (std::size_t i = 0; i < spots.size(); ++i) {
+    for (std::size_t j = i + 1; j < spots.size(); ++j) EXPECT_EQ((spots[i].rect & spots[j].rect).area(), 0);
+  }
 }
 
 TEST(Templates, RejectsBadOptions) {
@@ -156,6 +160,17 @@ TEST(ZnccSearch, FindsIntegerAndSubPixelOffsets) {
   EXPECT_LT(peak.ambiguity, 0.6);
   EXPECT_GT(peak.sharpness, 0.2);
   EXPECT_GE(peak.coarsest_level, 2) << "a +-68 px range must go coarse-to-fine";
+}
+
+TEST(ZnccSearch, LeavesItsInputsUntouched) {
+  cv::Mat window(120, 120, CV_8UC1);
+  cv::RNG(15).fill(window, cv::RNG::UNIFORM, 0, 256);
+  const cv::Mat window_before = window.clone();
+  const cv::Mat templ = window(cv::Rect(20, 30, 64, 64));
+  SearchOptions options;
+  options.prefilter_sigma_px = 1.5;
+  ASSERT_TRUE(SearchZncc(templ, window, options).found);
+  EXPECT_EQ(cv::norm(window, window_before, cv::NORM_INF), 0.0);
 }
 
 TEST(ZnccSearch, RepeatingPatternIsAmbiguous) {

@@ -19,7 +19,9 @@ struct TemplateOptions {
   int size_px = 96;     ///< kSpread: template side, px
   int tile_cols = 4;    ///< kTiled
   int tile_rows = 3;    ///< kTiled
-  int border_px = 2;    ///< kept clear of the frame edge (gradients need a neighbour)
+  /// Kept clear of the frame edge, px: gradients need neighbours, and a template at the very
+  /// edge leaves the reference first when the frame is at the edge of the map.
+  int border_px = 16;
   /// Minimum texture (smallest eigenvalue of the mean structure tensor of the template at
   /// half resolution, grey levels^2 per pixel^2) for a template to be used: a blank patch
   /// cannot be registered.

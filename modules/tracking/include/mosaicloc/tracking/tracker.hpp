@@ -24,6 +24,9 @@ struct TrackerOptions {
   /// Search half-range = search_sigmas x the prior's standard deviation at the template
   /// (position and yaw), clamped to [min_search_px, max_search_px].
   double search_sigmas = 3.0;
+  /// kSpread: extra templates searched, most textured first, when some of the first `count`
+  /// are rejected by the coarse search (chosen only then).
+  int spare_templates = 4;
   int min_search_px = 3;
   int max_search_px = 96;
   double min_peak = 0.3;       ///< coarse ZNCC below this: no match
