@@ -106,8 +106,12 @@ core::Result<OdometryIncrement, OdometryFailure> DiffDriveOdometry::Update(core:
               1.0 / b, -1.0 / b;
   const Eigen::Vector2d wheel_variance(options_.wheel_variance_mm * std::abs(increment.right_mm),
                                        options_.wheel_variance_mm * std::abs(increment.left_mm));
-  covariance_ = f_pose * covariance_ * f_pose.transpose() +
-                f_wheels * wheel_variance.asDiagonal() * f_wheels.transpose();
+  const Eigen::Matrix3d wheel_part = f_wheels * wheel_variance.asDiagonal() * f_wheels.transpose();
+  covariance_ = f_pose * covariance_ * f_pose.transpose() + wheel_part;
+  // The same in the previous vehicle frame: rotate the world-frame part back by its yaw.
+  Eigen::Matrix3d to_vehicle = Eigen::Matrix3d::Identity();
+  to_vehicle.topLeftCorner<2, 2>() = world_from_vehicle_.Rotation().transpose();
+  increment.covariance = to_vehicle * wheel_part * to_vehicle.transpose();
   world_from_vehicle_ = world_from_vehicle_ * increment.previous_from_current;
   return increment;
 }

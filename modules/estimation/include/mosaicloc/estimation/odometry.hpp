@@ -46,6 +46,9 @@ struct OdometryIncrement {
   core::Pose2 previous_from_current;  ///< exact arc of constant curvature
   double forward_speed_mps = 0.0;
   double yaw_rate_radps = 0.0;
+  /// Covariance of previous_from_current (x mm, y mm, yaw rad) in the previous vehicle frame,
+  /// from the wheel error model.
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
 };
 
 /// Dead reckoning from wheel encoders: integrates world_from_vehicle and its covariance

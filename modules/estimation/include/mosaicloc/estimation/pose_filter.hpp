@@ -1,0 +1,93 @@
+#pragma once
+
+#include <deque>
+#include <string>
+
+#include <Eigen/Core>
+
+#include "mosaicloc/core/pose2.hpp"
+#include "mosaicloc/core/timestamp.hpp"
+#include "mosaicloc/estimation/odometry.hpp"
+
+namespace mosaicloc::estimation {
+
+struct PoseFilterOptions {
+  /// Fixes whose squared Mahalanobis distance to the prediction exceeds this are rejected
+  /// (chi-square, 3 degrees of freedom: 16.27 is the 99.9 % quantile).
+  double gate_chi2 = 16.27;
+  /// How far back a late fix may be applied.
+  core::Duration history = std::chrono::seconds(2);
+  /// Extra variance per second when the pose is extrapolated past the last odometry
+  /// sample (the system model's constant-velocity assumption), mm^2/s and rad^2/s.
+  double extrapolation_position_variance_mm2_per_s = 1.0;
+  double extrapolation_yaw_variance_rad2_per_s = 1e-5;
+  bool Check(std::string* why) const;
+};
+
+/// Outcome of one fix.
+struct FixOutcome {
+  bool accepted = false;
+  double mahalanobis2 = 0.0;  ///< squared Mahalanobis distance of the fix to the prediction
+  std::string reason;         ///< why it was rejected; empty when accepted
+};
+
+/// Extended Kalman filter on world_from_vehicle (x mm, y mm, yaw rad) driven by wheel
+/// odometry as its control input, corrected by absolute fixes that may arrive late.
+///
+/// Why (x, y, yaw) with odometry as the input rather than a (x, y, yaw, v, omega) state with
+/// odometry as a measurement: encoders measure the motion itself at 100 Hz or more, so
+/// integrating them loses nothing and needs no motion prior that an accelerating AGV would
+/// violate; the velocities the system model needs for extrapolation come from the latest
+/// increment.
+///
+/// Prediction (the vehicle moves by the increment d with covariance Q in its own frame):
+///   x+ = x (+) d,   P+ = F P F^T + G Q G^T,
+///   F = [1 0 -(sin t dx + cos t dy); 0 1 (cos t dx - sin t dy); 0 0 1],  G = diag(R(t), 1).
+/// Correction by a fix z with covariance R (h(x) = x, yaw residual wrapped):
+///   S = P + R, K = P S^-1, x+ = x + K (z - x), P+ = (I - K) P (I - K)^T + K R K^T (Joseph).
+/// A late fix (its time inside the history) is applied at its own time: the increment that
+/// spans it is split along its arc, the state there corrected, and the later increments
+/// replayed on top.
+class PoseFilter {
+ public:
+  /// Throws core::Error (invalid input) when options fail Check().
+  PoseFilter(const PoseFilterOptions& options, core::Timestamp time, const core::Pose2& world_from_vehicle,
+             const Eigen::Matrix3d& covariance);
+
+  /// Moves the state to `time` by an odometry increment (which ends at `time`).
+  void Predict(core::Timestamp time, const OdometryIncrement& increment);
+  /// Applies a fix of world_from_vehicle at `time` (not after the latest odometry, not before
+  /// the history). Never throws: a rejected fix says why.
+  FixOutcome Correct(core::Timestamp time, const core::Pose2& world_from_vehicle, const Eigen::Matrix3d& covariance);
+  /// Restarts from a pose (relocalization), dropping the history.
+  void Reset(core::Timestamp time, const core::Pose2& world_from_vehicle, const Eigen::Matrix3d& covariance);
+
+  /// The system model: the pose at any time, interpolated along the odometry inside the
+  /// history, extrapolated with the latest linear and angular velocity after it.
+  core::Pose2 PoseAt(core::Timestamp time) const;
+  Eigen::Matrix3d CovarianceAt(core::Timestamp time) const;
+
+  core::Timestamp time() const { return history_.back().time; }
+  const core::Pose2& world_from_vehicle() const { return history_.back().world_from_vehicle; }
+  const Eigen::Matrix3d& covariance() const { return history_.back().covariance; }
+
+ private:
+  struct Node {
+    core::Timestamp time;
+    core::Pose2 world_from_vehicle;
+    Eigen::Matrix3d covariance;
+    core::Pose2 increment;                  ///< from the previous node to this one
+    Eigen::Matrix3d increment_covariance;   ///< in the previous node's vehicle frame
+  };
+  static void Propagate(const Node& from, Node* to);
+  // Index of the last node at or before `time` (history_ is never empty).
+  std::size_t NodeBefore(core::Timestamp time) const;
+  void Prune();
+
+  PoseFilterOptions options_;
+  std::deque<Node> history_;
+  double forward_speed_mm_per_s_ = 0.0;
+  double yaw_rate_rad_per_s_ = 0.0;
+};
+
+}  // namespace mosaicloc::estimation

@@ -1,0 +1,56 @@
+#include "mosaicloc/estimation/lock.hpp"
+
+#include "mosaicloc/core/error.hpp"
+
+namespace mosaicloc::estimation {
+
+const char* ToString(LockState state) {
+  switch (state) {
+    case LockState::kTracking: return "tracking";
+    case LockState::kDegraded: return "degraded";
+    case LockState::kLost: return "lost";
+  }
+  return "unknown";
+}
+
+bool LockOptions::Check(std::string* why) const {
+  auto fail = [why](const char* message) {
+    if (why != nullptr) *why = message;
+    return false;
+  };
+  if (degraded_after_misses < 1) return fail("degraded_after_misses must be >= 1");
+  if (lost_after_misses < degraded_after_misses) return fail("lost_after_misses must be >= degraded_after_misses");
+  if (regain_after_fixes < 1) return fail("regain_after_fixes must be >= 1");
+  if (!(lost_above_sigma_mm > 0.0)) return fail("lost_above_sigma_mm must be > 0");
+  return true;
+}
+
+LockMonitor::LockMonitor(const LockOptions& options) : options_(options) {
+  std::string why;
+  if (!options_.Check(&why)) core::ThrowInvalidInput("lock options: " + why);
+}
+
+LockState LockMonitor::Update(bool fixed, double position_sigma_mm, const std::string& reason) {
+  if (fixed) {
+    misses_ = 0;
+    ++fixes_in_a_row_;
+    if (state_ != LockState::kTracking && fixes_in_a_row_ >= options_.regain_after_fixes) {
+      state_ = LockState::kTracking;
+    }
+    return state_;
+  }
+  last_reason_ = reason;
+  fixes_in_a_row_ = 0;
+  ++misses_;
+  LockState next = state_;
+  if (misses_ >= options_.lost_after_misses || position_sigma_mm > options_.lost_above_sigma_mm) {
+    next = LockState::kLost;
+  } else if (misses_ >= options_.degraded_after_misses && state_ == LockState::kTracking) {
+    next = LockState::kDegraded;
+  }
+  if (next == LockState::kLost && state_ != LockState::kLost) ++losses_;
+  state_ = next;
+  return state_;
+}
+
+}  // namespace mosaicloc::estimation

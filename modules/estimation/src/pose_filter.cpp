@@ -1,0 +1,171 @@
+#include "mosaicloc/estimation/pose_filter.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/LU>
+
+#include "mosaicloc/core/error.hpp"
+
+namespace mosaicloc::estimation {
+namespace {
+
+// Part `fraction` of an arc of constant curvature, and its share of the covariance (the
+// wheel error model's variance grows linearly with travel).
+core::Pose2 ArcPart(const core::Pose2& increment, double fraction) {
+  return core::Pose2::Exp(fraction * increment.Log());
+}
+
+}  // namespace
+
+bool PoseFilterOptions::Check(std::string* why) const {
+  auto fail = [why](const char* message) {
+    if (why != nullptr) *why = message;
+    return false;
+  };
+  if (!(gate_chi2 > 0.0)) return fail("gate_chi2 must be > 0");
+  if (history <= core::Duration::zero()) return fail("history must be > 0");
+  if (!(extrapolation_position_variance_mm2_per_s >= 0.0) || !(extrapolation_yaw_variance_rad2_per_s >= 0.0)) {
+    return fail("extrapolation variances must be >= 0");
+  }
+  return true;
+}
+
+PoseFilter::PoseFilter(const PoseFilterOptions& options, core::Timestamp time, const core::Pose2& world_from_vehicle,
+                       const Eigen::Matrix3d& covariance)
+    : options_(options) {
+  std::string why;
+  if (!options_.Check(&why)) core::ThrowInvalidInput("pose filter options: " + why);
+  Reset(time, world_from_vehicle, covariance);
+}
+
+void PoseFilter::Reset(core::Timestamp time, const core::Pose2& world_from_vehicle, const Eigen::Matrix3d& covariance) {
+  history_.clear();
+  history_.push_back({time, world_from_vehicle, covariance, core::Pose2::Identity(), Eigen::Matrix3d::Zero()});
+}
+
+void PoseFilter::Propagate(const Node& from, Node* to) {
+  const double yaw = from.world_from_vehicle.yaw_rad();
+  const double c = std::cos(yaw), s = std::sin(yaw);
+  const double dx = to->increment.x_mm(), dy = to->increment.y_mm();
+  Eigen::Matrix3d f = Eigen::Matrix3d::Identity();
+  f(0, 2) = -(s * dx + c * dy);
+  f(1, 2) = c * dx - s * dy;
+  Eigen::Matrix3d g = Eigen::Matrix3d::Identity();
+  g.topLeftCorner<2, 2>() = from.world_from_vehicle.Rotation();
+  to->world_from_vehicle = from.world_from_vehicle * to->increment;
+  to->covariance = f * from.covariance * f.transpose() + g * to->increment_covariance * g.transpose();
+}
+
+void PoseFilter::Predict(core::Timestamp time, const OdometryIncrement& increment) {
+  if (time <= history_.back().time) return;  // out of order: odometry never goes back
+  Node node{time, {}, {}, increment.previous_from_current, increment.covariance};
+  Propagate(history_.back(), &node);
+  history_.push_back(node);
+  const double dt_s = core::ToSeconds(increment.dt);
+  if (dt_s > 0.0) {
+    const Eigen::Vector3d twist = increment.previous_from_current.Log();
+    forward_speed_mm_per_s_ = twist.x() / dt_s;
+    yaw_rate_rad_per_s_ = twist.z() / dt_s;
+  }
+  Prune();
+}
+
+void PoseFilter::Prune() {
+  const core::Timestamp oldest = history_.back().time - options_.history;
+  while (history_.size() > 2 && history_[1].time <= oldest) history_.pop_front();
+}
+
+std::size_t PoseFilter::NodeBefore(core::Timestamp time) const {
+  const auto after = std::upper_bound(history_.begin(), history_.end(), time,
+                                      [](core::Timestamp t, const Node& n) { return t < n.time; });
+  return after == history_.begin() ? 0 : static_cast<std::size_t>(after - history_.begin()) - 1;
+}
+
+core::Pose2 PoseFilter::PoseAt(core::Timestamp time) const {
+  const std::size_t k = NodeBefore(time);
+  const Node& node = history_[k];
+  if (k + 1 < history_.size()) {
+    const Node& next = history_[k + 1];
+    const double fraction = core::ToSeconds(time - node.time) / core::ToSeconds(next.time - node.time);
+    return node.world_from_vehicle * ArcPart(next.increment, std::clamp(fraction, 0.0, 1.0));
+  }
+  const double dt_s = core::ToSeconds(time - node.time);
+  if (dt_s <= 0.0) return node.world_from_vehicle;
+  return node.world_from_vehicle * core::Pose2::Exp({forward_speed_mm_per_s_ * dt_s, 0.0, yaw_rate_rad_per_s_ * dt_s});
+}
+
+Eigen::Matrix3d PoseFilter::CovarianceAt(core::Timestamp time) const {
+  const std::size_t k = NodeBefore(time);
+  const Node& node = history_[k];
+  if (k + 1 < history_.size()) {
+    const Node& next = history_[k + 1];
+    const double fraction = std::clamp(core::ToSeconds(time - node.time) / core::ToSeconds(next.time - node.time), 0.0, 1.0);
+    return (1.0 - fraction) * node.covariance + fraction * next.covariance;
+  }
+  const double dt_s = std::max(0.0, core::ToSeconds(time - node.time));
+  Eigen::Matrix3d p = node.covariance;
+  p(0, 0) += options_.extrapolation_position_variance_mm2_per_s * dt_s;
+  p(1, 1) += options_.extrapolation_position_variance_mm2_per_s * dt_s;
+  p(2, 2) += options_.extrapolation_yaw_variance_rad2_per_s * dt_s;
+  return p;
+}
+
+FixOutcome PoseFilter::Correct(core::Timestamp time, const core::Pose2& world_from_vehicle,
+                               const Eigen::Matrix3d& covariance) {
+  FixOutcome outcome;
+  if (time > history_.back().time) {
+    outcome.reason = "fix is newer than the latest odometry";
+    return outcome;
+  }
+  if (time < history_.front().time) {
+    outcome.reason = "fix is older than the filter's history";
+    return outcome;
+  }
+  // The state at the fix's time: split the increment that spans it.
+  const std::size_t k = NodeBefore(time);
+  Node at = history_[k];
+  std::deque<Node> later(history_.begin() + static_cast<std::ptrdiff_t>(k) + 1, history_.end());
+  const bool split = time > at.time && !later.empty();  // else the fix falls on node k
+  if (split) {
+    const Node& next = later.front();
+    const double fraction = core::ToSeconds(time - at.time) / core::ToSeconds(next.time - at.time);
+    Node part{time, {}, {}, ArcPart(next.increment, fraction), fraction * next.increment_covariance};
+    Propagate(at, &part);
+    later.front().increment = part.increment.Inverse() * next.increment;
+    later.front().increment_covariance = (1.0 - fraction) * next.increment_covariance;
+    at = part;
+  }
+
+  const Eigen::Vector3d residual(world_from_vehicle.x_mm() - at.world_from_vehicle.x_mm(),
+                                 world_from_vehicle.y_mm() - at.world_from_vehicle.y_mm(),
+                                 core::WrapAngle(world_from_vehicle.yaw_rad() - at.world_from_vehicle.yaw_rad()));
+  const Eigen::Matrix3d s = at.covariance + covariance;
+  const Eigen::Matrix3d s_inverse = s.inverse();
+  outcome.mahalanobis2 = residual.dot(s_inverse * residual);
+  if (!std::isfinite(outcome.mahalanobis2) || outcome.mahalanobis2 > options_.gate_chi2) {
+    outcome.reason = "fix is " + std::to_string(std::sqrt(std::max(outcome.mahalanobis2, 0.0))) +
+                     " sigma from the prediction";
+    return outcome;
+  }
+  const Eigen::Matrix3d gain = at.covariance * s_inverse;
+  const Eigen::Vector3d correction = gain * residual;
+  at.world_from_vehicle = core::Pose2(at.world_from_vehicle.x_mm() + correction.x(),
+                                      at.world_from_vehicle.y_mm() + correction.y(),
+                                      at.world_from_vehicle.yaw_rad() + correction.z());
+  const Eigen::Matrix3d i_minus_k = Eigen::Matrix3d::Identity() - gain;
+  at.covariance = i_minus_k * at.covariance * i_minus_k.transpose() + gain * covariance * gain.transpose();
+  at.covariance = 0.5 * (at.covariance + at.covariance.transpose());
+
+  // Replay the later odometry on the corrected state.
+  history_.erase(history_.begin() + static_cast<std::ptrdiff_t>(k + (split ? 1 : 0)), history_.end());
+  history_.push_back(at);
+  for (Node& node : later) {
+    Propagate(history_.back(), &node);
+    history_.push_back(node);
+  }
+  outcome.accepted = true;
+  return outcome;
+}
+
+}  // namespace mosaicloc::estimation

@@ -1,0 +1,141 @@
+#include <cmath>
+#include <random>
+
+#include <Eigen/LU>
+#include <gtest/gtest.h>
+
+#include "mosaicloc/estimation/lock.hpp"
+#include "mosaicloc/estimation/pose_filter.hpp"
+
+namespace mosaicloc::estimation {
+namespace {
+
+using core::Pose2;
+using core::Timestamp;
+using namespace std::chrono_literals;
+
+// An increment along a constant-curvature arc with an isotropic covariance.
+OdometryIncrement Arc(double forward_mm, double turn_rad, core::Duration dt, double sigma_mm = 0.05) {
+  OdometryIncrement inc;
+  inc.dt = dt;
+  inc.previous_from_current = Pose2::Exp({forward_mm, 0.0, turn_rad});
+  inc.covariance = Eigen::Vector3d(sigma_mm * sigma_mm, sigma_mm * sigma_mm, 1e-8).asDiagonal();
+  return inc;
+}
+
+Timestamp At(int step) { return Timestamp::FromNanoseconds(10'000'000LL * step); }
+
+TEST(PoseFilter, PredictionFollowsTheOdometryAndGrowsTheCovariance) {
+  PoseFilter filter(PoseFilterOptions{}, At(0), Pose2(1000.0, 0.0, 0.0), Eigen::Matrix3d::Identity() * 1e-4);
+  for (int i = 1; i <= 100; ++i) filter.Predict(At(i), Arc(10.0, 0.001, 10ms));
+  const Pose2 expected = Pose2(1000.0, 0.0, 0.0) * Pose2::Exp({1000.0, 0.0, 0.1});
+  EXPECT_LT(Distance(filter.world_from_vehicle(), expected), 1e-9);
+  EXPECT_GT(filter.covariance()(1, 1), filter.covariance()(0, 0)) << "lateral grows faster through yaw";
+}
+
+TEST(PoseFilter, SystemModelInterpolatesAndExtrapolates) {
+  PoseFilter filter(PoseFilterOptions{}, At(0), Pose2(), Eigen::Matrix3d::Identity() * 1e-4);
+  for (int i = 1; i <= 10; ++i) filter.Predict(At(i), Arc(20.0, 0.0, 10ms));  // 2 m/s
+  EXPECT_NEAR(filter.PoseAt(At(5) + 5ms).x_mm(), 110.0, 1e-9);
+  EXPECT_NEAR(filter.PoseAt(At(10) + 25ms).x_mm(), 250.0, 1e-9) << "constant velocity past the last sample";
+  EXPECT_GT(filter.CovarianceAt(At(10) + 500ms)(0, 0), filter.covariance()(0, 0));
+}
+
+TEST(PoseFilter, LateFixGivesTheSameStateAsAnOnTimeFix) {
+  const Pose2 fix(246.5, 0.8, 0.002);  // the prediction there is about (246, 0.3, 0.0025)
+  const Eigen::Matrix3d fix_covariance = Eigen::Vector3d(0.01, 0.01, 1e-6).asDiagonal();
+  const auto run = [&](bool late) {
+    PoseFilter filter(PoseFilterOptions{}, At(0), Pose2(), Eigen::Matrix3d::Identity() * 4.0);
+    for (int i = 1; i <= 50; ++i) {
+      filter.Predict(At(i), Arc(10.0, 0.0001, 10ms, 0.5));
+      if (!late && i == 25) {
+        EXPECT_TRUE(filter.Correct(At(25) - 4ms, fix, fix_covariance).accepted);
+      }
+    }
+    if (late) {
+      const FixOutcome outcome = filter.Correct(At(25) - 4ms, fix, fix_covariance);
+      EXPECT_TRUE(outcome.accepted) << outcome.reason;
+    }
+    return filter;
+  };
+  // On time means: applied when odometry reached the sample after the fix's time.
+  const PoseFilter on_time = run(false);
+  const PoseFilter late = run(true);
+  EXPECT_LT(Distance(on_time.world_from_vehicle(), late.world_from_vehicle()), 1e-9);
+  EXPECT_LT((on_time.covariance() - late.covariance()).norm(), 1e-12);
+}
+
+TEST(PoseFilter, GatesAFixFarFromThePrediction) {
+  PoseFilter filter(PoseFilterOptions{}, At(0), Pose2(), Eigen::Matrix3d::Identity() * 1.0);
+  filter.Predict(At(1), Arc(10.0, 0.0, 10ms));
+  const FixOutcome outcome = filter.Correct(At(1), Pose2(1000.0, 0.0, 0.0), Eigen::Matrix3d::Identity() * 0.01);
+  EXPECT_FALSE(outcome.accepted);
+  EXPECT_NE(outcome.reason.find("sigma"), std::string::npos);
+  EXPECT_NEAR(filter.world_from_vehicle().x_mm(), 10.0, 1e-9) << "a rejected fix changes nothing";
+  EXPECT_FALSE(filter.Correct(At(2), Pose2(), Eigen::Matrix3d::Identity()).accepted) << "newer than odometry";
+}
+
+// A drive with known truth: odometry with a 2 % scale error and noise, fixes with known
+// noise at 30 Hz. The filter must stay within its own covariance (normalised estimation
+// error squared near 3) and far better than dead reckoning.
+TEST(PoseFilter, FusesBiasedOdometryWithFixesConsistently) {
+  std::mt19937 rng(3);
+  std::normal_distribution<double> unit(0.0, 1.0);
+  const double fix_sigma_mm = 0.01, fix_sigma_rad = 2e-5;
+  Pose2 truth;
+  PoseFilter filter(PoseFilterOptions{}, At(0), truth, Eigen::Vector3d(1e-4, 1e-4, 1e-8).asDiagonal());
+  Pose2 dead_reckoning;
+  double nees_sum = 0.0;
+  int nees_count = 0;
+  for (int i = 1; i <= 3000; ++i) {
+    const double forward = 15.0, turn = 0.002 * std::sin(i * 0.003);
+    truth = truth * Pose2::Exp({forward, 0.0, turn});
+    OdometryIncrement inc = Arc(forward * 1.02 + 0.05 * unit(rng), turn + 1e-5 * unit(rng), 10ms, 0.35);
+    inc.covariance(2, 2) = 1e-9;
+    filter.Predict(At(i), inc);
+    dead_reckoning = dead_reckoning * inc.previous_from_current;
+    if (i % 3 == 0) {
+      const Pose2 fix(truth.x_mm() + fix_sigma_mm * unit(rng), truth.y_mm() + fix_sigma_mm * unit(rng),
+                      truth.yaw_rad() + fix_sigma_rad * unit(rng));
+      const Eigen::Matrix3d r = Eigen::Vector3d(fix_sigma_mm * fix_sigma_mm, fix_sigma_mm * fix_sigma_mm,
+                                                fix_sigma_rad * fix_sigma_rad).asDiagonal();
+      ASSERT_TRUE(filter.Correct(At(i), fix, r).accepted) << "step " << i;
+      const Eigen::Vector3d e(filter.world_from_vehicle().x_mm() - truth.x_mm(),
+                              filter.world_from_vehicle().y_mm() - truth.y_mm(),
+                              core::WrapAngle(filter.world_from_vehicle().yaw_rad() - truth.yaw_rad()));
+      nees_sum += e.dot(filter.covariance().inverse() * e);
+      ++nees_count;
+    }
+  }
+  EXPECT_LT(Distance(filter.world_from_vehicle(), truth), 0.05);
+  EXPECT_GT(Distance(dead_reckoning, truth), 100.0);
+  const double nees = nees_sum / nees_count;
+  EXPECT_GT(nees, 1.0);
+  EXPECT_LT(nees, 8.0) << "the covariance must describe the error";
+}
+
+TEST(LockMonitor, DegradesLosesAndRegainsWithHysteresis) {
+  LockOptions options;
+  options.degraded_after_misses = 2;
+  options.lost_after_misses = 4;
+  options.regain_after_fixes = 3;
+  LockMonitor lock(options);
+  EXPECT_EQ(lock.Update(false, 0.1, "no texture"), LockState::kTracking);
+  EXPECT_EQ(lock.Update(false, 0.1), LockState::kDegraded);
+  EXPECT_EQ(lock.Update(true, 0.1), LockState::kDegraded) << "one fix is not enough";
+  EXPECT_EQ(lock.Update(true, 0.1), LockState::kDegraded);
+  EXPECT_EQ(lock.Update(true, 0.1), LockState::kTracking);
+  for (int i = 0; i < 4; ++i) lock.Update(false, 0.1, "off map");
+  EXPECT_EQ(lock.state(), LockState::kLost);
+  EXPECT_EQ(lock.losses(), 1);
+  EXPECT_EQ(lock.last_reason(), "off map");
+  lock.Update(false, 0.1);
+  EXPECT_EQ(lock.losses(), 1) << "staying lost is one loss";
+  for (int i = 0; i < 3; ++i) lock.Update(true, 0.1);
+  EXPECT_EQ(lock.state(), LockState::kTracking);
+  EXPECT_EQ(lock.Update(false, 50.0), LockState::kLost) << "too uncertain is lost at once";
+  EXPECT_EQ(lock.losses(), 2);
+}
+
+}  // namespace
+}  // namespace mosaicloc::estimation
