@@ -1,0 +1,90 @@
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include <Eigen/Core>
+#include <opencv2/core/mat.hpp>
+
+#include "mosaicloc/camera/ideal_camera.hpp"
+#include "mosaicloc/core/pose2.hpp"
+#include "mosaicloc/core/timestamp.hpp"
+#include "mosaicloc/estimation/lock.hpp"
+#include "mosaicloc/estimation/odometry.hpp"
+#include "mosaicloc/estimation/pose_filter.hpp"
+#include "mosaicloc/tracking/tracker.hpp"
+
+namespace mosaicloc::localizer {
+
+struct LocalizerOptions {
+  tracking::TrackerOptions tracker;
+  estimation::PoseFilterOptions filter;
+  estimation::LockOptions lock;
+  estimation::DiffDriveOptions odometry;
+  core::Pose2 vehicle_from_camera;
+  /// Floor on a fix's standard deviation (model errors the tracker's covariance does not
+  /// see: map painting, rectification), mm and rad.
+  double fix_sigma_floor_mm = 0.003;
+  double fix_sigma_floor_rad = 2e-5;
+  /// Fix covariance inflation: the tracker's covariance counts every pixel as independent.
+  double fix_covariance_scale = 4.0;
+  bool Check(std::string* why) const;
+};
+
+/// What happened to one frame.
+struct FrameOutcome {
+  bool fixed = false;                ///< a visual fix was accepted by the filter
+  std::string reason;                ///< why not, when not
+  core::Pose2 fix_world_from_vehicle;  ///< the tracker's fix (valid when the tracker succeeded)
+  double fix_quality = 0.0;          ///< 0..1: mean refined ZNCC of the inliers
+  core::Pose2 world_from_vehicle;    ///< the filter's estimate at the frame's time, after the fix
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
+  estimation::LockState lock = estimation::LockState::kTracking;
+  tracking::TrackResult track;       ///< the tracker's full diagnostics
+};
+
+/// The per-frame pipeline of the founding paper's Figure 3: odometry drives the filter; for
+/// each frame the system model predicts the camera pose at the frame's time, the tracker
+/// registers the frame against the map around it, and the filter takes the fix. One thread;
+/// deterministic given the same inputs.
+class Localizer {
+ public:
+  /// `reference` (the map, level 0) must outlive the localizer. Throws core::Error (invalid
+  /// input) on bad options.
+  Localizer(const camera::IdealCamera& camera, const LocalizerOptions& options,
+            const tracking::ReferenceRaster& reference);
+
+  /// Starts (or restarts) at a known pose.
+  void Initialize(core::Timestamp time, const core::Pose2& world_from_vehicle, const Eigen::Matrix3d& covariance);
+  bool initialized() const { return filter_.has_value(); }
+
+  /// One encoder sample (raw PLC counters). Returns false when the sample was rejected.
+  bool AddEncoders(core::Timestamp time, std::int32_t left_ticks, std::int32_t right_ticks);
+  /// One ideal frame. The odometry should already reach past `time` (the fix is applied at
+  /// the frame's own time inside the filter's history).
+  FrameOutcome ProcessFrame(core::Timestamp time, const cv::Mat& frame);
+
+  /// The estimate at any time (system model).
+  core::Pose2 PoseAt(core::Timestamp time) const;
+  Eigen::Matrix3d CovarianceAt(core::Timestamp time) const;
+  const estimation::LockMonitor& lock() const { return lock_; }
+
+ private:
+  camera::IdealCamera camera_;
+  LocalizerOptions options_;
+  const tracking::ReferenceRaster& reference_;
+  tracking::Tracker tracker_;
+  estimation::DiffDriveOdometry odometry_;
+  std::optional<estimation::PoseFilter> filter_;
+  estimation::LockMonitor lock_;
+};
+
+/// Covariance of world_from_camera = world_from_vehicle * vehicle_from_camera given the
+/// covariance of world_from_vehicle (first order), and the inverse mapping.
+Eigen::Matrix3d CameraCovariance(const core::Pose2& world_from_vehicle, const core::Pose2& vehicle_from_camera,
+                                 const Eigen::Matrix3d& vehicle_covariance);
+Eigen::Matrix3d VehicleCovariance(const core::Pose2& world_from_camera, const core::Pose2& vehicle_from_camera,
+                                  const Eigen::Matrix3d& camera_covariance);
+
+}  // namespace mosaicloc::localizer

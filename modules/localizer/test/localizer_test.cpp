@@ -1,0 +1,162 @@
+#include <cmath>
+#include <numbers>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include "mosaicloc/localizer/localizer.hpp"
+#include "mosaicloc/mosaic/builder.hpp"
+#include "mosaicloc/mosaic/renderer.hpp"
+#include "mosaicloc/mosaic/tile_cache.hpp"
+#include "mosaicloc/mosaic/tile_store.hpp"
+#include "mosaicloc/sim/floor.hpp"
+#include "mosaicloc/sim/imaging.hpp"
+#include "mosaicloc/test/test_support.hpp"
+
+namespace mosaicloc::localizer {
+namespace {
+
+using core::Pose2;
+using core::Timestamp;
+
+// A real texture laid on the floor at 0.125 mm/texel, its map written straight into a store
+// (each map pixel the 2x2 average of the texels it covers, as a perfect mapping run would),
+// and a vehicle driving over it with biased wheel odometry.
+class Drive : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto texture = test::SharedTexture("asphalt_02_2048.jpg");
+    if (!texture) GTEST_SKIP() << test::SharedDataMissingMessage();
+    sim::ImageFloorOptions floor_options;
+    floor_options.image = *texture;
+    floor_options.mm_per_texel = 0.125;
+    floor_ = sim::MakeImageFloor(floor_options);
+    mosaic::MapGrid grid;  // 0.25 mm/px, origin (0, 0), 256 px tiles
+    store_ = mosaic::TileStore::Create(scratch_ / "floor.mosaic", grid);
+    std::vector<mosaic::TileWrite> tiles;
+    for (int row = 0; row < 6; ++row) {      // y from 0 down to -384 mm
+      for (int col = 0; col < 14; ++col) {   // x from 0 to 896 mm
+        cv::Mat texels = floor_->Render(2 * 256 * col, 2 * 256 * row, 512, 512), pixels;
+        cv::resize(texels, pixels, cv::Size(256, 256), 0, 0, cv::INTER_AREA);
+        cv::max(pixels, 1, pixels);
+        tiles.push_back({mosaic::TileKey{0, col, row}, pixels});
+      }
+    }
+    mosaic::WriteWithPyramid(*store_, tiles);
+    cache_ = std::make_unique<mosaic::TileCache>(*store_);
+    renderer_ = std::make_unique<mosaic::MapRenderer>(*cache_);
+    reference_ = std::make_unique<tracking::MapReference>(*renderer_, 0);
+  }
+
+  // Truth: an arc of 3 m radius at `speed_mps` (a path a differential drive can follow),
+  // starting at x = 150 mm heading slightly right.
+  static Pose2 Truth(double t_s, double speed_mps) {
+    const double travel_mm = speed_mps * 1000.0 * t_s;
+    return Pose2(150.0, -180.0, -0.06) * Pose2::Exp({travel_mm, 0.0, travel_mm / 3000.0});
+  }
+
+  struct Run {
+    std::vector<double> errors_mm;
+    int fixes = 0;
+    std::int64_t lock_losses = 0;
+    std::vector<std::string> reasons;  ///< the first frames without a fix, why
+  };
+
+  // Runs the localizer for `seconds`, encoders at 100 Hz with a 2 % scale error, frames at
+  // 30 Hz; starts from `start_error` off the truth.
+  Run Localize(double seconds, double speed_mps, const Pose2& start_error) {
+    const camera::IdealCamera camera{camera::IdealCameraOptions{}};
+    sim::ImagingOptions imaging;
+    const sim::Imager imager(*floor_, camera, imaging, 7);
+    LocalizerOptions options;
+    options.vehicle_from_camera = Pose2(200.0, 0.0, 0.0);
+    Localizer localizer(camera, options, *reference_);
+    const double b = options.odometry.track_width_mm;
+    const double mm_per_tick = 2.0 * std::numbers::pi * options.odometry.left_wheel_radius_mm /
+                               static_cast<double>(options.odometry.ticks_per_revolution);
+    double left_mm = 0.0, right_mm = 0.0;
+    const auto ticks = [mm_per_tick](double mm) { return static_cast<std::int32_t>(std::lround(mm / mm_per_tick)); };
+    localizer.Initialize(Timestamp(), Truth(0.0, speed_mps) * start_error,
+                         Eigen::Vector3d(1.0, 1.0, 1e-4).asDiagonal());
+    localizer.AddEncoders(Timestamp(), 0, 0);
+    Run run;
+    int encoder_step = 0;
+    for (int frame = 1; frame < static_cast<int>(seconds * 30.0); ++frame) {
+      const double t_frame = frame / 30.0;
+      // Odometry up to the first sample after the frame (the fix comes late, as live).
+      while (encoder_step / 100.0 <= t_frame) {
+        ++encoder_step;
+        const Eigen::Vector3d twist =
+            Between(Truth((encoder_step - 1) / 100.0, speed_mps), Truth(encoder_step / 100.0, speed_mps)).Log();
+        left_mm += 1.02 * (twist.x() - 0.5 * b * twist.z());
+        right_mm += 1.02 * (twist.x() + 0.5 * b * twist.z());
+        localizer.AddEncoders(Timestamp::FromSeconds(encoder_step / 100.0), ticks(left_mm), ticks(right_mm));
+      }
+      const Pose2 truth = Truth(t_frame, speed_mps);
+      const Pose2 camera_pose = truth * options.vehicle_from_camera;
+      const cv::Mat image = imager.Render(camera_pose, Eigen::Vector2d(speed_mps * 1000.0, 0.0), t_frame,
+                                          static_cast<std::uint64_t>(frame));
+      const FrameOutcome outcome = localizer.ProcessFrame(Timestamp::FromSeconds(t_frame), image);
+      run.fixes += outcome.fixed ? 1 : 0;
+      if (!outcome.fixed && run.reasons.size() < 5) {
+        const Pose2& found = outcome.track.world_from_camera;
+        run.reasons.push_back(outcome.reason + " (camera found at " + std::to_string(found.x_mm()) + ", " +
+                              std::to_string(found.y_mm()) + ", " + std::to_string(found.yaw_rad()) + ", truth " +
+                              std::to_string(camera_pose.x_mm()) + ", " + std::to_string(camera_pose.y_mm()) + ", " +
+                              std::to_string(camera_pose.yaw_rad()) + "; vehicle predicted " +
+                              std::to_string(outcome.world_from_vehicle.x_mm()) + ", " +
+                              std::to_string(outcome.world_from_vehicle.y_mm()) + ", " +
+                              std::to_string(outcome.world_from_vehicle.yaw_rad()) + " truth " +
+                              std::to_string(truth.x_mm()) + ", " + std::to_string(truth.y_mm()) + ", " +
+                              std::to_string(truth.yaw_rad()) + " sigma " +
+                              std::to_string(std::sqrt(outcome.covariance(0, 0))) + ")");
+      }
+      run.errors_mm.push_back(Distance(outcome.world_from_vehicle, truth));
+    }
+    run.lock_losses = localizer.lock().losses();
+    return run;
+  }
+
+  test::ScratchDir scratch_;
+  std::unique_ptr<sim::Floor> floor_;
+  std::unique_ptr<mosaic::TileStore> store_;
+  std::unique_ptr<mosaic::TileCache> cache_;
+  std::unique_ptr<mosaic::MapRenderer> renderer_;
+  std::unique_ptr<tracking::MapReference> reference_;
+};
+
+TEST_F(Drive, TracksToAFractionOfAMillimetreWithBiasedOdometry) {
+  const Run run = Localize(1.5, 0.3, Pose2());
+  ASSERT_FALSE(run.errors_mm.empty());
+  double sum_sq = 0.0, max = 0.0;
+  for (const double e : run.errors_mm) {
+    sum_sq += e * e;
+    max = std::max(max, e);
+  }
+  const double rms = std::sqrt(sum_sq / static_cast<double>(run.errors_mm.size()));
+  RecordProperty("position_rms_mm", std::to_string(rms));
+  EXPECT_EQ(run.lock_losses, 0);
+  EXPECT_EQ(run.fixes, static_cast<int>(run.errors_mm.size()))
+      << (run.reasons.empty() ? std::string() : run.reasons.front());
+  EXPECT_LT(rms, 0.05);
+  EXPECT_LT(max, 0.2);
+}
+
+TEST_F(Drive, OffTheMapLosesTheLockAndCountsIt) {
+  // Start 2 m away from the mapped strip: no fix can be made, the lock is lost once.
+  const Run run = Localize(1.0, 0.3, Pose2(0.0, 2000.0, 0.0));
+  EXPECT_EQ(run.fixes, 0);
+  EXPECT_EQ(run.lock_losses, 1);
+}
+
+TEST(CovarianceTransfer, CameraAndVehicleCovariancesAreInverse) {
+  const Pose2 world_from_vehicle(10.0, 20.0, 0.7), vehicle_from_camera(200.0, -30.0, 0.1);
+  const Eigen::Matrix3d p = Eigen::Vector3d(0.5, 0.2, 1e-4).asDiagonal();
+  const Eigen::Matrix3d camera = CameraCovariance(world_from_vehicle, vehicle_from_camera, p);
+  EXPECT_GT(camera(0, 0) + camera(1, 1), p(0, 0) + p(1, 1)) << "yaw uncertainty adds lever-arm error";
+  const Eigen::Matrix3d back = VehicleCovariance(world_from_vehicle * vehicle_from_camera, vehicle_from_camera, camera);
+  EXPECT_LT((back - p).norm(), 1e-9);
+}
+
+}  // namespace
+}  // namespace mosaicloc::localizer
