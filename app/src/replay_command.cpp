@@ -1,5 +1,10 @@
 #include <algorithm>
 #include <chrono>
+
+#include <fmt/format.h>
+#include <cmath>
+#include <numbers>
+#include <optional>
 #include <cstdio>
 #include <vector>
 
@@ -11,18 +16,50 @@
 #include "mosaicloc/dataset/dataset.hpp"
 #include "mosaicloc/dataset/evaluation.hpp"
 #include "mosaicloc/estimation/odometry.hpp"
+#include "localizer_config.hpp"
+#include "mosaicloc/dataset/trajectory.hpp"
+#include "mosaicloc/localizer/localizer.hpp"
+#include "mosaicloc/mosaic/renderer.hpp"
+#include "mosaicloc/mosaic/tile_cache.hpp"
+#include "mosaicloc/mosaic/tile_store.hpp"
+#include "mosaicloc/tracking/reference.hpp"
 #include "progress.hpp"
 #include "report.hpp"
 
 namespace mosaicloc::app {
 namespace {
 
+estimation::DiffDriveOptions OdometryFor(const dataset::DatasetInfo& info) {
+  estimation::DiffDriveOptions options;
+  options.left_wheel_radius_mm = info.vehicle.left_wheel_radius_mm;
+  options.right_wheel_radius_mm = info.vehicle.right_wheel_radius_mm;
+  options.track_width_mm = info.vehicle.track_width_mm;
+  options.ticks_per_revolution = info.vehicle.ticks_per_revolution;
+  return options;
+}
+
+// Overlap speed limit (founding paper, section 2.2): V < (footprint along travel / T) (1 - beta),
+// with T the mean frame period of the run.
+std::optional<double> OverlapSpeedLimit(const dataset::DatasetInfo& info, const dataset::Trajectory& estimate,
+                                        double required_overlap) {
+  if (estimate.size() < 2) return std::nullopt;
+  const camera::IdealCamera camera(
+      camera::IdealCameraOptions{info.camera.width_px, info.camera.height_px, info.camera.mm_per_px});
+  const double period_s =
+      core::ToSeconds(estimate.back().time - estimate.front().time) / static_cast<double>(estimate.size() - 1);
+  const double along_mm = camera.FootprintLengthAlong(-info.camera.vehicle_from_camera.yaw_rad());
+  return along_mm * 1e-3 / period_s * (1.0 - required_overlap);
+}
+
 struct ReplayArgs {
   std::filesystem::path dataset;
+  std::filesystem::path map;
   std::filesystem::path out;
-  std::string mode = "dead-reckoning";
-  double required_overlap = 0.5;
+  std::filesystem::path config;
+  std::string mode;  // empty: mosaic with --map, else an error
+  std::optional<double> required_overlap;
 };
+
 
 // Dead reckoning: integrate the wheel encoders from the starting pose, and report the pose
 // at every frame's time. This is the baseline the mosaic fix removes the drift from.
@@ -32,11 +69,7 @@ void RunDeadReckoning(const ReplayArgs& args, const GlobalOptions& global) {
   std::optional<dataset::Trajectory> groundtruth;
   if (reader.HasGroundTruth()) groundtruth = reader.GroundTruth();
 
-  estimation::DiffDriveOptions odometry_options;
-  odometry_options.left_wheel_radius_mm = info.vehicle.left_wheel_radius_mm;
-  odometry_options.right_wheel_radius_mm = info.vehicle.right_wheel_radius_mm;
-  odometry_options.track_width_mm = info.vehicle.track_width_mm;
-  odometry_options.ticks_per_revolution = info.vehicle.ticks_per_revolution;
+  const estimation::DiffDriveOptions odometry_options = OdometryFor(info);
   // The start is known (as a localizer would be told at installation): the first ground
   // truth pose, or the origin.
   const core::Pose2 start = groundtruth ? groundtruth->front().world_from_vehicle : core::Pose2::Identity();
@@ -89,15 +122,7 @@ void RunDeadReckoning(const ReplayArgs& args, const GlobalOptions& global) {
   std::sort(latency_ms.begin(), latency_ms.end());  // not empty: estimate has a frame
   metrics.latency_p50_ms = dataset::Percentile(latency_ms, 50.0);
   metrics.latency_p99_ms = dataset::Percentile(latency_ms, 99.0);
-  // Overlap speed limit (founding paper, section 2.2): V < (footprint along travel / T) (1 - beta).
-  const camera::IdealCamera camera(
-      camera::IdealCameraOptions{info.camera.width_px, info.camera.height_px, info.camera.mm_per_px});
-  if (estimate.size() > 1) {
-    const double period_s = core::ToSeconds(estimate.back().time - estimate.front().time) /
-                            static_cast<double>(estimate.size() - 1);
-    const double along_mm = camera.FootprintLengthAlong(-info.camera.vehicle_from_camera.yaw_rad());
-    metrics.overlap_speed_limit_mps = along_mm * 1e-3 / period_s * (1.0 - args.required_overlap);
-  }
+  metrics.overlap_speed_limit_mps = OverlapSpeedLimit(info, estimate, args.required_overlap.value_or(0.5));
 
   std::error_code ec;
   std::filesystem::create_directories(args.out, ec);
@@ -108,19 +133,136 @@ void RunDeadReckoning(const ReplayArgs& args, const GlobalOptions& global) {
   PrintMetrics(args.out, written, global.json);
 }
 
+// The localizer over the map: odometry drives the filter, every frame is registered against
+// the map and fused. Frames are processed after the first encoder sample that follows them,
+// so each fix is late, as on a vehicle, and is applied at its own time.
+void RunMosaic(const ReplayArgs& args, const GlobalOptions& global) {
+  LocalizerConfig config = args.config.empty() ? LocalizerConfig{} : LoadLocalizerConfig(args.config);
+  if (args.required_overlap) config.required_overlap = *args.required_overlap;
+  const dataset::DatasetReader reader(args.dataset);
+  const dataset::DatasetInfo& info = reader.info();
+  std::optional<dataset::Trajectory> groundtruth;
+  if (reader.HasGroundTruth()) groundtruth = reader.GroundTruth();
+
+  const std::unique_ptr<mosaic::TileStore> store = mosaic::TileStore::Open(args.map, /*writable=*/false);
+  mosaic::TileCache cache(*store, config.cache_budget_mib << 20);
+  const mosaic::MapRenderer renderer(cache);
+  const tracking::MapReference reference(renderer, 0);
+  if (std::abs(store->grid().mm_per_px - info.camera.mm_per_px) > 1e-9) {
+    core::ThrowInvalidInput(args.map.string() + ": map resolution " + std::to_string(store->grid().mm_per_px) +
+                            " mm/px differs from the dataset's camera (" + std::to_string(info.camera.mm_per_px) +
+                            " mm/px)");
+  }
+
+  const camera::IdealCamera camera(
+      camera::IdealCameraOptions{info.camera.width_px, info.camera.height_px, info.camera.mm_per_px});
+  config.localizer.odometry = OdometryFor(info);
+  config.localizer.vehicle_from_camera = info.camera.vehicle_from_camera;
+  localizer::Localizer localizer(camera, config.localizer, reference);
+
+  auto encoders = reader.Encoders();
+  std::optional<dataset::EncoderSample> pending = encoders.Next();
+  if (!pending) core::ThrowInvalidInput(args.dataset.string() + ": no encoder samples");
+  // The start is known (as a localizer would be told at installation): the first ground
+  // truth pose, or the origin.
+  const core::Pose2 start = groundtruth ? dataset::PoseAt(*groundtruth, pending->time, std::chrono::seconds(1))
+                                              .value_or(groundtruth->front().world_from_vehicle)
+                                        : core::Pose2::Identity();
+  const double start_sigma_rad = config.start_sigma_deg * std::numbers::pi / 180.0;
+  localizer.Initialize(pending->time, start,
+                       Eigen::Vector3d(config.start_sigma_mm * config.start_sigma_mm,
+                                       config.start_sigma_mm * config.start_sigma_mm, start_sigma_rad * start_sigma_rad)
+                           .asDiagonal());
+  std::int64_t rejected = 0;
+  const auto feed = [&] {
+    if (!localizer.AddEncoders(pending->time, pending->left_ticks, pending->right_ticks)) ++rejected;
+    pending = encoders.Next();
+  };
+
+  ProgressBar progress("replay", global.quiet);
+  dataset::Trajectory estimate;
+  std::vector<double> latency_ms;
+  std::string fixes_csv = "#timestamp_ns,x_mm,y_mm,yaw_rad,status,quality\n";
+  std::int64_t frames = 0, fixes = 0;
+  double processing_s = 0.0;
+  auto stream = reader.Frames();
+  while (const auto frame = stream.Next()) {
+    while (pending && pending->time <= frame->time) feed();
+    if (pending) feed();  // one sample past the frame: the fix arrives late
+    ++frames;
+    const auto started = std::chrono::steady_clock::now();
+    const localizer::FrameOutcome outcome = localizer.ProcessFrame(frame->time, frame->image);
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count();
+    latency_ms.push_back(ms);
+    processing_s += ms * 1e-3;
+    estimate.push_back({frame->time, outcome.world_from_vehicle});
+    if (outcome.fixed) {
+      ++fixes;
+      const core::Pose2& f = outcome.fix_world_from_vehicle;
+      fixes_csv += fmt::format("{},{:.4f},{:.4f},{:.7f},{},{}\n", frame->time.nanoseconds(), f.x_mm(), f.y_mm(),
+                               f.yaw_rad(), static_cast<int>(outcome.lock),
+                               static_cast<int>(std::lround(1000.0 * outcome.fix_quality)));
+    } else {
+      core::Log().debug("frame {}: no fix: {}", frame->time.nanoseconds(), outcome.reason);
+    }
+    if (frames % 16 == 0 && groundtruth) {
+      progress.Update(std::clamp((frame->time - groundtruth->front().time).count() /
+                                     static_cast<double>((groundtruth->back().time - groundtruth->front().time).count() + 1),
+                                 0.0, 1.0));
+    }
+  }
+  progress.Finish();
+  if (estimate.empty()) core::ThrowInvalidInput(args.dataset.string() + ": no frames");
+
+  dataset::Metrics metrics;
+  metrics.frames = frames;
+  metrics.fixes = fixes;
+  metrics.fix_rate = static_cast<double>(fixes) / static_cast<double>(frames);
+  metrics.lock_losses = localizer.lock().losses();
+  metrics.processing_fps = processing_s > 0.0 ? static_cast<double>(frames) / processing_s : 0.0;
+  std::sort(latency_ms.begin(), latency_ms.end());
+  metrics.latency_p50_ms = dataset::Percentile(latency_ms, 50.0);
+  metrics.latency_p99_ms = dataset::Percentile(latency_ms, 99.0);
+  metrics.overlap_speed_limit_mps = OverlapSpeedLimit(info, estimate, config.required_overlap);
+
+  std::error_code ec;
+  std::filesystem::create_directories(args.out, ec);
+  core::WriteFileAtomically(args.out / "fixes.csv", fixes_csv);
+  const dataset::Metrics written =
+      WriteReport(args.out, estimate, groundtruth, metrics, "mosaic localization: " + args.dataset.filename().string());
+  if (rejected > 0) core::Log().warn("{} encoder samples rejected", rejected);
+  const mosaic::TileCacheStats stats = cache.stats();
+  core::Log().info("map cache: {} hits, {} loads", stats.hits, stats.misses);
+  PrintMetrics(args.out, written, global.json);
+}
+
 }  // namespace
 
 Action AddReplayCommand(CLI::App& app, const GlobalOptions& global) {
   auto args = std::make_shared<ReplayArgs>();
   CLI::App* command = app.add_subcommand("replay", "Localize a recorded or simulated dataset and write a report");
   command->add_option("--dataset", args->dataset, "Dataset directory")->required();
+  command->add_option("--map", args->map, "Mosaic map (*.mosaic) to localize against")->check(CLI::ExistingFile);
   command->add_option("--out", args->out, "Report directory")->required();
-  command->add_option("--mode", args->mode, "dead-reckoning: wheel odometry only (the baseline)")
-      ->check(CLI::IsMember({"dead-reckoning"}));
+  command->add_option("--config", args->config, "Localizer configuration (see config/default/localizer.yaml)")
+      ->check(CLI::ExistingFile);
+  command->add_option("--mode", args->mode,
+                      "mosaic (default with --map): localize against the map; "
+                      "dead-reckoning: wheel odometry only (the baseline)")
+      ->check(CLI::IsMember({"mosaic", "dead-reckoning"}));
   command->add_option("--required-overlap", args->required_overlap,
                       "Fraction of image overlap the tracker needs (beta of the overlap speed limit)")
       ->check(CLI::Range(0.0, 0.95));
-  return [args, &global] { RunDeadReckoning(*args, global); };
+  return [args, &global] {
+    const std::string mode = args->mode.empty() ? (args->map.empty() ? "" : "mosaic") : args->mode;
+    if (mode.empty()) core::ThrowInvalidInput("replay: give --map MAP to localize, or --mode dead-reckoning");
+    if (mode == "mosaic" && args->map.empty()) core::ThrowInvalidInput("replay: --mode mosaic needs --map MAP");
+    if (mode == "dead-reckoning") {
+      RunDeadReckoning(*args, global);
+    } else {
+      RunMosaic(*args, global);
+    }
+  };
 }
 
 }  // namespace mosaicloc::app

@@ -1,0 +1,30 @@
+#pragma once
+
+#include <cstddef>
+#include <filesystem>
+#include <string>
+
+#include <yaml-cpp/yaml.h>
+
+#include "mosaicloc/localizer/localizer.hpp"
+
+namespace mosaicloc::app {
+
+/// Everything `replay` (and later `run`) reads from --config: see config/default/localizer.yaml
+/// for every key, its unit and default. Vehicle geometry and vehicle_from_camera come from
+/// the dataset, not from here.
+struct LocalizerConfig {
+  localizer::LocalizerOptions localizer;
+  std::size_t cache_budget_mib = 256;
+  double start_sigma_mm = 1.0;     ///< uncertainty of the starting pose given to the filter
+  double start_sigma_deg = 0.5;
+  double required_overlap = 0.5;   ///< beta of the overlap speed limit
+};
+
+/// Reads a localizer configuration. Keys left out keep their defaults; unknown keys, wrong
+/// types and values out of range are all reported at once as core::Error naming file, line
+/// and key.
+LocalizerConfig LoadLocalizerConfig(const std::filesystem::path& file);
+void ReadLocalizerConfig(const YAML::Node& node, const std::string& file_name, LocalizerConfig* config);
+
+}  // namespace mosaicloc::app
