@@ -2,6 +2,8 @@
 
 #include <cstdio>
 #include <fstream>
+#include <optional>
+#include <type_traits>
 
 #include <nlohmann/json.hpp>
 
@@ -48,7 +50,9 @@ void PrintMetrics(const std::filesystem::path& directory, const dataset::Metrics
     return;
   }
   const auto show = [](const char* name, const auto& value, const char* unit) {
-    if (value) {
+    if (value && std::is_integral_v<std::decay_t<decltype(*value)>>) {
+      std::printf("  %-24s %12lld %s\n", name, static_cast<long long>(*value), unit);
+    } else if (value) {
       std::printf("  %-24s %12.4f %s\n", name, static_cast<double>(*value), unit);
     } else {
       std::printf("  %-24s %12s\n", name, "n/a");
@@ -56,6 +60,9 @@ void PrintMetrics(const std::filesystem::path& directory, const dataset::Metrics
   };
   std::printf("report: %s\n", std::filesystem::absolute(directory).string().c_str());
   show("frames", metrics.frames, "");
+  show("fixes", metrics.fixes, "");
+  if (metrics.fix_rate) show("fix rate", std::optional<double>(100.0 * *metrics.fix_rate), "%");
+  show("lock losses", metrics.lock_losses, "");
   show("position RMS", metrics.position_rms_mm, "mm");
   show("position p99", metrics.position_p99_mm, "mm");
   show("position max", metrics.position_max_mm, "mm");
@@ -68,6 +75,8 @@ void PrintMetrics(const std::filesystem::path& directory, const dataset::Metrics
   show("max speed", metrics.max_speed_mps, "m/s");
   show("overlap speed limit", metrics.overlap_speed_limit_mps, "m/s");
   show("processing", metrics.processing_fps, "frames/s");
+  show("latency p50", metrics.latency_p50_ms, "ms");
+  show("latency p99", metrics.latency_p99_ms, "ms");
 }
 
 }  // namespace mosaicloc::app

@@ -99,15 +99,23 @@ std::vector<TemplateSpot> SelectTemplates(const cv::Mat& frame, const cv::Mat& h
   }
   // Structure tensor of the half-resolution frame, box-averaged over half-size windows
   // at a quarter of that resolution: the tensor of a window is the mean of its cells.
-  cv::Mat gx, gy;
-  cv::Sobel(half, gx, CV_32F, 1, 0, 3, 0.125);
-  cv::Sobel(half, gy, CV_32F, 0, 1, 3, 0.125);
+  // Per-thread buffers: these run every frame, and fresh frame-sized allocations would cost
+  // more in page faults than the arithmetic.
+  struct Workspace {
+    cv::Mat gx, gy, product;
+  };
+  thread_local Workspace w;
+  cv::Sobel(half, w.gx, CV_32F, 1, 0, 3, 0.125);
+  cv::Sobel(half, w.gy, CV_32F, 0, 1, 3, 0.125);
   constexpr int kCell = 4;  // half-resolution pixels per cell = 8 frame pixels
   const cv::Size cells(half.cols / kCell, half.rows / kCell);
   cv::Mat sxx, sxy, syy;
-  cv::resize(gx.mul(gx), sxx, cells, 0, 0, cv::INTER_AREA);
-  cv::resize(gx.mul(gy), sxy, cells, 0, 0, cv::INTER_AREA);
-  cv::resize(gy.mul(gy), syy, cells, 0, 0, cv::INTER_AREA);
+  cv::multiply(w.gx, w.gx, w.product);
+  cv::resize(w.product, sxx, cells, 0, 0, cv::INTER_AREA);
+  cv::multiply(w.gx, w.gy, w.product);
+  cv::resize(w.product, sxy, cells, 0, 0, cv::INTER_AREA);
+  cv::multiply(w.gy, w.gy, w.product);
+  cv::resize(w.product, syy, cells, 0, 0, cv::INTER_AREA);
   const int k = std::max(1, s / (2 * kCell));
   cv::Mat mxx, mxy, myy;
   cv::boxFilter(sxx, mxx, -1, cv::Size(k, k), cv::Point(0, 0), true, cv::BORDER_REPLICATE);

@@ -78,7 +78,7 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
     return fail(TrackFailure::kNoTexture, "the frame is not an 8-bit " + std::to_string(camera_.width_px()) + "x" +
                                               std::to_string(camera_.height_px()) + " image");
   }
-  cv::Mat half;
+  thread_local cv::Mat half;  // reused frame to frame: no page faults for a fresh buffer
   cv::resize(frame, half, cv::Size(frame.cols / 2, frame.rows / 2), 0, 0, cv::INTER_AREA);
   std::vector<TemplateSpot> spots = SelectTemplates(frame, half, options_.templates);
   if (spots.empty()) return fail(TrackFailure::kNoTexture, "no template of the frame has enough texture");
