@@ -44,6 +44,6 @@ expect_in "$SCRATCH/err" "camera.mm_per_pix: unknown key (did you mean 'mm_per_p
 
 cp -r "$SCRATCH/ds" "$SCRATCH/ds5"
 sed -i '2s/.*/0.5 1 2 3 0 0 0 1 9/' "$SCRATCH/ds5/groundtruth/data.tum"
-expect_exit 2 "$MOSAICLOC" replay --dataset "$SCRATCH/ds5" --out "$SCRATCH/r5"
+expect_exit 2 "$MOSAICLOC" replay --dataset "$SCRATCH/ds5" --out "$SCRATCH/r5" --mode dead-reckoning
 expect_in "$SCRATCH/err" "groundtruth/data.tum:2:"
 finish

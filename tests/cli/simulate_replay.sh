@@ -6,7 +6,7 @@ expect_in "$SCRATCH/out" "(1.00 laps of 11.14 m)"
 expect_exit 0 "$MOSAICLOC" --json dataset check "$SCRATCH/ds"
 expect_in "$SCRATCH/out" '"valid": true'
 
-expect_exit 0 "$MOSAICLOC" --quiet --json replay --dataset "$SCRATCH/ds" --out "$SCRATCH/report"
+expect_exit 0 "$MOSAICLOC" --quiet --json replay --dataset "$SCRATCH/ds" --out "$SCRATCH/report" --mode dead-reckoning
 for key in frames fixes fix_rate lock_losses position_rms_mm position_p50_mm position_p99_mm \
            position_max_mm heading_rms_deg heading_max_deg repeatability_mm processing_fps \
            latency_p50_ms latency_p99_ms max_speed_mps overlap_speed_limit_mps; do

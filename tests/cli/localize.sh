@@ -1,0 +1,75 @@
+# The main job on real textures: map a floor with a slow run, drive it faster with other
+# noise and wheel errors, localize against the map. Error bounds of design.md section 7,
+# no lock loss, and on the repeating brick floor no confident wrong fix.
+source "$(dirname "$0")/lib.sh"
+TEXTURES="${MOSAICLOC_SHARED_DATA:-}/textures"
+if [ ! -f "$TEXTURES/asphalt_02_2048.jpg" ] || [ ! -f "$TEXTURES/brick_floor_1024.png" ]; then
+  echo "shared data folder with real textures not found (MOSAICLOC_SHARED_DATA=${MOSAICLOC_SHARED_DATA:-unset}): skipped"
+  exit 77
+fi
+printf 'route: {straight_length_m: 3.0}\n' > "$SCRATCH/straight.yaml"
+
+for floor in asphalt_02_2048.jpg brick_floor_1024.png; do
+  name=${floor%%_*}
+  expect_exit 0 "$MOSAICLOC" --quiet simulate --out "$SCRATCH/$name-map" --config "$SCRATCH/straight.yaml" \
+    --floor "$TEXTURES/$floor" --route straight --laps 1 --speed-mps 0.5 --seed 21
+  expect_exit 0 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/$name-map" --out "$SCRATCH/$name.mosaic"
+  expect_exit 0 "$MOSAICLOC" --quiet simulate --out "$SCRATCH/$name-run" --config "$SCRATCH/straight.yaml" \
+    --floor "$TEXTURES/$floor" --route straight --laps 1 --speed-mps 1.5 --seed 22
+  expect_exit 0 "$MOSAICLOC" --quiet --json replay --dataset "$SCRATCH/$name-run" --map "$SCRATCH/$name.mosaic" \
+    --out "$SCRATCH/$name-report"
+  for file in estimate.tum fixes.csv metrics.json trajectory.png position_error.png heading_error.png; do
+    [ -s "$SCRATCH/$name-report/$file" ] || fail "$name: report file $file missing or empty"
+  done
+  python3 - "$SCRATCH/$name-report/metrics.json" "$name" <<'PY' || fail "$name: localization out of bounds"
+import json, sys
+m = json.load(open(sys.argv[1]))
+print(sys.argv[2], {k: m[k] for k in ("fix_rate", "lock_losses", "position_rms_mm", "position_max_mm", "heading_rms_deg")})
+assert m["lock_losses"] == 0, m
+assert m["fix_rate"] >= 0.98, m
+assert m["position_rms_mm"] <= 0.02, m
+assert m["position_max_mm"] <= 0.1, m
+assert m["heading_rms_deg"] <= 0.005, m
+PY
+  # Every fix the PLC would receive is within 0.5 mm of the truth. (A fix is of the camera;
+  # its vehicle position carries the yaw error times the 200 mm lever arm, which the filter
+  # weighs.) A wrong fix, the brick pattern matched one period off, would be tens of mm away.
+  python3 - "$SCRATCH/$name-report/fixes.csv" "$SCRATCH/$name-run/groundtruth/data.tum" <<'PY' || fail "$name: a fix is wrong"
+import bisect, math, sys
+truth = []
+for line in open(sys.argv[2]):
+    if line.startswith("#") or not line.strip():
+        continue
+    t, x, y = (float(v) for v in line.split()[:3])
+    truth.append((round(t * 1e9), x * 1000.0, y * 1000.0))
+times = [t for t, _, _ in truth]
+worst = 0.0
+for line in open(sys.argv[1]):
+    if line.startswith("#"):
+        continue
+    ns, x, y = line.split(",")[:3]
+    ns, x, y = int(ns), float(x), float(y)
+    i = min(max(bisect.bisect_left(times, ns), 1), len(truth) - 1)
+    (t0, x0, y0), (t1, x1, y1) = truth[i - 1], truth[i]
+    a = (ns - t0) / (t1 - t0)
+    worst = max(worst, math.hypot(x - (x0 + a * (x1 - x0)), y - (y0 + a * (y1 - y0))))
+assert worst < 0.5, worst
+PY
+done
+
+# Bad input: no map and no mode, a missing map, a map of another resolution.
+expect_exit 2 "$MOSAICLOC" replay --dataset "$SCRATCH/asphalt-run" --out "$SCRATCH/r1"
+expect_in "$SCRATCH/err" "give --map MAP to localize, or --mode dead-reckoning"
+expect_exit 2 "$MOSAICLOC" replay --dataset "$SCRATCH/asphalt-run" --map "$SCRATCH/none.mosaic" --out "$SCRATCH/r2"
+expect_in "$SCRATCH/err" "none.mosaic"
+printf 'camera: {mm_per_px: 0.5}\nroute: {straight_length_m: 1.0}\n' > "$SCRATCH/coarse.yaml"
+expect_exit 0 "$MOSAICLOC" --quiet simulate --out "$SCRATCH/coarse" --config "$SCRATCH/coarse.yaml" --route straight --laps 1
+expect_exit 0 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/coarse" --out "$SCRATCH/coarse.mosaic"
+expect_exit 2 "$MOSAICLOC" replay --dataset "$SCRATCH/asphalt-run" --map "$SCRATCH/coarse.mosaic" --out "$SCRATCH/r3"
+expect_in "$SCRATCH/err" "map resolution 0.5"
+printf 'refine: {method: direct, warp: srt}\nsearch: {sigmas: 0}\n' > "$SCRATCH/bad.yaml"
+expect_exit 2 "$MOSAICLOC" replay --dataset "$SCRATCH/asphalt-run" --map "$SCRATCH/asphalt.mosaic" \
+  --out "$SCRATCH/r4" --config "$SCRATCH/bad.yaml"
+expect_in "$SCRATCH/err" "bad.yaml:1"
+expect_in "$SCRATCH/err" "search.sigmas"
+finish
