@@ -2,6 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
+#include <utility>
+#include <vector>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "mosaicloc/core/error.hpp"
 
@@ -28,6 +34,9 @@ bool LocalizerOptions::Check(std::string* why) const {
   };
   if (!(fix_sigma_floor_mm >= 0.0) || !(fix_sigma_floor_rad >= 0.0)) return fail("fix sigma floors must be >= 0");
   if (!(fix_covariance_scale >= 1.0)) return fail("fix_covariance_scale must be >= 1");
+  if (relocalize_level < 1 || relocalize_level > 6) return fail("relocalize_level must be in [1, 6]");
+  if (!(relocalize_radius_mm > 0.0)) return fail("relocalize_radius_mm must be > 0");
+  if (relocalize_candidates < 1 || relocalize_candidates > 50) return fail("relocalize_candidates must be in [1, 50]");
   return true;
 }
 
@@ -84,7 +93,22 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   const Eigen::Matrix3d prior_camera_covariance =
       CameraCovariance(predicted, options_.vehicle_from_camera, predicted_covariance);
 
-  outcome.track = tracker_.Track(frame, prior_camera, prior_camera_covariance, reference_);
+  // Lost, or too uncertain for the tracker's search range: relocalize on the coarse map.
+  const double prior_sigma_px =
+      std::sqrt(std::max(prior_camera_covariance(0, 0), prior_camera_covariance(1, 1))) / camera_.mm_per_px();
+  const bool relocalize = lock_.state() == estimation::LockState::kLost ||
+                          options_.tracker.search_sigmas * prior_sigma_px > options_.tracker.max_search_px;
+  if (relocalize) {
+    std::optional<tracking::TrackResult> found = Relocalize(frame, prior_camera, prior_camera_covariance);
+    if (found) {
+      outcome.track = std::move(*found);
+    } else {
+      outcome.track.failure = tracking::TrackFailure::kNoMatch;
+      outcome.track.reason = "relocalization found no verified place";
+    }
+  } else {
+    outcome.track = tracker_.Track(frame, prior_camera, prior_camera_covariance, reference_);
+  }
   if (outcome.track.ok()) {
     const core::Pose2 fix = outcome.track.world_from_camera * options_.vehicle_from_camera.Inverse();
     Eigen::Matrix3d fix_covariance = options_.fix_covariance_scale *
@@ -95,9 +119,18 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
     fix_covariance(2, 2) += options_.fix_sigma_floor_rad * options_.fix_sigma_floor_rad;
     outcome.fix_world_from_vehicle = fix;
     outcome.fix_quality = std::clamp(outcome.track.mean_zncc, 0.0, 1.0);
-    const estimation::FixOutcome applied = filter_->Correct(time, fix, fix_covariance);
-    outcome.fixed = applied.accepted;
-    if (!applied.accepted) outcome.reason = "fix rejected: " + applied.reason;
+    if (relocalize) {
+      // A verified relocalization replaces the prediction it contradicts.
+      filter_->Reset(filter_->time(), fix * Between(filter_->PoseAt(time), filter_->world_from_vehicle()),
+                     fix_covariance);
+      outcome.fixed = true;
+      outcome.relocalized = true;
+      ++relocalizations_;
+    } else {
+      const estimation::FixOutcome applied = filter_->Correct(time, fix, fix_covariance);
+      outcome.fixed = applied.accepted;
+      if (!applied.accepted) outcome.reason = "fix rejected: " + applied.reason;
+    }
   } else {
     outcome.reason = tracking::ToString(outcome.track.failure) + std::string(": ") + outcome.track.reason;
   }
@@ -106,6 +139,78 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   const double sigma_mm = std::sqrt(std::max(outcome.covariance(0, 0), outcome.covariance(1, 1)));
   outcome.lock = lock_.Update(outcome.fixed, sigma_mm, outcome.reason);
   return outcome;
+}
+
+std::optional<tracking::TrackResult> Localizer::Relocalize(const cv::Mat& frame, const core::Pose2& prior_camera,
+                                                          const Eigen::Matrix3d& prior_camera_covariance) const {
+  // The coarse level of the map, and the frame averaged down to it.
+  std::unique_ptr<const tracking::ReferenceRaster> coarse;
+  const tracking::ReferenceRaster* level = &reference_;
+  int k = 0;
+  for (; k < options_.relocalize_level; ++k) {
+    std::unique_ptr<const tracking::ReferenceRaster> next = level->Coarser();
+    if (!next) break;
+    coarse = std::move(next);
+    level = coarse.get();
+  }
+  if (k == 0) return std::nullopt;
+  const int scale = 1 << k;
+  cv::Mat small = frame;
+  for (int i = 0; i < k; ++i) cv::resize(small, small, cv::Size(small.cols / 2, small.rows / 2), 0, 0, cv::INTER_AREA);
+
+  // A window around the prediction in the frame's orientation: small-frame pixel q is frame
+  // pixel scale q + (scale - 1) / 2.
+  const double sigma_mm = std::sqrt(std::max(prior_camera_covariance(0, 0), prior_camera_covariance(1, 1)));
+  const double radius_mm = std::min(options_.relocalize_radius_mm, 3.0 * sigma_mm + 20.0);
+  const int range = static_cast<int>(std::ceil(radius_mm / (camera_.mm_per_px() * scale)));
+  Eigen::Matrix<double, 2, 3> small_to_frame;
+  small_to_frame << scale, 0.0, 0.5 * (scale - 1), 0.0, scale, 0.5 * (scale - 1);
+  const Eigen::Matrix<double, 2, 3> world_from_frame = camera_.PixelToWorldAffine(prior_camera);
+  const Eigen::Matrix<double, 2, 3> raster_from_world = level->WorldToRaster();
+  Eigen::Matrix<double, 2, 3> small_to_raster;
+  const Eigen::Matrix2d linear = raster_from_world.leftCols<2>() * world_from_frame.leftCols<2>();
+  small_to_raster.leftCols<2>() = linear * small_to_frame.leftCols<2>();
+  small_to_raster.col(2) = linear * small_to_frame.col(2) + raster_from_world.leftCols<2>() * world_from_frame.col(2) +
+                           raster_from_world.col(2);
+  cv::Mat mask;
+  cv::Mat window = tracking::RenderWindow(*level, small_to_raster, cv::Point(-range, -range),
+                                          cv::Size(small.cols + 2 * range, small.rows + 2 * range), &mask);
+  if (cv::countNonZero(mask) < small.cols * small.rows) return std::nullopt;
+  window.setTo(cv::mean(window, mask), ~mask);
+  cv::Mat scores;
+  cv::matchTemplate(window, small, scores, cv::TM_CCOEFF_NORMED);
+  // Places where the frame fits only partly on the map are not candidates.
+  cv::Mat coverage;
+  cv::Mat mask_f;
+  mask.convertTo(mask_f, CV_32F, 1.0 / 255.0);
+  cv::boxFilter(mask_f, coverage, -1, small.size(), cv::Point(0, 0), true, cv::BORDER_CONSTANT);
+  cv::Mat dilated;
+  cv::dilate(scores, dilated, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(5, 5)));
+  std::vector<std::pair<float, cv::Point>> peaks;
+  for (int y = 0; y < scores.rows; ++y) {
+    for (int x = 0; x < scores.cols; ++x) {
+      const float v = scores.at<float>(y, x);
+      if (v >= dilated.at<float>(y, x) && coverage.at<float>(y, x) > 0.999f) peaks.push_back({v, {x, y}});
+    }
+  }
+  std::sort(peaks.begin(), peaks.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+  if (peaks.size() > static_cast<std::size_t>(options_.relocalize_candidates)) {
+    peaks.resize(static_cast<std::size_t>(options_.relocalize_candidates));
+  }
+  // Verify each candidate at full resolution; accept the first that registers well.
+  const Eigen::Matrix3d candidate_covariance =
+      Eigen::Vector3d(std::pow(2.0 * scale * camera_.mm_per_px(), 2), std::pow(2.0 * scale * camera_.mm_per_px(), 2),
+                      prior_camera_covariance(2, 2))
+          .asDiagonal();
+  for (const auto& [score, at] : peaks) {
+    // The frame's centre moved by (at - range) small pixels, in the frame's own axes.
+    const Eigen::Vector2d shift_px = scale * Eigen::Vector2d(at.x - range, at.y - range);
+    const Eigen::Vector2d shift_camera_mm(shift_px.x() * camera_.mm_per_px(), -shift_px.y() * camera_.mm_per_px());
+    const core::Pose2 candidate = prior_camera * core::Pose2(shift_camera_mm, 0.0);
+    tracking::TrackResult r = tracker_.Track(frame, candidate, candidate_covariance, reference_);
+    if (r.ok() && r.mean_zncc >= options_.relocalize_min_zncc) return r;
+  }
+  return std::nullopt;
 }
 
 }  // namespace mosaicloc::localizer

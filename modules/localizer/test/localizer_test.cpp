@@ -60,11 +60,13 @@ class Drive : public ::testing::Test {
     int fixes = 0;
     std::int64_t lock_losses = 0;
     std::vector<std::string> reasons;  ///< the first frames without a fix, why
+    int first_fix_frame = -1;
+    std::int64_t relocalizations = 0;
   };
 
   // Runs the localizer for `seconds`, encoders at 100 Hz with a 2 % scale error, frames at
   // 30 Hz; starts from `start_error` off the truth.
-  Run Localize(double seconds, double speed_mps, const Pose2& start_error) {
+  Run Localize(double seconds, double speed_mps, const Pose2& start_error, double start_sigma_mm = 1.0) {
     const camera::IdealCamera camera{camera::IdealCameraOptions{}};
     sim::ImagingOptions imaging;
     const sim::Imager imager(*floor_, camera, imaging, 7);
@@ -77,7 +79,8 @@ class Drive : public ::testing::Test {
     double left_mm = 0.0, right_mm = 0.0;
     const auto ticks = [mm_per_tick](double mm) { return static_cast<std::int32_t>(std::lround(mm / mm_per_tick)); };
     localizer.Initialize(Timestamp(), Truth(0.0, speed_mps) * start_error,
-                         Eigen::Vector3d(1.0, 1.0, 1e-4).asDiagonal());
+                         Eigen::Vector3d(start_sigma_mm * start_sigma_mm, start_sigma_mm * start_sigma_mm, 1e-4)
+                             .asDiagonal());
     localizer.AddEncoders(Timestamp(), 0, 0);
     Run run;
     int encoder_step = 0;
@@ -98,6 +101,7 @@ class Drive : public ::testing::Test {
                                           static_cast<std::uint64_t>(frame));
       const FrameOutcome outcome = localizer.ProcessFrame(Timestamp::FromSeconds(t_frame), image);
       run.fixes += outcome.fixed ? 1 : 0;
+      if (outcome.fixed && run.first_fix_frame < 0) run.first_fix_frame = frame;
       if (!outcome.fixed && run.reasons.size() < 5) {
         const Pose2& found = outcome.track.world_from_camera;
         run.reasons.push_back(outcome.reason + " (camera found at " + std::to_string(found.x_mm()) + ", " +
@@ -114,6 +118,7 @@ class Drive : public ::testing::Test {
       run.errors_mm.push_back(Distance(outcome.world_from_vehicle, truth));
     }
     run.lock_losses = localizer.lock().losses();
+    run.relocalizations = localizer.relocalizations();
     return run;
   }
 
@@ -147,6 +152,16 @@ TEST_F(Drive, OffTheMapLosesTheLockAndCountsIt) {
   const Run run = Localize(1.0, 0.3, Pose2(0.0, 2000.0, 0.0));
   EXPECT_EQ(run.fixes, 0);
   EXPECT_EQ(run.lock_losses, 1);
+}
+
+TEST_F(Drive, KidnappedStartRelocalizesWithinTenFrames) {
+  // The start is given half a metre off, with an uncertainty that says so.
+  const Run run = Localize(1.0, 0.3, Pose2(500.0, 0.0, 0.0), 250.0);
+  ASSERT_GE(run.first_fix_frame, 1) << (run.reasons.empty() ? std::string() : run.reasons.front());
+  RecordProperty("first_fix_frame", run.first_fix_frame);
+  EXPECT_LE(run.first_fix_frame, 10);
+  EXPECT_GE(run.relocalizations, 1);
+  EXPECT_LT(run.errors_mm.back(), 0.05) << "after relocalizing, it tracks";
 }
 
 TEST(CovarianceTransfer, CameraAndVehicleCovariancesAreInverse) {

@@ -29,12 +29,21 @@ struct LocalizerOptions {
   double fix_sigma_floor_rad = 2e-5;
   /// Fix covariance inflation: the tracker's covariance counts every pixel as independent.
   double fix_covariance_scale = 4.0;
+  /// Relocalization, when the lock is lost or the prediction is too uncertain for the
+  /// tracker's search range: the frame is searched for at this coarse map level (3 = 8x
+  /// coarser), within relocalize_radius_mm of the prediction, and the best peaks verified
+  /// with the full tracker.
+  int relocalize_level = 3;
+  double relocalize_radius_mm = 600.0;
+  int relocalize_candidates = 5;
+  double relocalize_min_zncc = 0.8;   ///< of the verifying registration
   bool Check(std::string* why) const;
 };
 
 /// What happened to one frame.
 struct FrameOutcome {
   bool fixed = false;                ///< a visual fix was accepted by the filter
+  bool relocalized = false;          ///< the fix came from a relocalization (the filter restarted)
   std::string reason;                ///< why not, when not
   core::Pose2 fix_world_from_vehicle;  ///< the tracker's fix (valid when the tracker succeeded)
   double fix_quality = 0.0;          ///< 0..1: mean refined ZNCC of the inliers
@@ -69,8 +78,14 @@ class Localizer {
   core::Pose2 PoseAt(core::Timestamp time) const;
   Eigen::Matrix3d CovarianceAt(core::Timestamp time) const;
   const estimation::LockMonitor& lock() const { return lock_; }
+  std::int64_t relocalizations() const { return relocalizations_; }
 
  private:
+  // Searches the coarse map around the prediction and verifies the best candidates; the
+  // verified registration, or nothing.
+  std::optional<tracking::TrackResult> Relocalize(const cv::Mat& frame, const core::Pose2& prior_camera,
+                                                  const Eigen::Matrix3d& prior_camera_covariance) const;
+
   camera::IdealCamera camera_;
   LocalizerOptions options_;
   const tracking::ReferenceRaster& reference_;
@@ -78,6 +93,7 @@ class Localizer {
   estimation::DiffDriveOdometry odometry_;
   std::optional<estimation::PoseFilter> filter_;
   estimation::LockMonitor lock_;
+  std::int64_t relocalizations_ = 0;
 };
 
 /// Covariance of world_from_camera = world_from_vehicle * vehicle_from_camera given the
