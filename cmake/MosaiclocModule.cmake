@@ -44,6 +44,7 @@ function(mosaicloc_add_module name)
     target_link_libraries(${test_target} PRIVATE ${target} ${ARG_TEST_DEPS}
       mosaicloc::test_support GTest::gtest GTest::gmock GTest::gtest_main)
     mosaicloc_target_options(${test_target})
+    add_dependencies(mosaicloc_unit_tests ${test_target})
     gtest_discover_tests(${test_target}
       PROPERTIES LABELS unit
       ENVIRONMENT "MOSAICLOC_SHARED_DATA=${MOSAICLOC_SHARED_DATA}"

@@ -372,7 +372,7 @@ cv::Mat RenderWindow(const ReferenceRaster& reference, const Affine& frame_to_ra
       const double rx = row_start.x() + a(0, 0) * x, ry = row_start.y() + a(1, 0) * x;
       double v = 0.0;
       const bool known = Sample<std::uint8_t>(region.image, region.mask, region.all_mapped, rx, ry, &v);
-      o[x] = known ? static_cast<std::uint8_t>(std::lround(v)) : mosaic::kUnmapped;
+      o[x] = known ? static_cast<std::uint8_t>(v + 0.5) : mosaic::kUnmapped;  // v in [0, 255]
       if (m != nullptr) m[x] = known ? 255 : 0;
     }
   }

@@ -97,18 +97,20 @@ std::vector<TemplateSpot> SelectTemplates(const cv::Mat& frame, const cv::Mat& h
     core::ThrowInvalidInput("templates: size_px " + std::to_string(s) + " does not fit in a " +
                             std::to_string(frame.cols) + "x" + std::to_string(frame.rows) + " frame");
   }
-  // Structure tensor of the half-resolution frame, box-averaged over half-size windows
-  // at a quarter of that resolution: the tensor of a window is the mean of its cells.
-  // Per-thread buffers: these run every frame, and fresh frame-sized allocations would cost
-  // more in page faults than the arithmetic.
+  // Structure tensor of the frame at quarter resolution (enough to rank windows; the
+  // threshold below is checked at half resolution), box-averaged over template-size windows
+  // at an eighth of the frame's resolution: the tensor of a window is the mean of its cells.
+  // Per-thread buffers: this runs every frame, and fresh allocations would cost more in page
+  // faults than the arithmetic.
   struct Workspace {
-    cv::Mat gx, gy, product;
+    cv::Mat quarter, gx, gy, product;
   };
   thread_local Workspace w;
-  cv::Sobel(half, w.gx, CV_32F, 1, 0, 3, 0.125);
-  cv::Sobel(half, w.gy, CV_32F, 0, 1, 3, 0.125);
-  constexpr int kCell = 4;  // half-resolution pixels per cell = 8 frame pixels
-  const cv::Size cells(half.cols / kCell, half.rows / kCell);
+  cv::resize(half, w.quarter, cv::Size(half.cols / 2, half.rows / 2), 0, 0, cv::INTER_AREA);
+  cv::Sobel(w.quarter, w.gx, CV_32F, 1, 0, 3, 0.125);
+  cv::Sobel(w.quarter, w.gy, CV_32F, 0, 1, 3, 0.125);
+  constexpr int kCell = 2;  // quarter-resolution pixels per cell = 8 frame pixels
+  const cv::Size cells(w.quarter.cols / kCell, w.quarter.rows / kCell);
   cv::Mat sxx, sxy, syy;
   cv::multiply(w.gx, w.gx, w.product);
   cv::resize(w.product, sxx, cells, 0, 0, cv::INTER_AREA);
@@ -116,13 +118,13 @@ std::vector<TemplateSpot> SelectTemplates(const cv::Mat& frame, const cv::Mat& h
   cv::resize(w.product, sxy, cells, 0, 0, cv::INTER_AREA);
   cv::multiply(w.gy, w.gy, w.product);
   cv::resize(w.product, syy, cells, 0, 0, cv::INTER_AREA);
-  const int k = std::max(1, s / (2 * kCell));
+  const int k = std::max(1, s / (4 * kCell));
   cv::Mat mxx, mxy, myy;
   cv::boxFilter(sxx, mxx, -1, cv::Size(k, k), cv::Point(0, 0), true, cv::BORDER_REPLICATE);
   cv::boxFilter(sxy, mxy, -1, cv::Size(k, k), cv::Point(0, 0), true, cv::BORDER_REPLICATE);
   cv::boxFilter(syy, myy, -1, cv::Size(k, k), cv::Point(0, 0), true, cv::BORDER_REPLICATE);
 
-  constexpr int kStep = 2 * kCell;  // frame pixels between candidate corners
+  constexpr int kStep = 4 * kCell;  // frame pixels between candidate corners
   const cv::Size grid = CellGrid(options.count, frame.cols, frame.rows);
   const int max_x = (frame.cols - b - s) & ~1;
   const int max_y = (frame.rows - b - s) & ~1;
