@@ -64,6 +64,78 @@ struct ReplayArgs {
 
 // Dead reckoning: integrate the wheel encoders from the starting pose, and report the pose
 // at every frame's time. This is the baseline the mosaic fix removes the drift from.
+// What a replay mode records frame by frame, and the report made of it.
+class ReplayRecord {
+ public:
+  ReplayRecord(std::optional<dataset::Trajectory> groundtruth, bool quiet)
+      : groundtruth_(std::move(groundtruth)), progress_("replay", quiet) {}
+
+  const std::optional<dataset::Trajectory>& groundtruth() const { return groundtruth_; }
+
+  /// One frame: the estimate at its time (if any) and the processing time, ms.
+  void Frame(core::Timestamp time, const std::optional<core::Pose2>& world_from_vehicle, double ms) {
+    ++frames_;
+    if (world_from_vehicle) estimate_.push_back({time, *world_from_vehicle});
+    latency_ms_.push_back(ms);
+    processing_s_ += ms * 1e-3;
+    if (frames_ % 16 == 0 && groundtruth_) {
+      const auto span = groundtruth_->back().time - groundtruth_->front().time;
+      progress_.Update(std::clamp(static_cast<double>((time - groundtruth_->front().time).count()) /
+                                      static_cast<double>(span.count() + 1),
+                                  0.0, 1.0));
+    }
+  }
+
+  /// A fix the PLC would receive (design.md section 6: status 1 tracking, 2 degraded, 3 lost).
+  void Fix(core::Timestamp time, const core::Pose2& fix, int status, double quality) {
+    ++fixes_;
+    fixes_csv_ += fmt::format("{},{:.4f},{:.4f},{:.7f},{},{}\n", time.nanoseconds(), fix.x_mm(), fix.y_mm(),
+                              fix.yaw_rad(), status, static_cast<int>(std::lround(1000.0 * std::clamp(quality, 0.0, 1.0))));
+  }
+
+  /// Writes fixes.csv, metrics.json, estimate.tum and the plots, and prints the metrics.
+  void Finish(const ReplayArgs& args, const GlobalOptions& global, const dataset::DatasetInfo& info,
+              double required_overlap, std::optional<std::int64_t> lock_losses, const std::string& title) {
+    progress_.Finish();
+    if (estimate_.empty()) {
+      core::ThrowInvalidInput(args.dataset.string() + ": no frame falls within the encoder samples");
+    }
+    dataset::Metrics metrics;
+    metrics.frames = frames_;
+    metrics.fixes = fixes_;
+    metrics.fix_rate = static_cast<double>(fixes_) / static_cast<double>(frames_);
+    metrics.lock_losses = lock_losses;
+    metrics.processing_fps = processing_s_ > 0.0 ? static_cast<double>(frames_) / processing_s_ : 0.0;
+    std::sort(latency_ms_.begin(), latency_ms_.end());  // not empty: the estimate has a frame
+    metrics.latency_p50_ms = dataset::Percentile(latency_ms_, 50.0);
+    metrics.latency_p99_ms = dataset::Percentile(latency_ms_, 99.0);
+    metrics.overlap_speed_limit_mps = OverlapSpeedLimit(info, estimate_, required_overlap);
+    std::error_code ec;
+    std::filesystem::create_directories(args.out, ec);
+    core::WriteFileAtomically(args.out / "fixes.csv", fixes_csv_);
+    const dataset::Metrics written =
+        WriteReport(args.out, estimate_, groundtruth_, metrics, title + ": " + args.dataset.filename().string());
+    PrintMetrics(args.out, written, global.json);
+  }
+
+ private:
+  std::optional<dataset::Trajectory> groundtruth_;
+  ProgressBar progress_;
+  dataset::Trajectory estimate_;
+  std::vector<double> latency_ms_;
+  double processing_s_ = 0.0;
+  std::int64_t frames_ = 0;
+  std::int64_t fixes_ = 0;
+  std::string fixes_csv_ = "#timestamp_ns,x_mm,y_mm,yaw_rad,status,quality\n";
+};
+
+// Where the run starts (as a localizer is told at installation): the ground truth at `time`,
+// else its first pose, else the origin.
+core::Pose2 StartPose(const std::optional<dataset::Trajectory>& groundtruth, core::Timestamp time) {
+  if (!groundtruth) return core::Pose2::Identity();
+  return dataset::PoseAt(*groundtruth, time, std::chrono::seconds(1)).value_or(groundtruth->front().world_from_vehicle);
+}
+
 void RunDeadReckoning(const ReplayArgs& args, const GlobalOptions& global) {
   const dataset::DatasetReader reader(args.dataset);
   const dataset::DatasetInfo& info = reader.info();
@@ -73,8 +145,8 @@ void RunDeadReckoning(const ReplayArgs& args, const GlobalOptions& global) {
   const estimation::DiffDriveOptions odometry_options = OdometryFor(info);
   // The start is known (as a localizer would be told at installation): the first ground
   // truth pose, or the origin.
-  const core::Pose2 start = groundtruth ? groundtruth->front().world_from_vehicle : core::Pose2::Identity();
-  estimation::DiffDriveOdometry odometry(odometry_options, start);
+  estimation::DiffDriveOdometry odometry(
+      odometry_options, groundtruth ? groundtruth->front().world_from_vehicle : core::Pose2::Identity());
 
   dataset::Trajectory integrated;
   std::int64_t rejected = 0;
@@ -91,47 +163,19 @@ void RunDeadReckoning(const ReplayArgs& args, const GlobalOptions& global) {
   }
   if (integrated.empty()) core::ThrowInvalidInput(args.dataset.string() + ": no encoder samples");
 
-  ProgressBar progress("replay", global.quiet);
-  dataset::Trajectory estimate;
-  std::vector<double> latency_ms;
-  std::int64_t frames = 0;
-  const auto started = std::chrono::steady_clock::now();
+  ReplayRecord record(groundtruth, global.quiet);
   auto stream = reader.Frames();
   while (true) {
     const auto frame_start = std::chrono::steady_clock::now();
     const auto frame = stream.Next(/*decode=*/false);
     if (!frame) break;
-    ++frames;
     const auto pose = dataset::PoseAt(integrated, frame->time, std::chrono::milliseconds(100));
-    if (pose) estimate.push_back({frame->time, *pose});
-    latency_ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - frame_start).count());
-    if (frames % 64 == 0 && groundtruth) {
-      progress.Update(std::clamp((frame->time - groundtruth->front().time).count() /
-                                     static_cast<double>((groundtruth->back().time - groundtruth->front().time).count() + 1),
-                                 0.0, 1.0));
-    }
+    record.Frame(frame->time, pose,
+                 std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - frame_start).count());
   }
-  const double elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
-  progress.Finish();
-  if (estimate.empty()) core::ThrowInvalidInput(args.dataset.string() + ": no frame falls within the encoder samples");
-
-  dataset::Metrics metrics;
-  metrics.frames = frames;
-  metrics.fixes = 0;  // dead reckoning makes no visual fix
-  metrics.fix_rate = 0.0;
-  metrics.processing_fps = elapsed_s > 0.0 ? static_cast<double>(frames) / elapsed_s : 0.0;
-  std::sort(latency_ms.begin(), latency_ms.end());  // not empty: estimate has a frame
-  metrics.latency_p50_ms = dataset::Percentile(latency_ms, 50.0);
-  metrics.latency_p99_ms = dataset::Percentile(latency_ms, 99.0);
-  metrics.overlap_speed_limit_mps = OverlapSpeedLimit(info, estimate, args.required_overlap.value_or(0.5));
-
-  std::error_code ec;
-  std::filesystem::create_directories(args.out, ec);
-  core::WriteFileAtomically(args.out / "fixes.csv", "#timestamp_ns,x_mm,y_mm,yaw_rad,status,quality\n");
-  const dataset::Metrics written = WriteReport(args.out, estimate, groundtruth, metrics,
-                                               "dead reckoning: " + args.dataset.filename().string());
   if (rejected > 0) core::Log().warn("{} encoder samples rejected", rejected);
-  PrintMetrics(args.out, written, global.json);
+  // Dead reckoning makes no visual fix: fixes.csv has its header only.
+  record.Finish(args, global, info, args.required_overlap.value_or(0.5), std::nullopt, "dead reckoning");
 }
 
 // The localizer over the map: odometry drives the filter, every frame is registered against
@@ -164,11 +208,7 @@ void RunMosaic(const ReplayArgs& args, const GlobalOptions& global) {
   auto encoders = reader.Encoders();
   std::optional<dataset::EncoderSample> pending = encoders.Next();
   if (!pending) core::ThrowInvalidInput(args.dataset.string() + ": no encoder samples");
-  // The start is known (as a localizer would be told at installation): the first ground
-  // truth pose, or the origin.
-  const core::Pose2 start = groundtruth ? dataset::PoseAt(*groundtruth, pending->time, std::chrono::seconds(1))
-                                              .value_or(groundtruth->front().world_from_vehicle)
-                                        : core::Pose2::Identity();
+  const core::Pose2 start = StartPose(groundtruth, pending->time);
   const double start_sigma_rad = config.start_sigma_deg * std::numbers::pi / 180.0;
   localizer.Initialize(pending->time, start,
                        Eigen::Vector3d(config.start_sigma_mm * config.start_sigma_mm,
@@ -180,61 +220,25 @@ void RunMosaic(const ReplayArgs& args, const GlobalOptions& global) {
     pending = encoders.Next();
   };
 
-  ProgressBar progress("replay", global.quiet);
-  dataset::Trajectory estimate;
-  std::vector<double> latency_ms;
-  std::string fixes_csv = "#timestamp_ns,x_mm,y_mm,yaw_rad,status,quality\n";
-  std::int64_t frames = 0, fixes = 0;
-  double processing_s = 0.0;
+  ReplayRecord record(groundtruth, global.quiet);
   auto stream = reader.Frames();
   while (const auto frame = stream.Next()) {
     while (pending && pending->time <= frame->time) feed();
     if (pending) feed();  // one sample past the frame: the fix arrives late
-    ++frames;
     const auto started = std::chrono::steady_clock::now();
     const localizer::FrameOutcome outcome = localizer.ProcessFrame(frame->time, frame->image);
-    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count();
-    latency_ms.push_back(ms);
-    processing_s += ms * 1e-3;
-    estimate.push_back({frame->time, outcome.world_from_vehicle});
+    record.Frame(frame->time, outcome.world_from_vehicle,
+                 std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count());
     if (outcome.fixed) {
-      ++fixes;
-      const core::Pose2& f = outcome.fix_world_from_vehicle;
-      fixes_csv += fmt::format("{},{:.4f},{:.4f},{:.7f},{},{}\n", frame->time.nanoseconds(), f.x_mm(), f.y_mm(),
-                               f.yaw_rad(), static_cast<int>(outcome.lock),
-                               static_cast<int>(std::lround(1000.0 * outcome.fix_quality)));
+      record.Fix(frame->time, outcome.fix_world_from_vehicle, static_cast<int>(outcome.lock), outcome.fix_quality);
     } else {
       core::Log().debug("frame {}: no fix: {}", frame->time.nanoseconds(), outcome.reason);
     }
-    if (frames % 16 == 0 && groundtruth) {
-      progress.Update(std::clamp((frame->time - groundtruth->front().time).count() /
-                                     static_cast<double>((groundtruth->back().time - groundtruth->front().time).count() + 1),
-                                 0.0, 1.0));
-    }
   }
-  progress.Finish();
-  if (estimate.empty()) core::ThrowInvalidInput(args.dataset.string() + ": no frames");
-
-  dataset::Metrics metrics;
-  metrics.frames = frames;
-  metrics.fixes = fixes;
-  metrics.fix_rate = static_cast<double>(fixes) / static_cast<double>(frames);
-  metrics.lock_losses = localizer.lock().losses();
-  metrics.processing_fps = processing_s > 0.0 ? static_cast<double>(frames) / processing_s : 0.0;
-  std::sort(latency_ms.begin(), latency_ms.end());
-  metrics.latency_p50_ms = dataset::Percentile(latency_ms, 50.0);
-  metrics.latency_p99_ms = dataset::Percentile(latency_ms, 99.0);
-  metrics.overlap_speed_limit_mps = OverlapSpeedLimit(info, estimate, config.required_overlap);
-
-  std::error_code ec;
-  std::filesystem::create_directories(args.out, ec);
-  core::WriteFileAtomically(args.out / "fixes.csv", fixes_csv);
-  const dataset::Metrics written =
-      WriteReport(args.out, estimate, groundtruth, metrics, "mosaic localization: " + args.dataset.filename().string());
   if (rejected > 0) core::Log().warn("{} encoder samples rejected", rejected);
   const mosaic::TileCacheStats stats = cache.stats();
-  core::Log().info("map cache: {} hits, {} loads", stats.hits, stats.misses);
-  PrintMetrics(args.out, written, global.json);
+  core::Log().info("map cache: {} tiles loaded, {} relocalizations", stats.misses, localizer.relocalizations());
+  record.Finish(args, global, info, config.required_overlap, localizer.lock().losses(), "mosaic localization");
 }
 
 // Frame-to-frame visual odometry with the tracker, no map: each frame is registered against
@@ -264,12 +268,7 @@ void RunVisualOdometry(const ReplayArgs& args, const GlobalOptions& global) {
   const camera::IdealCamera camera(
       camera::IdealCameraOptions{info.camera.width_px, info.camera.height_px, info.camera.mm_per_px});
   const tracking::Tracker tracker(camera, config.localizer.tracker);
-  ProgressBar progress("replay", global.quiet);
-  dataset::Trajectory estimate;
-  std::vector<double> latency_ms;
-  std::string fixes_csv = "#timestamp_ns,x_mm,y_mm,yaw_rad,status,quality\n";
-  std::int64_t frames = 0, registered = 0;
-  double processing_s = 0.0;
+  ReplayRecord record(groundtruth, global.quiet);
   cv::Mat previous;
   core::Timestamp previous_time;
   core::Pose2 pose;
@@ -277,12 +276,11 @@ void RunVisualOdometry(const ReplayArgs& args, const GlobalOptions& global) {
   while (auto frame = stream.Next()) {
     const auto wheel_pose = dataset::PoseAt(wheel, frame->time, std::chrono::milliseconds(100));
     if (!wheel_pose) continue;
-    ++frames;
     const auto started = std::chrono::steady_clock::now();
+    bool registered = false;
+    double quality = 0.0;
     if (previous.empty()) {
-      pose = groundtruth ? dataset::PoseAt(*groundtruth, frame->time, std::chrono::seconds(1))
-                               .value_or(groundtruth->front().world_from_vehicle)
-                         : core::Pose2::Identity();
+      pose = StartPose(groundtruth, frame->time);
     } else {
       const core::Pose2 wheel_motion =
           Between(*dataset::PoseAt(wheel, previous_time, std::chrono::milliseconds(100)), *wheel_pose);
@@ -296,47 +294,21 @@ void RunVisualOdometry(const ReplayArgs& args, const GlobalOptions& global) {
       core::Pose2 motion = wheel_motion;
       if (r.ok()) {
         motion = vehicle_from_camera * r.world_from_camera * vehicle_from_camera.Inverse();
-        ++registered;
+        registered = true;
+        quality = r.mean_zncc;
       } else {
         core::Log().debug("frame {}: not registered to the previous one: {}", frame->time.nanoseconds(), r.reason);
       }
       pose = pose * motion;
-      if (r.ok()) {
-        fixes_csv += fmt::format("{},{:.4f},{:.4f},{:.7f},{},{}\n", frame->time.nanoseconds(), pose.x_mm(),
-                                 pose.y_mm(), pose.yaw_rad(), 1,
-                                 static_cast<int>(std::lround(1000.0 * std::clamp(r.mean_zncc, 0.0, 1.0))));
-      }
     }
-    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count();
-    latency_ms.push_back(ms);
-    processing_s += ms * 1e-3;
-    estimate.push_back({frame->time, pose});
+    record.Frame(frame->time, pose,
+                 std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count());
+    // A registered frame is a relative fix: the chained pose, status 1.
+    if (registered) record.Fix(frame->time, pose, 1, quality);
     previous = frame->image;
     previous_time = frame->time;
-    if (frames % 16 == 0 && groundtruth) {
-      progress.Update(std::clamp((frame->time - groundtruth->front().time).count() /
-                                     static_cast<double>((groundtruth->back().time - groundtruth->front().time).count() + 1),
-                                 0.0, 1.0));
-    }
   }
-  progress.Finish();
-  if (estimate.empty()) core::ThrowInvalidInput(args.dataset.string() + ": no frame falls within the encoder samples");
-
-  dataset::Metrics metrics;
-  metrics.frames = frames;
-  metrics.fixes = registered;  // relative fixes: frames registered to their predecessor
-  metrics.fix_rate = static_cast<double>(registered) / static_cast<double>(std::max<std::int64_t>(frames - 1, 1));
-  metrics.processing_fps = processing_s > 0.0 ? static_cast<double>(frames) / processing_s : 0.0;
-  std::sort(latency_ms.begin(), latency_ms.end());
-  metrics.latency_p50_ms = dataset::Percentile(latency_ms, 50.0);
-  metrics.latency_p99_ms = dataset::Percentile(latency_ms, 99.0);
-  metrics.overlap_speed_limit_mps = OverlapSpeedLimit(info, estimate, config.required_overlap);
-  std::error_code ec;
-  std::filesystem::create_directories(args.out, ec);
-  core::WriteFileAtomically(args.out / "fixes.csv", fixes_csv);
-  const dataset::Metrics written = WriteReport(args.out, estimate, groundtruth, metrics,
-                                               "visual odometry: " + args.dataset.filename().string());
-  PrintMetrics(args.out, written, global.json);
+  record.Finish(args, global, info, config.required_overlap, std::nullopt, "visual odometry");
 }
 
 }  // namespace
