@@ -17,13 +17,6 @@ using Affine = Eigen::Matrix<double, 2, 3>;
 constexpr double kMmPerPx = 0.25;
 constexpr double kDeg = std::numbers::pi / 180.0;
 
-Affine Compose(const Affine& outer, const Affine& inner) {
-  Affine r;
-  r.leftCols<2>() = outer.leftCols<2>() * inner.leftCols<2>();
-  r.col(2) = outer.leftCols<2>() * inner.col(2) + outer.col(2);
-  return r;
-}
-
 // Procedural concrete at 0.125 mm/texel, seen by the 0.25 mm/px ideal camera: a reference
 // image (the "map") and a live frame offset by 1.3 px, -0.7 px and 0.4 degrees.
 struct Scene {
@@ -36,8 +29,10 @@ struct Scene {
     sim::ResampleExact(texture, source_from_reference, cv::Size(960, 800), 2).convertTo(reference_image, CV_8UC1);
     reference = std::make_unique<tracking::ImageReference>(reference_image, core::Pose2::Identity(), kMmPerPx);
     truth = core::Pose2(1.3 * kMmPerPx, -0.7 * kMmPerPx, 0.4 * kDeg);
-    const Affine reference_from_view = Compose(reference->WorldToRaster(), camera.PixelToWorldAffine(truth));
-    cv::Mat exact = sim::ResampleExact(texture, Compose(source_from_reference, reference_from_view), cv::Size(640, 480), 2);
+    const Affine reference_from_view =
+        tracking::ComposeAffine(reference->WorldToRaster(), camera.PixelToWorldAffine(truth));
+    cv::Mat exact = sim::ResampleExact(texture, tracking::ComposeAffine(source_from_reference, reference_from_view),
+                                       cv::Size(640, 480), 2);
     cv::Mat noise(exact.size(), CV_32FC1);
     cv::RNG(1).fill(noise, cv::RNG::NORMAL, 0.0, 2.0);
     exact += noise;
@@ -56,7 +51,8 @@ const Scene& GetScene() {
 }
 
 Eigen::Matrix3d Prior(double sigma_px, double sigma_deg) {
-  return Eigen::Vector3d(std::pow(sigma_px * kMmPerPx, 2), std::pow(sigma_px * kMmPerPx, 2), std::pow(sigma_deg * kDeg, 2))
+  return Eigen::Vector3d(std::pow(sigma_px * kMmPerPx, 2), std::pow(sigma_px * kMmPerPx, 2),
+                         std::pow(sigma_deg * kDeg, 2))
       .asDiagonal();
 }
 
@@ -79,7 +75,7 @@ BENCHMARK(BM_SearchZncc)->Arg(4)->Arg(12)->Arg(24)->Arg(64)->Unit(benchmark::kMi
 void BM_RefineDirect(benchmark::State& state) {
   const Scene& s = GetScene();
   const Affine frame_to_raster =
-      Compose(s.reference->WorldToRaster(), s.camera.PixelToWorldAffine(core::Pose2::Identity()));
+      tracking::ComposeAffine(s.reference->WorldToRaster(), s.camera.PixelToWorldAffine(core::Pose2::Identity()));
   tracking::RefineOptions options;
   int iterations = 0;
   for (auto _ : state) {

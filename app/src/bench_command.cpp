@@ -51,13 +51,6 @@ struct PairOptions {
   double max_offset_dn = 15.0;
 };
 
-Affine Compose(const Affine& outer, const Affine& inner) {
-  Affine r;
-  r.leftCols<2>() = outer.leftCols<2>() * inner.leftCols<2>();
-  r.col(2) = outer.leftCols<2>() * inner.col(2) + outer.col(2);
-  return r;
-}
-
 Pair MakePair(const cv::Mat& texture, double scale, cv::Size size, const PairOptions& o, std::mt19937_64& rng) {
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
   Pair pair;
@@ -65,7 +58,8 @@ Pair MakePair(const cv::Mat& texture, double scale, cv::Size size, const PairOpt
   pair.d = {unit(rng) * o.max_shift_px, unit(rng) * o.max_shift_px};
   // Where the reference sits in the texture (`scale` texture pixels per image pixel), with
   // room for the live view's rotation and shift.
-  const double margin = scale * (o.max_shift_px + 0.5 * std::hypot(size.width, size.height) * std::sin(o.max_rotation_deg * kDeg) + 8.0);
+  const double margin =
+      scale * (o.max_shift_px + 0.5 * std::hypot(size.width, size.height) * std::sin(o.max_rotation_deg * kDeg) + 8.0);
   std::uniform_real_distribution<double> ox(margin, texture.cols - scale * size.width - margin);
   std::uniform_real_distribution<double> oy(margin, texture.rows - scale * size.height - margin);
   Affine source_from_reference;
@@ -77,7 +71,8 @@ Pair MakePair(const cv::Mat& texture, double scale, cv::Size size, const PairOpt
   reference_from_live.col(2) = c + pair.d - reference_from_live.leftCols<2>() * c;
 
   sim::ResampleExact(texture, source_from_reference, size, 2).convertTo(pair.reference, CV_8UC1);
-  cv::Mat live = sim::ResampleExact(texture, Compose(source_from_reference, reference_from_live), size, 2);
+  cv::Mat live =
+      sim::ResampleExact(texture, tracking::ComposeAffine(source_from_reference, reference_from_live), size, 2);
   const double gain = 1.0 + unit(rng) * o.max_gain_change;
   const double offset = unit(rng) * o.max_offset_dn;
   live = live * gain + offset;
@@ -165,7 +160,7 @@ std::vector<Method> MakeMethods(const camera::IdealCamera& camera) {
         return Estimate{};
       }
       const Affine world_from_live = camera.PixelToWorldAffine(r.world_from_camera);
-      return FromAffine(Compose(reference.WorldToRaster(), world_from_live), c);
+      return FromAffine(tracking::ComposeAffine(reference.WorldToRaster(), world_from_live), c);
     };
   };
   tracking::TrackerOptions defaults;
@@ -186,9 +181,10 @@ std::vector<Method> MakeMethods(const camera::IdealCamera& camera) {
                      [c](const Pair& pair) {
                        cv::Mat warp = cv::Mat::eye(2, 3, CV_32F);
                        try {
-                         cv::findTransformECC(pair.reference, pair.live, warp, cv::MOTION_EUCLIDEAN,
-                                              cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 100, 1e-6),
-                                              cv::noArray(), 5);
+                         cv::findTransformECC(
+                             pair.reference, pair.live, warp, cv::MOTION_EUCLIDEAN,
+                             cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 100, 1e-6),
+                             cv::noArray(), 5);
                        } catch (const cv::Exception&) {
                          return Estimate{};
                        }
@@ -260,7 +256,9 @@ Action AddBenchCommand(CLI::App& app, const GlobalOptions& global) {
   registration->add_option("--texture", args->textures, "Texture image(s), e.g. ../shared/data/textures/*")
       ->required()
       ->check(CLI::ExistingFile);
-  registration->add_option("--pairs", args->pairs, "Pairs per texture")->capture_default_str()->check(CLI::Range(1, 100000));
+  registration->add_option("--pairs", args->pairs, "Pairs per texture")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 100000));
   registration->add_option("--seed", args->seed, "Random seed")->capture_default_str();
   registration->add_option("--max-shift-px", args->pair.max_shift_px, "Largest offset along each axis, px")
       ->capture_default_str()

@@ -89,8 +89,9 @@ class ReplayRecord {
   /// A fix the PLC would receive (design.md section 6: status 1 tracking, 2 degraded, 3 lost).
   void Fix(core::Timestamp time, const core::Pose2& fix, int status, double quality) {
     ++fixes_;
-    fixes_csv_ += fmt::format("{},{:.4f},{:.4f},{:.7f},{},{}\n", time.nanoseconds(), fix.x_mm(), fix.y_mm(),
-                              fix.yaw_rad(), status, static_cast<int>(std::lround(1000.0 * std::clamp(quality, 0.0, 1.0))));
+    fixes_csv_ +=
+        fmt::format("{},{:.4f},{:.4f},{:.7f},{},{}\n", time.nanoseconds(), fix.x_mm(), fix.y_mm(), fix.yaw_rad(),
+                    status, static_cast<int>(std::lround(1000.0 * std::clamp(quality, 0.0, 1.0))));
   }
 
   /// Writes fixes.csv, metrics.json, estimate.tum and the plots, and prints the metrics.

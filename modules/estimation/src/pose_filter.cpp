@@ -100,7 +100,8 @@ Eigen::Matrix3d PoseFilter::CovarianceAt(core::Timestamp time) const {
   const Node& node = history_[k];
   if (k + 1 < history_.size()) {
     const Node& next = history_[k + 1];
-    const double fraction = std::clamp(core::ToSeconds(time - node.time) / core::ToSeconds(next.time - node.time), 0.0, 1.0);
+    const double fraction =
+        std::clamp(core::ToSeconds(time - node.time) / core::ToSeconds(next.time - node.time), 0.0, 1.0);
     return (1.0 - fraction) * node.covariance + fraction * next.covariance;
   }
   const double dt_s = std::max(0.0, core::ToSeconds(time - node.time));

@@ -172,7 +172,8 @@ PoseSolution SolvePlanarPose(const std::vector<Correspondence>& correspondences,
   ceres::Covariance covariance(covariance_options);
   const std::vector<std::pair<const double*, const double*>> blocks = {{pose, pose}};
   double c[9];
-  if (inliers >= 2 && covariance.Compute(blocks, solved.problem.get()) && covariance.GetCovarianceBlock(pose, pose, c)) {
+  if (inliers >= 2 && covariance.Compute(blocks, solved.problem.get()) &&
+      covariance.GetCovarianceBlock(pose, pose, c)) {
     solution.covariance = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(c) * sigma_ref * sigma_ref;
   } else {
     // One correspondence: translation only, yaw kept from the start.

@@ -12,6 +12,14 @@
 
 namespace mosaicloc::tracking {
 
+Eigen::Matrix<double, 2, 3> ComposeAffine(const Eigen::Matrix<double, 2, 3>& outer,
+                                          const Eigen::Matrix<double, 2, 3>& inner) {
+  Eigen::Matrix<double, 2, 3> result;
+  result.leftCols<2>() = outer.leftCols<2>() * inner.leftCols<2>();
+  result.col(2) = outer.leftCols<2>() * inner.col(2) + outer.col(2);
+  return result;
+}
+
 double ReferenceRaster::mm_per_px() const {
   const Eigen::Matrix<double, 2, 3> a = RasterToWorld();
   return std::sqrt(std::abs(a.leftCols<2>().determinant()));

@@ -68,7 +68,8 @@ RefinedMatch RefineDirect(const cv::Mat& frame, const cv::Rect& rect, const Refe
                           const Affine& frame_to_raster, const RefineOptions& options) {
   RefinedMatch match;
   const cv::Rect inner = rect & cv::Rect(1, 1, frame.cols - 2, frame.rows - 2);
-  const int blur_radius = options.prefilter_sigma_px > 0.0 ? static_cast<int>(std::ceil(3.0 * options.prefilter_sigma_px)) : 0;
+  const int blur_radius =
+      options.prefilter_sigma_px > 0.0 ? static_cast<int>(std::ceil(3.0 * options.prefilter_sigma_px)) : 0;
   const int margin = static_cast<int>(std::ceil(options.max_shift_px)) + 2 + blur_radius;
   const mosaic::RasterPatch region = FetchRegion(reference, frame_to_raster, inner, margin);
 
@@ -249,7 +250,8 @@ double SubPixelZncc(const cv::Mat& frame, const cv::Rect& rect, const cv::Mat& w
   for (int y = 0; y < rect.height; ++y) {
     for (int x = 0; x < rect.width; ++x) {
       double m = 0.0;
-      if (!Sample<float>(win, no_mask, true, rect.x - origin.x + x + shift.x(), rect.y - origin.y + y + shift.y(), &m)) {
+      if (!Sample<float>(win, no_mask, true, rect.x - origin.x + x + shift.x(), rect.y - origin.y + y + shift.y(),
+                         &m)) {
         continue;
       }
       const double t = templ.at<float>(y, x);

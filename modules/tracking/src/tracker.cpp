@@ -14,14 +14,6 @@ namespace {
 
 using Affine = Eigen::Matrix<double, 2, 3>;
 
-// [B | c] o [A | b]
-Affine Compose(const Affine& outer, const Affine& inner) {
-  Affine result;
-  result.leftCols<2>() = outer.leftCols<2>() * inner.leftCols<2>();
-  result.col(2) = outer.leftCols<2>() * inner.col(2) + outer.col(2);
-  return result;
-}
-
 Eigen::Vector2d Apply(const Affine& a, const Eigen::Vector2d& p) { return a.leftCols<2>() * p + a.col(2); }
 
 Eigen::Vector2d CentreOf(const cv::Rect& r) { return {r.x + 0.5 * (r.width - 1), r.y + 0.5 * (r.height - 1)}; }
@@ -123,8 +115,8 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
   // Search-frame pixel -> frame pixel: p = scale q + (scale - 1) / 2.
   Affine search_to_frame;
   search_to_frame << scale, 0.0, 0.5 * (scale - 1), 0.0, scale, 0.5 * (scale - 1);
-  const Affine prior_to_raster =
-      Compose(search_reference.WorldToRaster(), Compose(camera_.PixelToWorldAffine(prior), search_to_frame));
+  const Affine prior_to_raster = ComposeAffine(search_reference.WorldToRaster(),
+                                               ComposeAffine(camera_.PixelToWorldAffine(prior), search_to_frame));
   const Affine search_raster_to_world = search_reference.RasterToWorld();
   std::vector<Correspondence> coarse;
   std::vector<std::size_t> coarse_template;
@@ -209,7 +201,7 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
   std::vector<std::size_t> used = coarse_template;
   for (std::size_t i = 0; i < used.size(); ++i) result.templates[used[i]].inlier = pose.inlier[i];
   for (int pass = 0; pass < options_.refine_passes; ++pass) {
-    const Affine frame_to_raster = Compose(world_to_raster, camera_.PixelToWorldAffine(pose.world_from_camera));
+    const Affine frame_to_raster = ComposeAffine(world_to_raster, camera_.PixelToWorldAffine(pose.world_from_camera));
     std::vector<Correspondence> fine;
     std::vector<std::size_t> fine_template;
     for (const std::size_t index : used) {

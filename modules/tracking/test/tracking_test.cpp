@@ -19,13 +19,6 @@ using Affine = Eigen::Matrix<double, 2, 3>;
 constexpr double kMmPerPx = 0.25;
 constexpr double kDeg = std::numbers::pi / 180.0;
 
-Affine Compose(const Affine& outer, const Affine& inner) {
-  Affine r;
-  r.leftCols<2>() = outer.leftCols<2>() * inner.leftCols<2>();
-  r.col(2) = outer.leftCols<2>() * inner.col(2) + outer.col(2);
-  return r;
-}
-
 // A reference image cut from a real texture and live frames of it at exactly known poses.
 // The texture is sampled at half resolution (2x2 area average of exact bicubic samples), like
 // a camera seeing a continuous floor. The world frame is the reference image's camera frame.
@@ -43,8 +36,8 @@ class Scene {
   cv::Mat Frame(const Pose2& world_from_camera, double noise = 0.0, double gain = 1.0, double offset = 0.0,
                 std::uint64_t seed = 1) const {
     const Affine reference_from_view =
-        Compose(reference_->WorldToRaster(), camera_.PixelToWorldAffine(world_from_camera));
-    cv::Mat exact = sim::ResampleExact(texture_, Compose(source_from_reference_, reference_from_view),
+        ComposeAffine(reference_->WorldToRaster(), camera_.PixelToWorldAffine(world_from_camera));
+    cv::Mat exact = sim::ResampleExact(texture_, ComposeAffine(source_from_reference_, reference_from_view),
                                        cv::Size(camera_.width_px(), camera_.height_px()), 2);
     exact = exact * gain + offset;
     if (noise > 0.0) {
@@ -192,7 +185,8 @@ TEST(Reference, ImageReferenceGeometryMatchesTheIdealCamera) {
   const Pose2 world_from_camera(100.0, -50.0, 0.3);
   const ImageReference reference(image, world_from_camera, kMmPerPx);
   const camera::IdealCamera camera{camera::IdealCameraOptions{}};
-  for (const Eigen::Vector2d& pixel : {Eigen::Vector2d(0, 0), Eigen::Vector2d(639, 479), Eigen::Vector2d(12.5, 300.25)}) {
+  for (const Eigen::Vector2d& pixel :
+       {Eigen::Vector2d(0, 0), Eigen::Vector2d(639, 479), Eigen::Vector2d(12.5, 300.25)}) {
     const Eigen::Vector2d expected = camera.PixelToWorld(pixel, world_from_camera);
     const Affine a = reference.RasterToWorld();
     EXPECT_NEAR((a.leftCols<2>() * pixel + a.col(2) - expected).norm(), 0.0, 1e-9);
@@ -267,7 +261,8 @@ TEST(PoseSolver, ThirtyPercentOutliersDoNotMoveThePose) {
   const PoseSolution clean = SolvePlanarPose(cs, Pose2(1234.0, -679.5, 0.69), PoseSolverOptions{});
   ASSERT_TRUE(clean.ok());
   std::uniform_real_distribution<double> wild(-5.0, 5.0);
-  for (int i = 0; i < 6; ++i) cs[static_cast<std::size_t>(3 * i)].world_mm += Eigen::Vector2d(wild(rng), wild(rng)) + Eigen::Vector2d(1.0, 0.0);
+  for (int i = 0; i < 6; ++i)
+    cs[static_cast<std::size_t>(3 * i)].world_mm += Eigen::Vector2d(wild(rng), wild(rng)) + Eigen::Vector2d(1.0, 0.0);
   const PoseSolution solution = SolvePlanarPose(cs, Pose2(1234.0, -679.5, 0.69), PoseSolverOptions{});
   ASSERT_TRUE(solution.ok()) << ToString(solution.failure);
   EXPECT_LT(Distance(solution.world_from_camera, truth), 0.01);
@@ -320,7 +315,7 @@ TEST_P(RefineMethods, RecoversASubPixelShift) {
   options.warp = std::get<1>(GetParam());
   options.max_iterations = 50;
   const Affine frame_to_raster =
-      Compose(scene.reference().WorldToRaster(), scene.camera().PixelToWorldAffine(Pose2::Identity()));
+      ComposeAffine(scene.reference().WorldToRaster(), scene.camera().PixelToWorldAffine(Pose2::Identity()));
   const cv::Rect rect(250, 180, 96, 96);
   const RefinedMatch match = RefineTemplate(frame, rect, scene.reference(), frame_to_raster, options);
   ASSERT_TRUE(match.ok()) << ToString(match.failure) << " " << match.detail;
@@ -351,7 +346,7 @@ TEST(Refine, TemplateLeavingTheReferenceIsAFailureNotACrash) {
   const Pose2 prior(45.0, -45.0, 0.0);
   const cv::Mat frame = scene.Frame(Pose2(45.0, -45.0, 0.0));
   const Affine frame_to_raster =
-      Compose(scene.reference().WorldToRaster(), scene.camera().PixelToWorldAffine(prior));
+      ComposeAffine(scene.reference().WorldToRaster(), scene.camera().PixelToWorldAffine(prior));
   for (const RefineMethod method : {RefineMethod::kDirect, RefineMethod::kVispSsd, RefineMethod::kVispZncc}) {
     RefineOptions options;
     options.method = method;
@@ -469,8 +464,9 @@ TEST(VisualOdometry, RegistersConsecutiveFrames) {
   const Tracker tracker(scene.camera(), options);
   const Pose2 first(-10.0, 5.0, 0.02);
   const Pose2 second = first * Pose2(30.0, 2.0, 0.01);  // 120 px forward, a quarter of the frame
-  const TrackResult r = RegisterFrames(tracker, scene.Frame(first, 2.0, 1.0, 0.0, 1), scene.Frame(second, 2.0, 1.0, 0.0, 2),
-                                       Pose2(29.0, 2.5, 0.0), PriorCovariance(4.0, 0.5));
+  const TrackResult r =
+      RegisterFrames(tracker, scene.Frame(first, 2.0, 1.0, 0.0, 1), scene.Frame(second, 2.0, 1.0, 0.0, 2),
+                     Pose2(29.0, 2.5, 0.0), PriorCovariance(4.0, 0.5));
   ASSERT_TRUE(r.ok()) << r.reason;
   const Pose2 truth = Between(first, second);
   EXPECT_LT(Distance(r.world_from_camera, truth), 0.01);

@@ -11,6 +11,10 @@
 
 namespace mosaicloc::tracking {
 
+/// outer o inner for 2x3 affine maps [A | b]: x -> A_outer (A_inner x + b_inner) + b_outer.
+Eigen::Matrix<double, 2, 3> ComposeAffine(const Eigen::Matrix<double, 2, 3>& outer,
+                                          const Eigen::Matrix<double, 2, 3>& inner);
+
 /// What a live frame is registered against: an 8-bit raster of the floor whose placement in
 /// the world is known exactly. Raster pixel (col, row) has its centre at
 ///   world_mm = A (col, row)^T + b,   [A | b] = RasterToWorld().
