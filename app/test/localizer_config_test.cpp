@@ -1,0 +1,77 @@
+#include <string>
+
+#include <gtest/gtest.h>
+#include <yaml-cpp/yaml.h>
+
+#include "localizer_config.hpp"
+#include "mosaicloc/core/error.hpp"
+
+namespace mosaicloc::app {
+namespace {
+
+// The documented defaults are the compiled ones: a reader can trust the example file.
+TEST(LocalizerConfig, DefaultFileEqualsCompiledDefaults) {
+  const LocalizerConfig loaded = LoadLocalizerConfig(std::string(MOSAICLOC_CONFIG_DIR) + "/default/localizer.yaml");
+  const LocalizerConfig compiled;
+  const tracking::TrackerOptions& a = loaded.localizer.tracker;
+  const tracking::TrackerOptions& b = compiled.localizer.tracker;
+  EXPECT_EQ(a.templates.mode, b.templates.mode);
+  EXPECT_EQ(a.templates.count, b.templates.count);
+  EXPECT_EQ(a.templates.size_px, b.templates.size_px);
+  EXPECT_EQ(a.templates.tile_cols, b.templates.tile_cols);
+  EXPECT_EQ(a.templates.tile_rows, b.templates.tile_rows);
+  EXPECT_EQ(a.templates.border_px, b.templates.border_px);
+  EXPECT_EQ(a.templates.min_texture, b.templates.min_texture);
+  EXPECT_EQ(a.spare_templates, b.spare_templates);
+  EXPECT_EQ(a.search_sigmas, b.search_sigmas);
+  EXPECT_EQ(a.min_search_px, b.min_search_px);
+  EXPECT_EQ(a.max_search_px, b.max_search_px);
+  EXPECT_EQ(a.min_peak, b.min_peak);
+  EXPECT_EQ(a.max_ambiguity, b.max_ambiguity);
+  EXPECT_EQ(a.search.prefilter_sigma_px, b.search.prefilter_sigma_px);
+  EXPECT_EQ(a.refine.method, b.refine.method);
+  EXPECT_EQ(a.refine.warp, b.refine.warp);
+  EXPECT_EQ(a.refine.sampling, b.refine.sampling);
+  EXPECT_EQ(a.refine.max_iterations, b.refine.max_iterations);
+  EXPECT_EQ(a.refine.prefilter_sigma_px, b.refine.prefilter_sigma_px);
+  EXPECT_EQ(a.refine_passes, b.refine_passes);
+  EXPECT_EQ(a.min_zncc, b.min_zncc);
+  EXPECT_EQ(a.refine.visp_pyramid_levels, b.refine.visp_pyramid_levels);
+  EXPECT_EQ(a.solver.loss, b.solver.loss);
+  EXPECT_EQ(a.solver.loss_scale_mm, b.solver.loss_scale_mm);
+  EXPECT_EQ(a.solver.outlier_threshold_mm, b.solver.outlier_threshold_mm);
+  EXPECT_EQ(a.solver.min_inliers, b.solver.min_inliers);
+  const localizer::LocalizerOptions& l = loaded.localizer;
+  const localizer::LocalizerOptions& m = compiled.localizer;
+  EXPECT_EQ(l.filter.gate_chi2, m.filter.gate_chi2);
+  EXPECT_EQ(l.fix_sigma_floor_mm, m.fix_sigma_floor_mm);
+  EXPECT_EQ(l.fix_sigma_floor_rad, m.fix_sigma_floor_rad);
+  EXPECT_EQ(l.fix_covariance_scale, m.fix_covariance_scale);
+  EXPECT_EQ(l.odometry.wheel_variance_mm, m.odometry.wheel_variance_mm);
+  EXPECT_EQ(l.lock.degraded_after_misses, m.lock.degraded_after_misses);
+  EXPECT_EQ(l.lock.lost_after_misses, m.lock.lost_after_misses);
+  EXPECT_EQ(l.lock.regain_after_fixes, m.lock.regain_after_fixes);
+  EXPECT_EQ(l.lock.lost_above_sigma_mm, m.lock.lost_above_sigma_mm);
+  EXPECT_EQ(loaded.start_sigma_mm, compiled.start_sigma_mm);
+  EXPECT_EQ(loaded.start_sigma_deg, compiled.start_sigma_deg);
+  EXPECT_EQ(loaded.cache_budget_mib, compiled.cache_budget_mib);
+  EXPECT_EQ(loaded.required_overlap, compiled.required_overlap);
+}
+
+TEST(LocalizerConfig, EveryProblemIsReportedWithFileLineAndKey) {
+  const YAML::Node node = YAML::Load("templates:\n  count: 0\nrefine:\n  metod: direct\nlock:\n  lost_after_misses: 1\n");
+  LocalizerConfig config;
+  try {
+    ReadLocalizerConfig(node, "site.yaml", &config);
+    FAIL() << "expected an error";
+  } catch (const core::Error& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("site.yaml:2"), std::string::npos) << message;
+    EXPECT_NE(message.find("templates.count"), std::string::npos) << message;
+    EXPECT_NE(message.find("did you mean 'method'"), std::string::npos) << message;
+    EXPECT_NE(message.find("lost_after_misses must be at least degraded_after_misses"), std::string::npos) << message;
+  }
+}
+
+}  // namespace
+}  // namespace mosaicloc::app
