@@ -233,7 +233,11 @@ void RunMosaic(const ReplayArgs& args, const GlobalOptions& global) {
     if (outcome.fixed) {
       record.Fix(frame->time, outcome.fix_world_from_vehicle, static_cast<int>(outcome.lock), outcome.fix_quality);
     } else {
-      core::Log().debug("frame {}: no fix: {}", frame->time.nanoseconds(), outcome.reason);
+      const core::Pose2& f = outcome.fix_world_from_vehicle;
+      core::Log().debug("frame {}: no fix: {} (tracker: {:.4f}, {:.4f}, {:.6f}; estimate {:.4f}, {:.4f}, {:.6f})",
+                        frame->time.nanoseconds(), outcome.reason, f.x_mm(), f.y_mm(), f.yaw_rad(),
+                        outcome.world_from_vehicle.x_mm(), outcome.world_from_vehicle.y_mm(),
+                        outcome.world_from_vehicle.yaw_rad());
     }
   }
   if (rejected > 0) core::Log().warn("{} encoder samples rejected", rejected);

@@ -146,7 +146,10 @@ FixOutcome PoseFilter::Correct(core::Timestamp time, const core::Pose2& world_fr
   outcome.mahalanobis2 = residual.dot(s_inverse * residual);
   if (!std::isfinite(outcome.mahalanobis2) || outcome.mahalanobis2 > options_.gate_chi2) {
     outcome.reason = "fix is " + std::to_string(std::sqrt(std::max(outcome.mahalanobis2, 0.0))) +
-                     " sigma from the prediction";
+                     " sigma from the prediction (residual " + std::to_string(residual.x()) + " mm, " +
+                     std::to_string(residual.y()) + " mm, " + std::to_string(residual.z()) + " rad; sigma " +
+                     std::to_string(std::sqrt(s(0, 0))) + " mm, " + std::to_string(std::sqrt(s(1, 1))) + " mm, " +
+                     std::to_string(std::sqrt(s(2, 2))) + " rad)";
     return outcome;
   }
   const Eigen::Matrix3d gain = at.covariance * s_inverse;

@@ -121,60 +121,66 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
   std::vector<Correspondence> coarse;
   std::vector<std::size_t> coarse_template;
   int off_map = 0, ambiguous = 0, no_match = 0;
-  for (std::size_t index = 0; index < spots.size() || !spares_added; ++index) {
-    if (index == spots.size()) {
-      if (coarse.size() >= wanted) break;
-      add_spares();
-      if (index == spots.size()) break;
-    }
-    if (coarse.size() >= wanted) break;
-    const TemplateSpot spot = spots[index];
-    TemplateReport report;
-    report.spot = spot;
-    const Eigen::Vector2d centre = CentreOf(spot.rect);
-    const double sigma_px = sigma_position_px + sigma_yaw * (centre - image_centre).norm();
-    const int range = std::clamp(static_cast<int>(std::ceil(options_.search_sigmas * sigma_px)) + 1,
-                                 options_.min_search_px, options_.max_search_px);
-    report.search_range_px = range;
-    const cv::Rect rect(spot.rect.x / scale, spot.rect.y / scale, spot.rect.width / scale, spot.rect.height / scale);
-    const int search_range = (range + scale - 1) / scale + 1;
-    const cv::Point origin(rect.x - search_range, rect.y - search_range);
-    cv::Mat mask;
-    cv::Mat window = RenderWindow(search_reference, prior_to_raster, origin,
-                                  cv::Size(rect.width + 2 * search_range, rect.height + 2 * search_range), &mask);
-    const int known = cv::countNonZero(mask);
-    // The template's predicted footprint must be mapped as the refinement will demand.
-    const cv::Mat footprint = mask(cv::Rect(search_range, search_range, rect.width, rect.height));
-    const double footprint_mapped =
-        static_cast<double>(cv::countNonZero(footprint)) / static_cast<double>(footprint.total());
-    if (static_cast<double>(known) < options_.min_window_mapped * static_cast<double>(mask.total()) ||
-        footprint_mapped < options_.refine.min_mapped_fraction) {
-      report.rejected = "off map";
-      ++off_map;
+  // Searches templates in order (spares when the first ones run out) until `target` have a
+  // coarse match; resumable, so the refinement can ask for more.
+  std::size_t next_spot = 0;
+  const auto search_until = [&](std::size_t target) {
+    for (; next_spot < spots.size() || !spares_added; ++next_spot) {
+      if (next_spot == spots.size()) {
+        if (coarse.size() >= target) break;
+        add_spares();
+        if (next_spot == spots.size()) break;
+      }
+      if (coarse.size() >= target) break;
+      const TemplateSpot spot = spots[next_spot];
+      TemplateReport report;
+      report.spot = spot;
+      const Eigen::Vector2d centre = CentreOf(spot.rect);
+      const double sigma_px = sigma_position_px + sigma_yaw * (centre - image_centre).norm();
+      const int range = std::clamp(static_cast<int>(std::ceil(options_.search_sigmas * sigma_px)) + 1,
+                                   options_.min_search_px, options_.max_search_px);
+      report.search_range_px = range;
+      const cv::Rect rect(spot.rect.x / scale, spot.rect.y / scale, spot.rect.width / scale, spot.rect.height / scale);
+      const int search_range = (range + scale - 1) / scale + 1;
+      const cv::Point origin(rect.x - search_range, rect.y - search_range);
+      cv::Mat mask;
+      cv::Mat window = RenderWindow(search_reference, prior_to_raster, origin,
+                                    cv::Size(rect.width + 2 * search_range, rect.height + 2 * search_range), &mask);
+      const int known = cv::countNonZero(mask);
+      // The template's predicted footprint must be mapped as the refinement will demand.
+      const cv::Mat footprint = mask(cv::Rect(search_range, search_range, rect.width, rect.height));
+      const double footprint_mapped =
+          static_cast<double>(cv::countNonZero(footprint)) / static_cast<double>(footprint.total());
+      if (static_cast<double>(known) < options_.min_window_mapped * static_cast<double>(mask.total()) ||
+          footprint_mapped < options_.refine.min_mapped_fraction) {
+        report.rejected = "off map";
+        ++off_map;
+        result.templates.push_back(std::move(report));
+        continue;
+      }
+      if (known < static_cast<int>(mask.total())) window.setTo(cv::mean(window, mask), ~mask);
+      report.coarse = SearchZncc(search_frame(rect), window, options_.search);
+      if (!report.coarse.found || report.coarse.peak < options_.min_peak) {
+        report.rejected = "no match";
+        ++no_match;
+      } else if (report.coarse.ambiguity > options_.max_ambiguity) {
+        report.rejected = "ambiguous";
+        ++ambiguous;
+      } else {
+        // Window pixel (offset + template centre) shows the raster point the centre matches.
+        const Eigen::Vector2d local = report.coarse.offset_px + 0.5 * Eigen::Vector2d(rect.width - 1, rect.height - 1);
+        const Eigen::Vector2d search_px = Eigen::Vector2d(origin.x, origin.y) + local;
+        Correspondence c;
+        c.camera_mm = camera_.PixelToCamera(centre);
+        c.world_mm = Apply(search_raster_to_world, Apply(prior_to_raster, search_px));
+        c.sigma_mm = 0.3 * scale * s;
+        coarse.push_back(c);
+        coarse_template.push_back(result.templates.size());
+      }
       result.templates.push_back(std::move(report));
-      continue;
     }
-    if (known < static_cast<int>(mask.total())) window.setTo(cv::mean(window, mask), ~mask);
-    report.coarse = SearchZncc(search_frame(rect), window, options_.search);
-    if (!report.coarse.found || report.coarse.peak < options_.min_peak) {
-      report.rejected = "no match";
-      ++no_match;
-    } else if (report.coarse.ambiguity > options_.max_ambiguity) {
-      report.rejected = "ambiguous";
-      ++ambiguous;
-    } else {
-      // Window pixel (offset + template centre) shows the raster point the centre matches.
-      const Eigen::Vector2d local = report.coarse.offset_px + 0.5 * Eigen::Vector2d(rect.width - 1, rect.height - 1);
-      const Eigen::Vector2d search_px = Eigen::Vector2d(origin.x, origin.y) + local;
-      Correspondence c;
-      c.camera_mm = camera_.PixelToCamera(centre);
-      c.world_mm = Apply(search_raster_to_world, Apply(prior_to_raster, search_px));
-      c.sigma_mm = 0.3 * scale * s;
-      coarse.push_back(c);
-      coarse_template.push_back(result.templates.size());
-    }
-    result.templates.push_back(std::move(report));
-  }
+  };
+  search_until(wanted);
   if (coarse.empty()) {
     if (off_map > 0 && off_map >= static_cast<int>(result.templates.size()) / 2 + 1) {
       return fail(TrackFailure::kOffMap, std::to_string(off_map) + " of " + std::to_string(result.templates.size()) +
@@ -204,16 +210,16 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
     const Affine frame_to_raster = ComposeAffine(world_to_raster, camera_.PixelToWorldAffine(pose.world_from_camera));
     std::vector<Correspondence> fine;
     std::vector<std::size_t> fine_template;
-    for (const std::size_t index : used) {
+    const auto refine = [&](std::size_t index) {
       TemplateReport& report = result.templates[index];
       report.refined = RefineTemplate(frame, report.spot.rect, reference, frame_to_raster, options_.refine);
       if (!report.refined.ok()) {
         report.rejected = std::string("refinement ") + ToString(report.refined.failure);
-        continue;
+        return;
       }
       if (report.refined.zncc < options_.min_zncc) {
         report.rejected = "weak match";
-        continue;
+        return;
       }
       report.rejected.clear();
       Correspondence c;
@@ -223,6 +229,14 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
       c.sigma_mm = std::sqrt(0.5 * report.refined.covariance_px2.trace()) * raster_mm;
       fine.push_back(c);
       fine_template.push_back(index);
+    };
+    for (const std::size_t index : used) refine(index);
+    // Too few survived refinement: search and refine further templates while there are any.
+    while (static_cast<int>(fine.size()) < options_.solver.min_inliers) {
+      const std::size_t before = coarse_template.size();
+      search_until(coarse.size() + static_cast<std::size_t>(options_.solver.min_inliers) - fine.size());
+      if (coarse_template.size() == before) break;
+      for (std::size_t i = before; i < coarse_template.size(); ++i) refine(coarse_template[i]);
     }
     if (static_cast<int>(fine.size()) < options_.solver.min_inliers) {
       return fail(TrackFailure::kTooFewInliers, std::to_string(fine.size()) + " templates refined, " +
