@@ -39,13 +39,17 @@ estimation::DiffDriveOptions OdometryFor(const dataset::DatasetInfo& info) {
   return options;
 }
 
+camera::IdealCamera CameraOf(const dataset::DatasetInfo& info) {
+  return camera::IdealCamera(
+      camera::IdealCameraOptions{info.camera.width_px, info.camera.height_px, info.camera.mm_per_px});
+}
+
 // Overlap speed limit (founding paper, section 2.2): V < (footprint along travel / T) (1 - beta),
 // with T the mean frame period of the run.
 std::optional<double> OverlapSpeedLimit(const dataset::DatasetInfo& info, const dataset::Trajectory& estimate,
                                         double required_overlap) {
   if (estimate.size() < 2) return std::nullopt;
-  const camera::IdealCamera camera(
-      camera::IdealCameraOptions{info.camera.width_px, info.camera.height_px, info.camera.mm_per_px});
+  const camera::IdealCamera camera = CameraOf(info);
   const double period_s =
       core::ToSeconds(estimate.back().time - estimate.front().time) / static_cast<double>(estimate.size() - 1);
   const double along_mm = camera.FootprintLengthAlong(-info.camera.vehicle_from_camera.yaw_rad());
@@ -137,18 +141,22 @@ core::Pose2 StartPose(const std::optional<dataset::Trajectory>& groundtruth, cor
   return dataset::PoseAt(*groundtruth, time, std::chrono::seconds(1)).value_or(groundtruth->front().world_from_vehicle);
 }
 
-void RunDeadReckoning(const ReplayArgs& args, const GlobalOptions& global) {
-  const dataset::DatasetReader reader(args.dataset);
-  const dataset::DatasetInfo& info = reader.info();
-  std::optional<dataset::Trajectory> groundtruth;
-  if (reader.HasGroundTruth()) groundtruth = reader.GroundTruth();
+std::optional<dataset::Trajectory> GroundTruthOf(const dataset::DatasetReader& reader) {
+  if (!reader.HasGroundTruth()) return std::nullopt;
+  return reader.GroundTruth();
+}
 
-  const estimation::DiffDriveOptions odometry_options = OdometryFor(info);
-  // The start is known (as a localizer would be told at installation): the first ground
-  // truth pose, or the origin.
-  estimation::DiffDriveOdometry odometry(
-      odometry_options, groundtruth ? groundtruth->front().world_from_vehicle : core::Pose2::Identity());
+LocalizerConfig ConfigOf(const ReplayArgs& args) {
+  LocalizerConfig config = args.config.empty() ? LocalizerConfig{} : LoadLocalizerConfig(args.config);
+  if (args.required_overlap) config.required_overlap = *args.required_overlap;
+  return config;
+}
 
+// The wheel encoders integrated from `start` (dead reckoning), one pose per accepted sample.
+// Rejected samples are logged and skipped.
+dataset::Trajectory WheelTrajectory(const ReplayArgs& args, const dataset::DatasetReader& reader,
+                                    const core::Pose2& start) {
+  estimation::DiffDriveOdometry odometry(OdometryFor(reader.info()), start);
   dataset::Trajectory integrated;
   std::int64_t rejected = 0;
   auto encoders = reader.Encoders();
@@ -163,6 +171,18 @@ void RunDeadReckoning(const ReplayArgs& args, const GlobalOptions& global) {
     integrated.push_back({sample->time, odometry.world_from_vehicle()});
   }
   if (integrated.empty()) core::ThrowInvalidInput(args.dataset.string() + ": no encoder samples");
+  if (rejected > 0) core::Log().warn("{} encoder samples rejected", rejected);
+  return integrated;
+}
+
+void RunDeadReckoning(const ReplayArgs& args, const GlobalOptions& global) {
+  const dataset::DatasetReader reader(args.dataset);
+  const dataset::DatasetInfo& info = reader.info();
+  const std::optional<dataset::Trajectory> groundtruth = GroundTruthOf(reader);
+  // The start is known (as a localizer would be told at installation): the first ground
+  // truth pose, or the origin.
+  const dataset::Trajectory integrated =
+      WheelTrajectory(args, reader, groundtruth ? groundtruth->front().world_from_vehicle : core::Pose2::Identity());
 
   ReplayRecord record(groundtruth, global.quiet);
   auto stream = reader.Frames();
@@ -174,7 +194,6 @@ void RunDeadReckoning(const ReplayArgs& args, const GlobalOptions& global) {
     record.Frame(frame->time, pose,
                  std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - frame_start).count());
   }
-  if (rejected > 0) core::Log().warn("{} encoder samples rejected", rejected);
   // Dead reckoning makes no visual fix: fixes.csv has its header only.
   record.Finish(args, global, info, args.required_overlap.value_or(0.5), std::nullopt, "dead reckoning");
 }
@@ -183,12 +202,10 @@ void RunDeadReckoning(const ReplayArgs& args, const GlobalOptions& global) {
 // the map and fused. Frames are processed after the first encoder sample that follows them,
 // so each fix is late, as on a vehicle, and is applied at its own time.
 void RunMosaic(const ReplayArgs& args, const GlobalOptions& global) {
-  LocalizerConfig config = args.config.empty() ? LocalizerConfig{} : LoadLocalizerConfig(args.config);
-  if (args.required_overlap) config.required_overlap = *args.required_overlap;
+  LocalizerConfig config = ConfigOf(args);
   const dataset::DatasetReader reader(args.dataset);
   const dataset::DatasetInfo& info = reader.info();
-  std::optional<dataset::Trajectory> groundtruth;
-  if (reader.HasGroundTruth()) groundtruth = reader.GroundTruth();
+  const std::optional<dataset::Trajectory> groundtruth = GroundTruthOf(reader);
 
   const std::unique_ptr<mosaic::TileStore> store = mosaic::TileStore::Open(args.map, /*writable=*/false);
   mosaic::TileCache cache(*store, config.cache_budget_mib << 20);
@@ -200,8 +217,7 @@ void RunMosaic(const ReplayArgs& args, const GlobalOptions& global) {
                             " mm/px)");
   }
 
-  const camera::IdealCamera camera(
-      camera::IdealCameraOptions{info.camera.width_px, info.camera.height_px, info.camera.mm_per_px});
+  const camera::IdealCamera camera = CameraOf(info);
   config.localizer.odometry = OdometryFor(info);
   config.localizer.vehicle_from_camera = info.camera.vehicle_from_camera;
   localizer::Localizer localizer(camera, config.localizer, reference);
@@ -251,27 +267,15 @@ void RunMosaic(const ReplayArgs& args, const GlobalOptions& global) {
 // stop overlapping (beyond the overlap speed limit) or registration fails, the wheel motion
 // is used. The comparison that shows what a prior map buys.
 void RunVisualOdometry(const ReplayArgs& args, const GlobalOptions& global) {
-  LocalizerConfig config = args.config.empty() ? LocalizerConfig{} : LoadLocalizerConfig(args.config);
-  if (args.required_overlap) config.required_overlap = *args.required_overlap;
+  const LocalizerConfig config = ConfigOf(args);
   const dataset::DatasetReader reader(args.dataset);
   const dataset::DatasetInfo& info = reader.info();
-  std::optional<dataset::Trajectory> groundtruth;
-  if (reader.HasGroundTruth()) groundtruth = reader.GroundTruth();
+  const std::optional<dataset::Trajectory> groundtruth = GroundTruthOf(reader);
   const core::Pose2 vehicle_from_camera = info.camera.vehicle_from_camera;
+  // The wheels give each frame pair's predicted motion (only differences are used).
+  const dataset::Trajectory wheel = WheelTrajectory(args, reader, core::Pose2::Identity());
 
-  // Wheel odometry first, as dead reckoning does: it gives each frame pair's predicted motion.
-  estimation::DiffDriveOdometry odometry(OdometryFor(info));
-  dataset::Trajectory wheel;
-  auto encoders = reader.Encoders();
-  while (const auto sample = encoders.Next()) {
-    if (odometry.Update(sample->time, sample->left_ticks, sample->right_ticks)) {
-      wheel.push_back({sample->time, odometry.world_from_vehicle()});
-    }
-  }
-  if (wheel.empty()) core::ThrowInvalidInput(args.dataset.string() + ": no encoder samples");
-
-  const camera::IdealCamera camera(
-      camera::IdealCameraOptions{info.camera.width_px, info.camera.height_px, info.camera.mm_per_px});
+  const camera::IdealCamera camera = CameraOf(info);
   const tracking::Tracker tracker(camera, config.localizer.tracker);
   ReplayRecord record(groundtruth, global.quiet);
   cv::Mat previous;

@@ -165,13 +165,8 @@ std::optional<tracking::TrackResult> Localizer::Relocalize(const cv::Mat& frame,
   const int range = static_cast<int>(std::ceil(radius_mm / (camera_.mm_per_px() * scale)));
   Eigen::Matrix<double, 2, 3> small_to_frame;
   small_to_frame << scale, 0.0, 0.5 * (scale - 1), 0.0, scale, 0.5 * (scale - 1);
-  const Eigen::Matrix<double, 2, 3> world_from_frame = camera_.PixelToWorldAffine(prior_camera);
-  const Eigen::Matrix<double, 2, 3> raster_from_world = level->WorldToRaster();
-  Eigen::Matrix<double, 2, 3> small_to_raster;
-  const Eigen::Matrix2d linear = raster_from_world.leftCols<2>() * world_from_frame.leftCols<2>();
-  small_to_raster.leftCols<2>() = linear * small_to_frame.leftCols<2>();
-  small_to_raster.col(2) = linear * small_to_frame.col(2) + raster_from_world.leftCols<2>() * world_from_frame.col(2) +
-                           raster_from_world.col(2);
+  const Eigen::Matrix<double, 2, 3> small_to_raster = tracking::ComposeAffine(
+      level->WorldToRaster(), tracking::ComposeAffine(camera_.PixelToWorldAffine(prior_camera), small_to_frame));
   cv::Mat mask;
   cv::Mat window = tracking::RenderWindow(*level, small_to_raster, cv::Point(-range, -range),
                                           cv::Size(small.cols + 2 * range, small.rows + 2 * range), &mask);

@@ -22,7 +22,7 @@ mosaic::RasterPatch FetchRegion(const ReferenceRaster& reference, const Affine& 
   double min_x = 1e300, min_y = 1e300, max_x = -1e300, max_y = -1e300;
   for (const int x : {rect.x, rect.x + rect.width - 1}) {
     for (const int y : {rect.y, rect.y + rect.height - 1}) {
-      const Eigen::Vector2d r = frame_to_raster.leftCols<2>() * Eigen::Vector2d(x, y) + frame_to_raster.col(2);
+      const Eigen::Vector2d r = ApplyAffine(frame_to_raster, Eigen::Vector2d(x, y));
       min_x = std::min(min_x, r.x());
       min_y = std::min(min_y, r.y());
       max_x = std::max(max_x, r.x());
@@ -53,8 +53,6 @@ inline bool Sample(const cv::Mat& image, const cv::Mat& mask, bool all_known, do
   *value = (1.0 - fy) * ((1.0 - fx) * p[0] + fx * p[1]) + fy * ((1.0 - fx) * q[0] + fx * q[1]);
   return true;
 }
-
-Eigen::Vector2d Apply(const Affine& a, const Eigen::Vector2d& p) { return a.leftCols<2>() * p + a.col(2); }
 
 // Inverse-compositional Gauss-Newton on the translation t of the template in the raster,
 // with ZNCC normalisation of both sides:
@@ -228,7 +226,7 @@ RefinedMatch RefineDirect(const cv::Mat& frame, const cv::Rect& rect, const Refe
   match.covariance_px2 = (sum_e2 / dof) * hessian.inverse();
   match.zncc = 1.0 - sum_e2 / (2.0 * static_cast<double>(used));
   const Eigen::Vector2d centre(rect.x + 0.5 * (rect.width - 1), rect.y + 0.5 * (rect.height - 1));
-  match.centre_raster = Apply(frame_to_raster, centre) + t;
+  match.centre_raster = ApplyAffine(frame_to_raster, centre) + t;
   return match;
 }
 
@@ -314,7 +312,7 @@ RefinedMatch RefineVisp(const cv::Mat& frame, const cv::Rect& rect, const Refere
     return match;
   }
   const Eigen::Vector2d centre(rect.x + 0.5 * (rect.width - 1), rect.y + 0.5 * (rect.height - 1));
-  match.centre_raster = Apply(frame_to_raster, centre + moved);
+  match.centre_raster = ApplyAffine(frame_to_raster, centre + moved);
   match.rotation_rad = answer.rotation_rad;
   // Score: our own ZNCC at the solution (ViSP has no public cost getter for its ZNCC trackers).
   match.zncc = SubPixelZncc(frame, rect, window, origin, moved, options.prefilter_sigma_px);

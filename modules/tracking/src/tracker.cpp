@@ -14,8 +14,6 @@ namespace {
 
 using Affine = Eigen::Matrix<double, 2, 3>;
 
-Eigen::Vector2d Apply(const Affine& a, const Eigen::Vector2d& p) { return a.leftCols<2>() * p + a.col(2); }
-
 Eigen::Vector2d CentreOf(const cv::Rect& r) { return {r.x + 0.5 * (r.width - 1), r.y + 0.5 * (r.height - 1)}; }
 
 }  // namespace
@@ -97,6 +95,7 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
 
   const Affine world_to_raster = reference.WorldToRaster();
   const Affine raster_to_world = reference.RasterToWorld();
+  const double raster_mm = reference.mm_per_px();
   const double s = camera_.mm_per_px();
   const Eigen::Vector2d image_centre(camera_.cx(), camera_.cy());
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> position_eigen(prior_covariance.topLeftCorner<2, 2>());
@@ -120,7 +119,7 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
   const Affine search_raster_to_world = search_reference.RasterToWorld();
   std::vector<Correspondence> coarse;
   std::vector<std::size_t> coarse_template;
-  int off_map = 0, ambiguous = 0, no_match = 0;
+  int off_map = 0, ambiguous = 0;
   // Searches templates in order (spares when the first ones run out) until `target` have a
   // coarse match; resumable, so the refinement can ask for more.
   std::size_t next_spot = 0;
@@ -162,7 +161,6 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
       report.coarse = SearchZncc(search_frame(rect), window, options_.search);
       if (!report.coarse.found || report.coarse.peak < options_.min_peak) {
         report.rejected = "no match";
-        ++no_match;
       } else if (report.coarse.ambiguity > options_.max_ambiguity) {
         report.rejected = "ambiguous";
         ++ambiguous;
@@ -172,7 +170,7 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
         const Eigen::Vector2d search_px = Eigen::Vector2d(origin.x, origin.y) + local;
         Correspondence c;
         c.camera_mm = camera_.PixelToCamera(centre);
-        c.world_mm = Apply(search_raster_to_world, Apply(prior_to_raster, search_px));
+        c.world_mm = ApplyAffine(search_raster_to_world, ApplyAffine(prior_to_raster, search_px));
         c.sigma_mm = 0.3 * scale * s;
         coarse.push_back(c);
         coarse_template.push_back(result.templates.size());
@@ -224,8 +222,7 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
       report.rejected.clear();
       Correspondence c;
       c.camera_mm = camera_.PixelToCamera(CentreOf(report.spot.rect));
-      c.world_mm = Apply(raster_to_world, report.refined.centre_raster);
-      const double raster_mm = reference.mm_per_px();
+      c.world_mm = ApplyAffine(raster_to_world, report.refined.centre_raster);
       c.sigma_mm = std::sqrt(0.5 * report.refined.covariance_px2.trace()) * raster_mm;
       fine.push_back(c);
       fine_template.push_back(index);

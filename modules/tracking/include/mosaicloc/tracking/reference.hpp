@@ -15,6 +15,11 @@ namespace mosaicloc::tracking {
 Eigen::Matrix<double, 2, 3> ComposeAffine(const Eigen::Matrix<double, 2, 3>& outer,
                                           const Eigen::Matrix<double, 2, 3>& inner);
 
+/// [A | b] applied to a point: A p + b.
+inline Eigen::Vector2d ApplyAffine(const Eigen::Matrix<double, 2, 3>& affine, const Eigen::Vector2d& point) {
+  return affine.leftCols<2>() * point + affine.col(2);
+}
+
 /// What a live frame is registered against: an 8-bit raster of the floor whose placement in
 /// the world is known exactly. Raster pixel (col, row) has its centre at
 ///   world_mm = A (col, row)^T + b,   [A | b] = RasterToWorld().
