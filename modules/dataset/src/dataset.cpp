@@ -313,6 +313,18 @@ void DatasetWriter::AddEncoderSample(const EncoderSample& sample) {
 
 void DatasetWriter::SetGroundTruth(const Trajectory& world_from_vehicle) { groundtruth_ = world_from_vehicle; }
 
+void DatasetWriter::AddFile(const std::filesystem::path& relative, std::string_view content) {
+  const std::filesystem::path normal = relative.lexically_normal();
+  if (relative.empty() || normal.is_absolute() || normal.begin()->string() == "..") {
+    core::ThrowInvalidInput("dataset: extra file '" + relative.string() + "' must stay inside the dataset");
+  }
+  std::error_code ec;
+  std::filesystem::create_directories((staging_ / normal).parent_path(), ec);
+  std::ofstream out(staging_ / normal, std::ios::binary);
+  out.write(content.data(), static_cast<std::streamsize>(content.size()));
+  if (!out) core::ThrowRuntime((staging_ / normal).string() + ": cannot write");
+}
+
 void DatasetWriter::Commit() {
   if (committed_) return;
   YAML::Emitter yaml;

@@ -96,6 +96,21 @@ TEST(Dataset, UncommittedWriterLeavesNothing) {
   EXPECT_TRUE(fs::is_empty(scratch.path()));
 }
 
+TEST(Dataset, ExtraFilesAppearOnCommitAndStayInside) {
+  test::ScratchDir scratch;
+  {
+    DatasetWriter writer(scratch / "ds", SmallInfo(), false);
+    writer.AddFrame(Ms(0), Image(1));
+    writer.AddFile("fixes/data.csv", "#timestamp_ns,x_mm\n1,2\n");
+    EXPECT_THROW(writer.AddFile("../outside.csv", "x"), core::Error);
+    EXPECT_THROW(writer.AddFile("/tmp/outside.csv", "x"), core::Error);
+    EXPECT_FALSE(fs::exists(scratch / "ds"));
+    writer.Commit();
+  }
+  EXPECT_EQ(test::ReadFile(scratch / "ds" / "fixes" / "data.csv"), "#timestamp_ns,x_mm\n1,2\n");
+  EXPECT_FALSE(fs::exists(scratch / "outside.csv"));
+}
+
 TEST(Dataset, RefusesToOverwriteUnlessAskedAndReplacesWhole) {
   test::ScratchDir scratch;
   WriteSmall(scratch / "ds");

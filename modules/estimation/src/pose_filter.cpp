@@ -60,6 +60,14 @@ void PoseFilter::Propagate(const Node& from, Node* to) {
 void PoseFilter::Predict(core::Timestamp time, const OdometryIncrement& increment) {
   if (time <= history_.back().time) return;  // out of order: odometry never goes back
   Node node{time, {}, {}, increment.previous_from_current, increment.covariance};
+  // The state may already be past the increment's start (the filter coasted to a frame while
+  // the odometry was late): only the part of the arc after it is new motion.
+  const core::Timestamp start = time - increment.dt;
+  if (increment.dt > core::Duration::zero() && start < history_.back().time) {
+    const double done = core::ToSeconds(history_.back().time - start) / core::ToSeconds(increment.dt);
+    node.increment = Between(ArcPart(increment.previous_from_current, done), increment.previous_from_current);
+    node.increment_covariance = (1.0 - done) * increment.covariance;
+  }
   Propagate(history_.back(), &node);
   history_.push_back(node);
   const double dt_s = core::ToSeconds(increment.dt);
@@ -69,6 +77,29 @@ void PoseFilter::Predict(core::Timestamp time, const OdometryIncrement& incremen
     yaw_rate_rad_per_s_ = twist.z() / dt_s;
   }
   Prune();
+}
+
+void PoseFilter::Coast(core::Timestamp time) {
+  if (time <= history_.back().time) return;
+  const double dt_s = core::ToSeconds(time - history_.back().time);
+  Node node{time, {}, {}, core::Pose2::Exp({forward_speed_mm_per_s_ * dt_s, 0.0, yaw_rate_rad_per_s_ * dt_s}),
+            Eigen::Vector3d(options_.extrapolation_position_variance_mm2_per_s * dt_s,
+                            options_.extrapolation_position_variance_mm2_per_s * dt_s,
+                            options_.extrapolation_yaw_variance_rad2_per_s * dt_s)
+                .asDiagonal()};
+  Propagate(history_.back(), &node);
+  history_.push_back(node);
+  Prune();
+}
+
+MotionState PoseFilter::Latest() const {
+  const Node& node = history_.back();
+  return {node.time, node.world_from_vehicle, node.covariance, forward_speed_mm_per_s_, yaw_rate_rad_per_s_};
+}
+
+core::Pose2 MotionState::PoseAt(core::Timestamp at) const {
+  const double dt_s = core::ToSeconds(at - time);
+  return world_from_vehicle * core::Pose2::Exp({forward_speed_mm_per_s * dt_s, 0.0, yaw_rate_rad_per_s * dt_s});
 }
 
 void PoseFilter::Prune() {

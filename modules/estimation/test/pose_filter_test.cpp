@@ -41,6 +41,28 @@ TEST(PoseFilter, SystemModelInterpolatesAndExtrapolates) {
   EXPECT_GT(filter.CovarianceAt(At(10) + 500ms)(0, 0), filter.covariance()(0, 0));
 }
 
+TEST(PoseFilter, CoastingToAFrameDoesNotCountTheOdometryTwice) {
+  // Odometry at 10 ms steps on an arc; a frame at 12.5 steps arrives before the sample at 13.
+  PoseFilter coasted(PoseFilterOptions{}, At(0), Pose2(), Eigen::Matrix3d::Identity() * 1e-4);
+  PoseFilter plain(PoseFilterOptions{}, At(0), Pose2(), Eigen::Matrix3d::Identity() * 1e-4);
+  for (int i = 1; i <= 12; ++i) {
+    coasted.Predict(At(i), Arc(20.0, 0.002, 10ms));
+    plain.Predict(At(i), Arc(20.0, 0.002, 10ms));
+  }
+  coasted.Coast(At(12) + 5ms);
+  EXPECT_LT(Distance(coasted.world_from_vehicle(), plain.PoseAt(At(12) + 5ms)), 1e-9);
+  EXPECT_GT(coasted.covariance()(0, 0), plain.covariance()(0, 0));
+  const MotionState latest = coasted.Latest();
+  EXPECT_NEAR(latest.forward_speed_mm_per_s, 2000.0, 1e-6);
+  EXPECT_LT(Distance(latest.PoseAt(At(14)), plain.PoseAt(At(14))), 1e-9);
+  for (int i = 13; i <= 20; ++i) {
+    coasted.Predict(At(i), Arc(20.0, 0.002, 10ms));
+    plain.Predict(At(i), Arc(20.0, 0.002, 10ms));
+  }
+  EXPECT_LT(Distance(coasted.world_from_vehicle(), plain.world_from_vehicle()), 1e-9);
+  EXPECT_LT(std::abs(YawDifference(coasted.world_from_vehicle(), plain.world_from_vehicle())), 1e-12);
+}
+
 TEST(PoseFilter, LateFixGivesTheSameStateAsAnOnTimeFix) {
   const Pose2 fix(246.5, 0.8, 0.002);  // the prediction there is about (246, 0.3, 0.0025)
   const Eigen::Matrix3d fix_covariance = Eigen::Vector3d(0.01, 0.01, 1e-6).asDiagonal();

@@ -327,7 +327,7 @@ TEST(PlcServerTest, PortInUseIsAClearError) {
     OpenPlcLink(options);
     FAIL() << "expected an error";
   } catch (const core::Error& e) {
-    EXPECT_NE(std::string(e.what()).find("cannot listen as Modbus TCP server of 127.0.0.1:" + std::to_string(port)),
+    EXPECT_NE(std::string(e.what()).find("cannot serve as Modbus TCP server of 127.0.0.1:" + std::to_string(port)),
               std::string::npos)
         << e.what();
   }

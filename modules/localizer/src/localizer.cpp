@@ -84,9 +84,15 @@ Eigen::Matrix3d Localizer::CovarianceAt(core::Timestamp time) const {
   return filter_ ? filter_->CovarianceAt(time) : Eigen::Matrix3d::Identity() * 1e12;
 }
 
+estimation::MotionState Localizer::Latest() const {
+  if (!filter_) core::ThrowRuntime("localizer: Latest before Initialize");
+  return filter_->Latest();
+}
+
 FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame) {
   FrameOutcome outcome;
   if (!filter_) core::ThrowRuntime("localizer: ProcessFrame before Initialize");
+  filter_->Coast(time);
   const core::Pose2 predicted = filter_->PoseAt(time);
   const Eigen::Matrix3d predicted_covariance = filter_->CovarianceAt(time);
   const core::Pose2 prior_camera = predicted * options_.vehicle_from_camera;

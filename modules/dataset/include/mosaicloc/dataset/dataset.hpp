@@ -7,6 +7,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <opencv2/core/mat.hpp>
@@ -137,6 +138,9 @@ class DatasetWriter {
   void AddEncodedFrame(core::Timestamp time, const std::vector<unsigned char>& png);
   void AddEncoderSample(const EncoderSample& sample);
   void SetGroundTruth(const Trajectory& world_from_vehicle);
+  /// Adds a file of the caller's (e.g. a live run's fixes) at `relative` inside the dataset;
+  /// it appears with the rest at Commit(). Paths that leave the dataset are refused.
+  void AddFile(const std::filesystem::path& relative, std::string_view content);
   /// Flushes, closes and renames the staging directory into place.
   void Commit();
 

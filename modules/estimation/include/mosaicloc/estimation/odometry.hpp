@@ -69,6 +69,9 @@ class DiffDriveOdometry {
   std::optional<core::Timestamp> last_time() const { return last_time_; }
   /// Restarts integration from a pose (e.g. a fix); the counters are kept.
   void Reset(const core::Pose2& world_from_vehicle, const Eigen::Matrix3d& covariance);
+  /// The next sample only re-seeds the counters: for after an outage, when the wheels may
+  /// have turned unseen or the PLC restarted and reset its counters.
+  void ForgetCounters() { last_time_.reset(); }
 
   /// Wheel travel in mm for a tick count.
   double LeftTicksToMm(std::int64_t ticks) const;

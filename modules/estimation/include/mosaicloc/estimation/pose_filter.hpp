@@ -24,6 +24,18 @@ struct PoseFilterOptions {
   bool Check(std::string* why) const;
 };
 
+/// The latest state and the velocities the system model extrapolates it with: enough for
+/// another thread to answer "where is the vehicle now" without touching the filter.
+struct MotionState {
+  core::Timestamp time;
+  core::Pose2 world_from_vehicle;
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+  double forward_speed_mm_per_s = 0.0;
+  double yaw_rate_rad_per_s = 0.0;
+  /// The pose at `at` moving on with constant forward speed and yaw rate (also before `time`).
+  core::Pose2 PoseAt(core::Timestamp at) const;
+};
+
 /// Outcome of one fix.
 struct FixOutcome {
   bool accepted = false;
@@ -54,8 +66,13 @@ class PoseFilter {
   PoseFilter(const PoseFilterOptions& options, core::Timestamp time, const core::Pose2& world_from_vehicle,
              const Eigen::Matrix3d& covariance);
 
-  /// Moves the state to `time` by an odometry increment (which ends at `time`).
+  /// Moves the state to `time` by an odometry increment (which ends at `time`). If the state
+  /// has coasted past the increment's start, only the rest of the increment is applied.
   void Predict(core::Timestamp time, const OdometryIncrement& increment);
+  /// Moves the state to `time` on the system model alone (constant velocity, covariance
+  /// grown by the extrapolation variances): for a frame newer than the latest odometry, so
+  /// its fix can still be applied at its own time.
+  void Coast(core::Timestamp time);
   /// Applies a fix of world_from_vehicle at `time` (not after the latest odometry, not before
   /// the history). Never throws: a rejected fix says why.
   FixOutcome Correct(core::Timestamp time, const core::Pose2& world_from_vehicle, const Eigen::Matrix3d& covariance);
@@ -68,6 +85,7 @@ class PoseFilter {
   Eigen::Matrix3d CovarianceAt(core::Timestamp time) const;
 
   core::Timestamp time() const { return history_.back().time; }
+  MotionState Latest() const;
   const core::Pose2& world_from_vehicle() const { return history_.back().world_from_vehicle; }
   const Eigen::Matrix3d& covariance() const { return history_.back().covariance; }
 

@@ -70,13 +70,21 @@ class Localizer {
 
   /// One encoder sample (raw PLC counters). Returns false when the sample was rejected.
   bool AddEncoders(core::Timestamp time, std::int32_t left_ticks, std::int32_t right_ticks);
+  /// Odometry is unavailable (the PLC link is down or its heartbeat stale): the next sample
+  /// only re-seeds the counters, so wheel turns unseen or counters reset by a PLC restart
+  /// are not taken for motion. Meanwhile frames coast the filter on the system model.
+  void SuspendOdometry() { odometry_.ForgetCounters(); }
   /// One ideal frame. The odometry should already reach past `time` (the fix is applied at
-  /// the frame's own time inside the filter's history).
+  /// the frame's own time inside the filter's history); a frame newer than the odometry
+  /// coasts the filter to its time first.
   FrameOutcome ProcessFrame(core::Timestamp time, const cv::Mat& frame);
 
   /// The estimate at any time (system model).
   core::Pose2 PoseAt(core::Timestamp time) const;
   Eigen::Matrix3d CovarianceAt(core::Timestamp time) const;
+  /// The latest state and velocities (for answering from another thread); requires
+  /// initialized().
+  estimation::MotionState Latest() const;
   const estimation::LockMonitor& lock() const { return lock_; }
   std::int64_t relocalizations() const { return relocalizations_; }
 
