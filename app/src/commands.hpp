@@ -22,5 +22,7 @@ Action AddEvaluateCommand(CLI::App& app, const GlobalOptions& global);
 Action AddReplayCommand(CLI::App& app, const GlobalOptions& global);
 Action AddMapCommand(CLI::App& app, const GlobalOptions& global);
 Action AddBenchCommand(CLI::App& app, const GlobalOptions& global);
+Action AddRunCommand(CLI::App& app, const GlobalOptions& global);
+Action AddPlcSimCommand(CLI::App& app, const GlobalOptions& global);
 
 }  // namespace mosaicloc::app

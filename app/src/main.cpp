@@ -39,6 +39,8 @@ int main(int argc, char** argv) {
   add(app::AddReplayCommand);
   add(app::AddMapCommand);
   add(app::AddBenchCommand);
+  add(app::AddRunCommand);
+  add(app::AddPlcSimCommand);
 
   try {
     app.parse(argc, argv);

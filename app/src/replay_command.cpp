@@ -135,10 +135,22 @@ class ReplayRecord {
 };
 
 // Where the run starts (as a localizer is told at installation): the ground truth at `time`,
-// else its first pose, else the origin.
-core::Pose2 StartPose(const std::optional<dataset::Trajectory>& groundtruth, core::Timestamp time) {
-  if (!groundtruth) return core::Pose2::Identity();
-  return dataset::PoseAt(*groundtruth, time, std::chrono::seconds(1)).value_or(groundtruth->front().world_from_vehicle);
+// else its first pose; without ground truth, the start pose a live recording noted in its
+// provenance ("x_mm,y_mm,yaw_deg"), else the origin.
+core::Pose2 StartPose(const std::optional<dataset::Trajectory>& groundtruth, const dataset::DatasetInfo& info,
+                      core::Timestamp time) {
+  if (groundtruth) {
+    return dataset::PoseAt(*groundtruth, time, std::chrono::seconds(1))
+        .value_or(groundtruth->front().world_from_vehicle);
+  }
+  const auto noted = info.provenance.find("start_pose");
+  if (noted == info.provenance.end()) return core::Pose2::Identity();
+  double x = 0.0, y = 0.0, yaw_deg = 0.0;
+  if (std::sscanf(noted->second.c_str(), "%lf,%lf,%lf", &x, &y, &yaw_deg) != 3) {
+    core::ThrowInvalidInput("dataset.yaml: provenance.start_pose: '" + noted->second +
+                            "' is not x_mm,y_mm,yaw_deg");
+  }
+  return core::Pose2(x, y, yaw_deg * std::numbers::pi / 180.0);
 }
 
 std::optional<dataset::Trajectory> GroundTruthOf(const dataset::DatasetReader& reader) {
@@ -182,7 +194,7 @@ void RunDeadReckoning(const ReplayArgs& args, const GlobalOptions& global) {
   // The start is known (as a localizer would be told at installation): the first ground
   // truth pose, or the origin.
   const dataset::Trajectory integrated =
-      WheelTrajectory(args, reader, groundtruth ? groundtruth->front().world_from_vehicle : core::Pose2::Identity());
+      WheelTrajectory(args, reader, StartPose(groundtruth, info, groundtruth ? groundtruth->front().time : core::Timestamp()));
 
   ReplayRecord record(groundtruth, global.quiet);
   auto stream = reader.Frames();
@@ -220,12 +232,20 @@ void RunMosaic(const ReplayArgs& args, const GlobalOptions& global) {
   const camera::IdealCamera camera = CameraOf(info);
   config.localizer.odometry = OdometryFor(info);
   config.localizer.vehicle_from_camera = info.camera.vehicle_from_camera;
+  // A live recording's encoder time stamps carry the PLC's timing error; the run noted it.
+  if (const auto noted = info.provenance.find("encoder_timing_sigma_ms"); noted != info.provenance.end()) {
+    try {
+      config.localizer.odometry_timing_sigma_ms = std::stod(noted->second);
+    } catch (const std::exception&) {
+      core::ThrowInvalidInput("dataset.yaml: provenance.encoder_timing_sigma_ms: '" + noted->second + "' is not a number");
+    }
+  }
   localizer::Localizer localizer(camera, config.localizer, reference);
 
   auto encoders = reader.Encoders();
   std::optional<dataset::EncoderSample> pending = encoders.Next();
   if (!pending) core::ThrowInvalidInput(args.dataset.string() + ": no encoder samples");
-  const core::Pose2 start = StartPose(groundtruth, pending->time);
+  const core::Pose2 start = StartPose(groundtruth, info, pending->time);
   const double start_sigma_rad = config.start_sigma_deg * std::numbers::pi / 180.0;
   localizer.Initialize(pending->time, start,
                        Eigen::Vector3d(config.start_sigma_mm * config.start_sigma_mm,
@@ -289,7 +309,7 @@ void RunVisualOdometry(const ReplayArgs& args, const GlobalOptions& global) {
     bool registered = false;
     double quality = 0.0;
     if (previous.empty()) {
-      pose = StartPose(groundtruth, frame->time);
+      pose = StartPose(groundtruth, info, frame->time);
     } else {
       const core::Pose2 wheel_motion =
           Between(*dataset::PoseAt(wheel, previous_time, std::chrono::milliseconds(100)), *wheel_pose);

@@ -144,7 +144,7 @@ Eigen::Matrix3d PoseFilter::CovarianceAt(core::Timestamp time) const {
 }
 
 FixOutcome PoseFilter::Correct(core::Timestamp time, const core::Pose2& world_from_vehicle,
-                               const Eigen::Matrix3d& covariance) {
+                               const Eigen::Matrix3d& covariance, const Eigen::Matrix3d& prediction_spread) {
   FixOutcome outcome;
   if (time > history_.back().time) {
     outcome.reason = "fix is newer than the latest odometry";
@@ -168,6 +168,7 @@ FixOutcome PoseFilter::Correct(core::Timestamp time, const core::Pose2& world_fr
     later.front().increment_covariance = (1.0 - fraction) * next.increment_covariance;
     at = part;
   }
+  at.covariance += prediction_spread;
 
   const Eigen::Vector3d residual(world_from_vehicle.x_mm() - at.world_from_vehicle.x_mm(),
                                  world_from_vehicle.y_mm() - at.world_from_vehicle.y_mm(),

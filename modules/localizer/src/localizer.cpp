@@ -37,6 +37,9 @@ bool LocalizerOptions::Check(std::string* why) const {
   if (relocalize_level < 1 || relocalize_level > 6) return fail("relocalize_level must be in [1, 6]");
   if (!(relocalize_radius_mm > 0.0)) return fail("relocalize_radius_mm must be > 0");
   if (relocalize_candidates < 1 || relocalize_candidates > 50) return fail("relocalize_candidates must be in [1, 50]");
+  if (!(odometry_timing_sigma_ms >= 0.0) || odometry_timing_sigma_ms > 1000.0) {
+    return fail("odometry_timing_sigma_ms must be in [0, 1000]");
+  }
   return true;
 }
 
@@ -94,7 +97,14 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   if (!filter_) core::ThrowRuntime("localizer: ProcessFrame before Initialize");
   filter_->Coast(time);
   const core::Pose2 predicted = filter_->PoseAt(time);
-  const Eigen::Matrix3d predicted_covariance = filter_->CovarianceAt(time);
+  // Time-stamp uncertainty of the odometry: v * sigma_t along the heading.
+  Eigen::Matrix3d timing = Eigen::Matrix3d::Zero();
+  if (options_.odometry_timing_sigma_ms > 0.0) {
+    const double along_mm = filter_->Latest().forward_speed_mm_per_s * options_.odometry_timing_sigma_ms * 1e-3;
+    const Eigen::Vector2d heading(std::cos(predicted.yaw_rad()), std::sin(predicted.yaw_rad()));
+    timing.topLeftCorner<2, 2>() = along_mm * along_mm * heading * heading.transpose();
+  }
+  const Eigen::Matrix3d predicted_covariance = filter_->CovarianceAt(time) + timing;
   const core::Pose2 prior_camera = predicted * options_.vehicle_from_camera;
   const Eigen::Matrix3d prior_camera_covariance =
       CameraCovariance(predicted, options_.vehicle_from_camera, predicted_covariance);
@@ -133,7 +143,7 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
       outcome.relocalized = true;
       ++relocalizations_;
     } else {
-      const estimation::FixOutcome applied = filter_->Correct(time, fix, fix_covariance);
+      const estimation::FixOutcome applied = filter_->Correct(time, fix, fix_covariance, timing);
       outcome.fixed = applied.accepted;
       if (!applied.accepted) outcome.reason = "fix rejected: " + applied.reason;
     }
@@ -167,7 +177,11 @@ std::optional<tracking::TrackResult> Localizer::Relocalize(const cv::Mat& frame,
   // A window around the prediction in the frame's orientation: small-frame pixel q is frame
   // pixel scale q + (scale - 1) / 2.
   const double sigma_mm = std::sqrt(std::max(prior_camera_covariance(0, 0), prior_camera_covariance(1, 1)));
-  const double radius_mm = std::min(options_.relocalize_radius_mm, 3.0 * sigma_mm + 20.0);
+  // Lost: the covariance no longer says where to look (it is what the filter believed when
+  // the fixes stopped), so the whole radius is searched.
+  const double radius_mm = lock_.state() == estimation::LockState::kLost
+                               ? options_.relocalize_radius_mm
+                               : std::min(options_.relocalize_radius_mm, 3.0 * sigma_mm + 20.0);
   const int range = static_cast<int>(std::ceil(radius_mm / (camera_.mm_per_px() * scale)));
   Eigen::Matrix<double, 2, 3> small_to_frame;
   small_to_frame << scale, 0.0, 0.5 * (scale - 1), 0.0, scale, 0.5 * (scale - 1);

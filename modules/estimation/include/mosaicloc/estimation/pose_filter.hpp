@@ -74,8 +74,11 @@ class PoseFilter {
   /// its fix can still be applied at its own time.
   void Coast(core::Timestamp time);
   /// Applies a fix of world_from_vehicle at `time` (not after the latest odometry, not before
-  /// the history). Never throws: a rejected fix says why.
-  FixOutcome Correct(core::Timestamp time, const core::Pose2& world_from_vehicle, const Eigen::Matrix3d& covariance);
+  /// the history). `prediction_spread` is extra uncertainty of the state at that time that
+  /// the odometry model does not carry (e.g. its time-stamp error), added before the update.
+  /// Never throws: a rejected fix says why.
+  FixOutcome Correct(core::Timestamp time, const core::Pose2& world_from_vehicle, const Eigen::Matrix3d& covariance,
+                     const Eigen::Matrix3d& prediction_spread = Eigen::Matrix3d::Zero());
   /// Restarts from a pose (relocalization), dropping the history.
   void Reset(core::Timestamp time, const core::Pose2& world_from_vehicle, const Eigen::Matrix3d& covariance);
 

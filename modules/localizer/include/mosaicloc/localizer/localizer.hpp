@@ -29,6 +29,11 @@ struct LocalizerOptions {
   double fix_sigma_floor_rad = 2e-5;
   /// Fix covariance inflation: the tracker's covariance counts every pixel as independent.
   double fix_covariance_scale = 4.0;
+  /// Uncertainty of the encoder samples' time stamps, ms: 0 in replay (exact clocks); on a
+  /// vehicle the PLC's update period and the polling make them late or early by a few ms,
+  /// which puts the odometry v * dt behind or ahead along the heading. The prediction is
+  /// widened by that much along the heading, for the search and for the gate.
+  double odometry_timing_sigma_ms = 0.0;
   /// Relocalization, when the lock is lost or the prediction is too uncertain for the
   /// tracker's search range: the frame is searched for at this coarse map level (3 = 8x
   /// coarser), within relocalize_radius_mm of the prediction, and the best peaks verified

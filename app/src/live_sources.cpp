@@ -1,0 +1,63 @@
+#include "live_sources.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <thread>
+
+#include <fmt/format.h>
+
+#include "mosaicloc/core/error.hpp"
+#include "mosaicloc/io/plc_link.hpp"
+
+namespace mosaicloc::app {
+
+Playback Playback::Of(const dataset::DatasetReader& reader, double start_unix_s) {
+  auto frames = reader.Frames();
+  auto encoders = reader.Encoders();
+  const auto first_frame = frames.Next(/*decode=*/false);
+  const auto first_sample = encoders.Next();
+  if (!first_frame && !first_sample) core::ThrowInvalidInput(reader.directory().string() + ": the dataset is empty");
+  Playback playback;
+  playback.origin = first_frame && first_sample ? std::min(first_frame->time, first_sample->time)
+                    : first_frame               ? first_frame->time
+                                                : first_sample->time;
+  const core::Timestamp now = io::MonotonicNow();
+  playback.start = now;
+  if (start_unix_s > 0.0) {
+    const double wall_now_s =
+        std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+    playback.start = now + core::FromSeconds(start_unix_s - wall_now_s);
+  }
+  return playback;
+}
+
+bool SleepUntil(core::Timestamp when, const std::atomic<bool>& stop) {
+  while (!stop) {
+    const core::Duration left = when - io::MonotonicNow();
+    if (left <= core::Duration::zero()) return true;
+    std::this_thread::sleep_for(std::min<core::Duration>(left, std::chrono::milliseconds(20)));
+  }
+  return false;
+}
+
+DatasetFrameSource::DatasetFrameSource(const std::filesystem::path& directory, double start_unix_s)
+    : reader_(directory), frames_(reader_.Frames()), playback_(Playback::Of(reader_, start_unix_s)) {}
+
+std::optional<io::CapturedFrame> DatasetFrameSource::Next() {
+  std::optional<dataset::Frame> frame = frames_.Next();
+  if (!frame || stop_) return std::nullopt;
+  io::CapturedFrame captured;
+  captured.time = playback_.ToMonotonic(frame->time);
+  if (!SleepUntil(captured.time, stop_)) return std::nullopt;
+  captured.image = std::move(frame->image);
+  captured.sequence = sequence_++;
+  return captured;
+}
+
+std::string DatasetFrameSource::Describe() const {
+  return fmt::format("recording {} played in real time ({}x{})", reader_.directory().string(),
+                     reader_.info().camera.width_px, reader_.info().camera.height_px);
+}
+
+}  // namespace mosaicloc::app

@@ -1,0 +1,50 @@
+#pragma once
+
+#include <atomic>
+#include <filesystem>
+#include <optional>
+
+#include "mosaicloc/core/timestamp.hpp"
+#include "mosaicloc/dataset/dataset.hpp"
+#include "mosaicloc/io/frame_source.hpp"
+
+namespace mosaicloc::app {
+
+/// How a recording is played in real time: dataset time `origin` (the earlier of its first
+/// frame and first encoder sample) happens at `start` on the monotonic clock. The camera
+/// source and the PLC simulator compute the same origin, so started with the same wall-clock
+/// instant they play in step.
+struct Playback {
+  core::Timestamp origin;  ///< dataset clock
+  core::Timestamp start;   ///< monotonic clock
+
+  /// start_unix_s: when to start, seconds since the Unix epoch (0: now).
+  static Playback Of(const dataset::DatasetReader& reader, double start_unix_s);
+  core::Timestamp ToMonotonic(core::Timestamp dataset_time) const { return start + (dataset_time - origin); }
+  core::Timestamp ToDataset(core::Timestamp monotonic) const { return origin + (monotonic - start); }
+};
+
+/// Sleeps until `when` on the monotonic clock, in slices, returning early (false) when
+/// `stop` is set.
+bool SleepUntil(core::Timestamp when, const std::atomic<bool>& stop);
+
+/// A recorded dataset's frames delivered in real time and stamped on the monotonic clock,
+/// as a camera would deliver them.
+class DatasetFrameSource final : public io::FrameSource {
+ public:
+  DatasetFrameSource(const std::filesystem::path& directory, double start_unix_s);
+  std::optional<io::CapturedFrame> Next() override;
+  void Stop() override { stop_ = true; }
+  std::string Describe() const override;
+  const dataset::DatasetInfo& info() const { return reader_.info(); }
+  const Playback& playback() const { return playback_; }
+
+ private:
+  dataset::DatasetReader reader_;
+  dataset::DatasetReader::FrameStream frames_;
+  Playback playback_;
+  std::int64_t sequence_ = 0;
+  std::atomic<bool> stop_{false};
+};
+
+}  // namespace mosaicloc::app

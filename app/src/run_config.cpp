@@ -1,0 +1,176 @@
+#include "run_config.hpp"
+
+#include <numbers>
+
+#include <fmt/format.h>
+
+#include "mosaicloc/core/error.hpp"
+#include "mosaicloc/core/yaml.hpp"
+
+namespace mosaicloc::app {
+namespace {
+
+using core::InRange;
+using core::IntegerInRange;
+using core::Positive;
+
+void ReadField(core::YamlMap* registers, const char* key, io::RegisterField* field) {
+  core::YamlMap m = registers->OptionalMap(key);
+  m.Optional("address", &field->address, IntegerInRange(0, 65535));
+  m.Optional("width_bits", &field->width_bits, IntegerInRange(16, 32));
+  m.Optional("signed", &field->is_signed);
+  m.Optional("scale", &field->scale, Positive());
+  std::string order = field->word_order == io::WordOrder::kHighFirst ? "high_first" : "low_first";
+  m.Optional("word_order", &order, core::OneOf({"high_first", "low_first"}));
+  field->word_order = order == "high_first" ? io::WordOrder::kHighFirst : io::WordOrder::kLowFirst;
+  m.Finish();
+}
+
+void ReadRegisters(core::YamlMap* registers, io::RegisterMap* map) {
+  // One word order for every 32-bit field, unless a field says otherwise.
+  if (registers->Has("word_order")) {
+    std::string order;
+    registers->Optional("word_order", &order, core::OneOf({"high_first", "low_first"}));
+    const io::WordOrder word_order = order == "high_first" ? io::WordOrder::kHighFirst : io::WordOrder::kLowFirst;
+    for (io::RegisterField* field : {&map->left_ticks, &map->right_ticks, &map->plc_heartbeat, &map->fix_request,
+                                     &map->fix_x, &map->fix_y, &map->fix_yaw, &map->fix_status, &map->fix_quality,
+                                     &map->fix_request_echo, &map->heartbeat}) {
+      field->word_order = word_order;
+    }
+  }
+  ReadField(registers, "left_ticks", &map->left_ticks);
+  ReadField(registers, "right_ticks", &map->right_ticks);
+  ReadField(registers, "plc_heartbeat", &map->plc_heartbeat);
+  ReadField(registers, "fix_request", &map->fix_request);
+  ReadField(registers, "fix_x", &map->fix_x);
+  ReadField(registers, "fix_y", &map->fix_y);
+  ReadField(registers, "fix_yaw", &map->fix_yaw);
+  ReadField(registers, "fix_status", &map->fix_status);
+  ReadField(registers, "fix_quality", &map->fix_quality);
+  ReadField(registers, "fix_request_echo", &map->fix_request_echo);
+  ReadField(registers, "heartbeat", &map->heartbeat);
+  registers->Finish();
+  std::string why;
+  if (!map->Check(&why)) registers->AddProblem("registers", why);
+}
+
+void ReadPose(core::YamlMap* parent, const char* key, core::Pose2* pose) {
+  core::YamlMap m = parent->OptionalMap(key);
+  double x = pose->x_mm(), y = pose->y_mm(), yaw = pose->yaw_rad();
+  m.Optional("x_mm", &x, InRange(-1e9, 1e9));
+  m.Optional("y_mm", &y, InRange(-1e9, 1e9));
+  m.Optional("yaw_rad", &yaw, InRange(-10.0, 10.0));
+  m.Finish();
+  *pose = core::Pose2(x, y, yaw);
+}
+
+}  // namespace
+
+void ReadRegisterMap(const YAML::Node& node, const std::string& file_name, io::RegisterMap* map) {
+  core::YamlProblems problems;
+  core::YamlMap root = core::YamlMap::Root(node, file_name, &problems);
+  core::YamlMap plc = root.OptionalMap("plc");
+  core::YamlMap registers = plc.OptionalMap("registers");
+  ReadRegisters(&registers, map);
+  problems.ThrowIfAny();
+}
+
+RunConfig LoadRunConfig(const std::filesystem::path& file) {
+  const YAML::Node node = core::LoadYamlFile(file);
+  const std::filesystem::path folder = file.parent_path();
+  const auto resolve = [&](const std::string& path) -> std::filesystem::path {
+    if (path.empty()) return {};
+    const std::filesystem::path p(path);
+    return p.is_absolute() ? p : folder / p;
+  };
+  RunConfig config;
+  core::YamlProblems problems;
+  core::YamlMap root = core::YamlMap::Root(node, file.string(), &problems);
+
+  std::string map;
+  root.Required("map", &map);
+  config.map = resolve(map);
+  std::string localizer;
+  root.Optional("localizer", &localizer);
+
+  core::YamlMap camera = root.OptionalMap("camera");
+  camera.Optional("source", &config.camera_source, core::OneOf({"v4l2", "dataset"}));
+  camera.Optional("width_px", &config.camera.width_px, IntegerInRange(16, 16384));
+  camera.Optional("height_px", &config.camera.height_px, IntegerInRange(16, 16384));
+  camera.Optional("mm_per_px", &config.camera.mm_per_px, InRange(1e-4, 100.0));
+  ReadPose(&camera, "vehicle_from_camera", &config.camera.vehicle_from_camera);
+  core::YamlMap v4l2 = camera.OptionalMap("v4l2");
+  v4l2.Optional("device", &config.v4l2.device);
+  v4l2.Optional("pixel_format", &config.v4l2.pixel_format, core::OneOf({"auto", "grey", "yuyv", "mjpeg"}));
+  v4l2.Optional("frame_rate_hz", &config.v4l2.frame_rate_hz, InRange(0.1, 10000.0));
+  v4l2.Optional("exposure_us", &config.v4l2.exposure_us, InRange(-1.0, 1e7));
+  v4l2.Optional("gain", &config.v4l2.gain, IntegerInRange(-1, 1 << 20));
+  v4l2.Optional("buffers", &config.v4l2.buffers, IntegerInRange(2, 32));
+  v4l2.Finish();
+  core::YamlMap recording = camera.OptionalMap("dataset");
+  std::string dataset;
+  recording.Optional("path", &dataset);
+  config.dataset = resolve(dataset);
+  recording.Optional("start_unix_s", &config.dataset_start_unix_s, InRange(0.0, 1e11));
+  recording.Finish();
+  camera.Finish();
+  if (config.camera_source == "dataset" && config.dataset.empty()) {
+    camera.AddProblem("dataset", "source: dataset needs dataset.path, the recording to play");
+  }
+  config.v4l2.width_px = config.camera.width_px;
+  config.v4l2.height_px = config.camera.height_px;
+
+  core::YamlMap vehicle = root.OptionalMap("vehicle");
+  vehicle.Optional("left_wheel_radius_mm", &config.vehicle.left_wheel_radius_mm, InRange(1.0, 5000.0));
+  vehicle.Optional("right_wheel_radius_mm", &config.vehicle.right_wheel_radius_mm, InRange(1.0, 5000.0));
+  vehicle.Optional("track_width_mm", &config.vehicle.track_width_mm, InRange(10.0, 1e5));
+  vehicle.Optional("ticks_per_revolution", &config.vehicle.ticks_per_revolution, IntegerInRange(1, 1 << 30));
+  vehicle.Finish();
+
+  core::YamlMap plc = root.OptionalMap("plc");
+  io::PlcLinkOptions& link = config.plc;
+  plc.Optional("role", &link.role, core::OneOf({"client", "server"}));
+  plc.Optional("transport", &link.transport, core::OneOf({"tcp", "rtu"}));
+  plc.Optional("host", &link.host);
+  plc.Optional("port", &link.port, IntegerInRange(1, 65535));
+  plc.Optional("device", &link.device);
+  plc.Optional("baud", &link.baud, IntegerInRange(300, 4000000));
+  plc.Optional("parity", &link.parity, core::OneOf({"N", "E", "O"}));
+  plc.Optional("data_bits", &link.data_bits, IntegerInRange(5, 8));
+  plc.Optional("stop_bits", &link.stop_bits, IntegerInRange(1, 2));
+  plc.Optional("unit_id", &link.unit_id, IntegerInRange(0, 247));
+  plc.Optional("response_timeout_ms", &link.response_timeout_ms, InRange(1.0, 10000.0));
+  plc.Optional("reconnect_min_ms", &link.reconnect_min_ms, InRange(1.0, 600000.0));
+  plc.Optional("reconnect_max_ms", &link.reconnect_max_ms, InRange(1.0, 600000.0));
+  plc.Optional("cycle_ms", &config.plc_cycle_ms, InRange(1.0, 10000.0));
+  plc.Optional("fix_period_ms", &config.fix_period_ms, InRange(0.0, 600000.0));
+  plc.Optional("heartbeat_timeout_ms", &config.heartbeat_timeout_ms, InRange(0.0, 600000.0));
+  plc.Optional("encoder_latency_ms", &config.encoder_latency_ms, InRange(0.0, 1000.0));
+  plc.Optional("encoder_timing_sigma_ms", &config.encoder_timing_sigma_ms, InRange(0.0, 1000.0));
+  plc.Optional("stationary_after_ms", &config.stationary_after_ms, InRange(1.0, 60000.0));
+  plc.Optional("counter_period_ms", &config.counter_period_ms, InRange(0.0, 10000.0));
+  core::YamlMap registers = plc.OptionalMap("registers");
+  ReadRegisters(&registers, &link.registers);
+  plc.Finish();
+  if (link.reconnect_max_ms < link.reconnect_min_ms) {
+    plc.AddProblem("reconnect_max_ms", "must be at least reconnect_min_ms");
+  }
+  core::YamlMap start = root.OptionalMap("start");
+  double x = 0.0, y = 0.0, yaw_deg = 0.0;
+  start.Optional("x_mm", &x, InRange(-1e9, 1e9));
+  start.Optional("y_mm", &y, InRange(-1e9, 1e9));
+  start.Optional("yaw_deg", &yaw_deg, InRange(-360.0, 360.0));
+  start.Optional("sigma_mm", &config.start_sigma_mm, InRange(1e-3, 1e5));
+  start.Optional("sigma_deg", &config.start_sigma_deg, InRange(1e-4, 180.0));
+  start.Finish();
+  config.start = core::Pose2(x, y, yaw_deg * std::numbers::pi / 180.0);
+
+  root.Optional("max_encoder_wait_ms", &config.max_encoder_wait_ms, InRange(0.0, 10000.0));
+  root.Finish();
+  problems.ThrowIfAny();
+
+  if (!localizer.empty()) config.localizer = LoadLocalizerConfig(resolve(localizer));
+  return config;
+}
+
+}  // namespace mosaicloc::app
