@@ -12,7 +12,7 @@ PACKAGES=(
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev python3
   # independent Modbus peers for the PLC tests, and linked pseudo-terminals for Modbus RTU
-  python3-pymodbus mbpoll socat
+  python3-pymodbus python3-serial python3-serial-asyncio mbpoll socat
 )
 
 missing=()

@@ -84,12 +84,14 @@ void RunPlcSim(const PlcSimArgs& args, const GlobalOptions& global) {
 
   std::mutex received_mutex;
   std::deque<ReceivedFix> received;
-  io::RegisterServer* server_ptr = nullptr;
+  std::atomic<io::RegisterServer*> server_ptr{nullptr};  // set once the server exists
   std::vector<std::uint16_t> scratch(static_cast<std::size_t>(high - low));
-  io::RegisterServer server(server_options, low, high - low, [&](int address, int count, core::Timestamp time) {
+  auto server_owner = std::make_unique<io::RegisterServer>(server_options, low, high - low, [&](int address, int count,
+                                                                                              core::Timestamp time) {
     const io::RegisterField& x = map.fix_x;
-    if (!(address < x.address + x.words() && x.address < address + count) || server_ptr == nullptr) return;
-    server_ptr->Get(low, high - low, scratch.data());
+    io::RegisterServer* const serving = server_ptr.load();
+    if (!(address < x.address + x.words() && x.address < address + count) || serving == nullptr) return;
+    serving->Get(low, high - low, scratch.data());
     const auto at = [&](const io::RegisterField& f) { return io::DecodeCount(f, scratch.data() + (f.address - low)); };
     ReceivedFix r;
     r.time = time;
@@ -103,6 +105,7 @@ void RunPlcSim(const PlcSimArgs& args, const GlobalOptions& global) {
     const std::lock_guard lock(received_mutex);
     received.push_back(r);
   });
+  io::RegisterServer& server = *server_owner;
   server_ptr = &server;
   if (!global.quiet) {
     std::fprintf(stderr, "plc-sim: serving %s on %s:%d (unit %d), playing %s\n", "holding registers", args.host.c_str(),
@@ -129,6 +132,36 @@ void RunPlcSim(const PlcSimArgs& args, const GlobalOptions& global) {
   std::string csv = "#time_s,x_mm,y_mm,yaw_rad,status,quality,request_echo,heartbeat,gt_x_mm,gt_y_mm,error_mm\n";
   core::Timestamp next_print = io::MonotonicNow() + std::chrono::seconds(1);
 
+  const auto process_received = [&] {
+      std::deque<ReceivedFix> batch;
+      {
+        const std::lock_guard lock(received_mutex);
+        batch.swap(received);
+      }
+      for (const ReceivedFix& r : batch) {
+        ++fixes;
+        ++status_counts[static_cast<std::size_t>(std::clamp(r.fix.status, 0, 3))];
+        if (!request_answered && request_time && r.fix.request_echo == Masked(request, map.fix_request_echo)) {
+          request_answered = true;
+          ++answered;
+          answer_ms.push_back(std::chrono::duration<double, std::milli>(r.time - *request_time).count());
+        }
+        const core::Timestamp dataset_time = playback.ToDataset(r.time);
+        std::optional<core::Pose2> truth;
+        if (groundtruth) truth = dataset::PoseAt(*groundtruth, dataset_time, std::chrono::milliseconds(200));
+        double error = std::nan("");
+        if (truth && r.fix.status != 0) {
+          error = std::hypot(r.fix.x_mm - truth->x_mm(), r.fix.y_mm - truth->y_mm());
+          errors_mm.push_back(error);
+          heading_errors_deg.push_back(std::abs(core::WrapAngle(r.fix.yaw_rad - truth->yaw_rad())) * 180.0 /
+                                       std::numbers::pi);
+        }
+        csv += fmt::format("{:.6f},{:.2f},{:.2f},{:.6f},{},{},{},{},{},{},{}\n", dataset_time.seconds(), r.fix.x_mm,
+                           r.fix.y_mm, r.fix.yaw_rad, r.fix.status, r.fix.quality, r.fix.request_echo, r.fix.heartbeat,
+                           truth ? fmt::format("{:.2f}", truth->x_mm()) : "", truth ? fmt::format("{:.2f}", truth->y_mm()) : "",
+                           std::isnan(error) ? "" : fmt::format("{:.3f}", error));
+      }
+  };
   g_plc_signal = 0;
   std::signal(SIGINT, OnPlcSignal);
   std::signal(SIGTERM, OnPlcSignal);
@@ -167,34 +200,7 @@ void RunPlcSim(const PlcSimArgs& args, const GlobalOptions& global) {
       put(map.fix_request, wrap(request, map.fix_request));
     });
 
-    std::deque<ReceivedFix> batch;
-    {
-      const std::lock_guard lock(received_mutex);
-      batch.swap(received);
-    }
-    for (const ReceivedFix& r : batch) {
-      ++fixes;
-      ++status_counts[static_cast<std::size_t>(std::clamp(r.fix.status, 0, 3))];
-      if (!request_answered && request_time && r.fix.request_echo == Masked(request, map.fix_request_echo)) {
-        request_answered = true;
-        ++answered;
-        answer_ms.push_back(std::chrono::duration<double, std::milli>(r.time - *request_time).count());
-      }
-      const core::Timestamp dataset_time = playback.ToDataset(r.time);
-      std::optional<core::Pose2> truth;
-      if (groundtruth) truth = dataset::PoseAt(*groundtruth, dataset_time, std::chrono::milliseconds(200));
-      double error = std::nan("");
-      if (truth && r.fix.status != 0) {
-        error = std::hypot(r.fix.x_mm - truth->x_mm(), r.fix.y_mm - truth->y_mm());
-        errors_mm.push_back(error);
-        heading_errors_deg.push_back(std::abs(core::WrapAngle(r.fix.yaw_rad - truth->yaw_rad())) * 180.0 /
-                                     std::numbers::pi);
-      }
-      csv += fmt::format("{:.6f},{:.2f},{:.2f},{:.6f},{},{},{},{},{},{},{}\n", dataset_time.seconds(), r.fix.x_mm,
-                         r.fix.y_mm, r.fix.yaw_rad, r.fix.status, r.fix.quality, r.fix.request_echo, r.fix.heartbeat,
-                         truth ? fmt::format("{:.2f}", truth->x_mm()) : "", truth ? fmt::format("{:.2f}", truth->y_mm()) : "",
-                         std::isnan(error) ? "" : fmt::format("{:.3f}", error));
-    }
+    process_received();
     if (now >= next_print) {
       next_print = next_print + std::chrono::seconds(1);
       if (!global.quiet && !global.json) {
@@ -213,6 +219,9 @@ void RunPlcSim(const PlcSimArgs& args, const GlobalOptions& global) {
   std::signal(SIGINT, SIG_DFL);
   std::signal(SIGTERM, SIG_DFL);
   (void)last_sample_time;
+  // Stop serving, then take in what the last requests wrote.
+  server_owner.reset();
+  process_received();
 
   if (!args.fixes_out.empty()) core::WriteFileAtomically(args.fixes_out, csv);
   std::sort(answer_ms.begin(), answer_ms.end());

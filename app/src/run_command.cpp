@@ -656,7 +656,8 @@ void Run(const RunArgs& args, const GlobalOptions& global) {
   std::signal(SIGINT, SIG_DFL);
   std::signal(SIGTERM, SIG_DFL);
   if (global.json) {
-    std::printf("%s\n", summary.dump(2).c_str());
+    // One JSON object per line: the status lines, then this summary.
+    std::printf("%s\n", nlohmann::json{{"summary", summary}}.dump().c_str());
   } else {
     std::printf("stopped: %s\n", summary["stopped"].get<std::string>().c_str());
     std::printf("frames %lld, fixes %lld (%.1f %%), dropped %lld, lock losses %lld\n",

@@ -28,6 +28,9 @@ bool PoseFilterOptions::Check(std::string* why) const {
   if (!(extrapolation_position_variance_mm2_per_s >= 0.0) || !(extrapolation_yaw_variance_rad2_per_s >= 0.0)) {
     return fail("extrapolation variances must be >= 0");
   }
+  if (!(coast_acceleration_mps2 >= 0.0) || !(coast_yaw_acceleration_radps2 >= 0.0)) {
+    return fail("coast accelerations must be >= 0");
+  }
   return true;
 }
 
@@ -42,6 +45,7 @@ PoseFilter::PoseFilter(const PoseFilterOptions& options, core::Timestamp time, c
 void PoseFilter::Reset(core::Timestamp time, const core::Pose2& world_from_vehicle, const Eigen::Matrix3d& covariance) {
   history_.clear();
   history_.push_back({time, world_from_vehicle, covariance, core::Pose2::Identity(), Eigen::Matrix3d::Zero()});
+  last_odometry_ = time;
 }
 
 void PoseFilter::Propagate(const Node& from, Node* to) {
@@ -70,6 +74,7 @@ void PoseFilter::Predict(core::Timestamp time, const OdometryIncrement& incremen
   }
   Propagate(history_.back(), &node);
   history_.push_back(node);
+  last_odometry_ = time;
   const double dt_s = core::ToSeconds(increment.dt);
   if (dt_s > 0.0) {
     const Eigen::Vector3d twist = increment.previous_from_current.Log();
@@ -82,11 +87,17 @@ void PoseFilter::Predict(core::Timestamp time, const OdometryIncrement& incremen
 void PoseFilter::Coast(core::Timestamp time) {
   if (time <= history_.back().time) return;
   const double dt_s = core::ToSeconds(time - history_.back().time);
+  // Unknown acceleration since the last odometry: the variance a^2 T^4 / 4 at T seconds,
+  // added step by step (the steps telescope to it).
+  const double t_old = core::ToSeconds(history_.back().time - last_odometry_);
+  const double t_new = core::ToSeconds(time - last_odometry_);
+  const double quartic = std::pow(t_new, 4) - std::pow(t_old, 4);
+  const double a_mm = options_.coast_acceleration_mps2 * 1e3;
+  const double position = options_.extrapolation_position_variance_mm2_per_s * dt_s + 0.25 * a_mm * a_mm * quartic;
+  const double yaw = options_.extrapolation_yaw_variance_rad2_per_s * dt_s +
+                     0.25 * std::pow(options_.coast_yaw_acceleration_radps2, 2) * quartic;
   Node node{time, {}, {}, core::Pose2::Exp({forward_speed_mm_per_s_ * dt_s, 0.0, yaw_rate_rad_per_s_ * dt_s}),
-            Eigen::Vector3d(options_.extrapolation_position_variance_mm2_per_s * dt_s,
-                            options_.extrapolation_position_variance_mm2_per_s * dt_s,
-                            options_.extrapolation_yaw_variance_rad2_per_s * dt_s)
-                .asDiagonal()};
+            Eigen::Vector3d(position, position, yaw).asDiagonal()};
   Propagate(history_.back(), &node);
   history_.push_back(node);
   Prune();

@@ -37,6 +37,9 @@ bool LocalizerOptions::Check(std::string* why) const {
   if (relocalize_level < 1 || relocalize_level > 6) return fail("relocalize_level must be in [1, 6]");
   if (!(relocalize_radius_mm > 0.0)) return fail("relocalize_radius_mm must be > 0");
   if (relocalize_candidates < 1 || relocalize_candidates > 50) return fail("relocalize_candidates must be in [1, 50]");
+  if (!(relocalize_min_coverage > 0.0 && relocalize_min_coverage <= 1.0)) {
+    return fail("relocalize_min_coverage must be in (0, 1]");
+  }
   if (!(odometry_timing_sigma_ms >= 0.0) || odometry_timing_sigma_ms > 1000.0) {
     return fail("odometry_timing_sigma_ms must be in [0, 1000]");
   }
@@ -100,7 +103,11 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   // Time-stamp uncertainty of the odometry: v * sigma_t along the heading.
   Eigen::Matrix3d timing = Eigen::Matrix3d::Zero();
   if (options_.odometry_timing_sigma_ms > 0.0) {
-    const double along_mm = filter_->Latest().forward_speed_mm_per_s * options_.odometry_timing_sigma_ms * 1e-3;
+    // A time-stamp error dt puts the odometry v dt off; the last fix anchored the state with
+    // the speed then, so the prediction here carries both: (v_now^2 + v_fix^2) dt^2.
+    const double v_now = filter_->Latest().forward_speed_mm_per_s;
+    const double along_mm = std::sqrt(v_now * v_now + fix_speed_mm_per_s_ * fix_speed_mm_per_s_) *
+                            options_.odometry_timing_sigma_ms * 1e-3;
     const Eigen::Vector2d heading(std::cos(predicted.yaw_rad()), std::sin(predicted.yaw_rad()));
     timing.topLeftCorner<2, 2>() = along_mm * along_mm * heading * heading.transpose();
   }
@@ -145,6 +152,7 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
     } else {
       const estimation::FixOutcome applied = filter_->Correct(time, fix, fix_covariance, timing);
       outcome.fixed = applied.accepted;
+      if (applied.accepted) fix_speed_mm_per_s_ = filter_->Latest().forward_speed_mm_per_s;
       if (!applied.accepted) outcome.reason = "fix rejected: " + applied.reason;
     }
   } else {
@@ -205,7 +213,7 @@ std::optional<tracking::TrackResult> Localizer::Relocalize(const cv::Mat& frame,
   for (int y = 0; y < scores.rows; ++y) {
     for (int x = 0; x < scores.cols; ++x) {
       const float v = scores.at<float>(y, x);
-      if (v >= dilated.at<float>(y, x) && coverage.at<float>(y, x) > 0.999f) peaks.push_back({v, {x, y}});
+      if (v >= dilated.at<float>(y, x) && coverage.at<float>(y, x) >= options_.relocalize_min_coverage) peaks.push_back({v, {x, y}});
     }
   }
   std::sort(peaks.begin(), peaks.end(), [](const auto& a, const auto& b) { return a.first > b.first; });

@@ -21,6 +21,10 @@ struct PoseFilterOptions {
   /// sample (the system model's constant-velocity assumption), mm^2/s and rad^2/s.
   double extrapolation_position_variance_mm2_per_s = 1.0;
   double extrapolation_yaw_variance_rad2_per_s = 1e-5;
+  /// Coasting without odometry (Coast): the vehicle may accelerate this much, so the pose
+  /// after T seconds is uncertain by a T^2 / 2 (and the heading by alpha T^2 / 2).
+  double coast_acceleration_mps2 = 1.0;
+  double coast_yaw_acceleration_radps2 = 0.5;
   bool Check(std::string* why) const;
 };
 
@@ -109,6 +113,7 @@ class PoseFilter {
   std::deque<Node> history_;
   double forward_speed_mm_per_s_ = 0.0;
   double yaw_rate_rad_per_s_ = 0.0;
+  core::Timestamp last_odometry_;  ///< of the latest node made from odometry (or a reset)
 };
 
 }  // namespace mosaicloc::estimation

@@ -42,6 +42,9 @@ struct LocalizerOptions {
   double relocalize_radius_mm = 600.0;
   int relocalize_candidates = 5;
   double relocalize_min_zncc = 0.8;   ///< of the verifying registration
+  /// Share of a candidate place the map must cover. Less than 1: a vehicle that mapped one
+  /// lane and drives it a few mm aside sees a sliver of floor the map does not have.
+  float relocalize_min_coverage = 0.75F;
   bool Check(std::string* why) const;
 };
 
@@ -107,6 +110,7 @@ class Localizer {
   std::optional<estimation::PoseFilter> filter_;
   estimation::LockMonitor lock_;
   std::int64_t relocalizations_ = 0;
+  double fix_speed_mm_per_s_ = 0.0;  ///< forward speed when the last fix was accepted
 };
 
 /// Covariance of world_from_camera = world_from_vehicle * vehicle_from_camera given the

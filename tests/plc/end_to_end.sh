@@ -1,0 +1,89 @@
+# The live system end to end on loopback, against an independent PLC (pymodbus): the PLC
+# serves a simulated run's encoder ticks in real time, `mosaicloc run` plays the run's frames
+# as its camera, localizes on the map and answers the PLC's fix requests. Then the same with
+# mosaicloc as the Modbus server and the PLC as the client, in the other word order.
+source "$(dirname "$0")/lib.sh"
+require_peers
+make_site site 1.0
+
+# Every visual fix the run recorded is within the replay accuracy of the ground truth
+# (recorded frame k is the played dataset's frame k).
+check_recorded_fixes() {
+  $PYTHON - "$1" "$SCRATCH/site-run" <<'PY' || fail "recorded fixes of $1 are off the ground truth"
+import bisect, math, sys
+rec, run = sys.argv[1], sys.argv[2]
+def rows(path):
+    return [l.strip().split(",") for l in open(path) if l.strip() and not l.startswith("#")]
+recorded = [int(r[0]) for r in rows(rec + "/cam0/data.csv")]
+played = [int(r[0]) for r in rows(run + "/cam0/data.csv")]
+truth = []
+for l in open(run + "/groundtruth/data.tum"):
+    if l.startswith("#") or not l.strip():
+        continue
+    v = [float(x) for x in l.split()]
+    truth.append((round(v[0] * 1e9), v[1] * 1000.0, v[2] * 1000.0))
+times = [t for t, _, _ in truth]
+errors = []
+for r in rows(rec + "/fixes/data.csv"):
+    k = recorded.index(int(r[0]))
+    t = played[k]
+    i = min(max(bisect.bisect_left(times, t), 1), len(truth) - 1)
+    (t0, x0, y0), (t1, x1, y1) = truth[i - 1], truth[i]
+    a = (t - t0) / (t1 - t0)
+    errors.append(math.hypot(float(r[1]) - (x0 + a * (x1 - x0)), float(r[2]) - (y0 + a * (y1 - y0))))
+rms = math.sqrt(sum(e * e for e in errors) / len(errors))
+print(f"recorded fixes: {len(errors)} of {len(recorded)} frames, rms {rms:.4f} mm, max {max(errors):.4f} mm")
+assert len(errors) >= 0.95 * len(played), len(errors)
+assert rms <= 0.02 and max(errors) <= 0.5, (rms, max(errors))
+PY
+}
+
+# --- mosaicloc polls the PLC (client role), word order high word first.
+PORT=$(free_port)
+run_config "$SCRATCH/run.yaml" "$PORT"
+START=$(start_in 2.0)
+$PYTHON "$PLC_DIR/pymodbus_plc.py" --dataset "$SCRATCH/site-run" --port "$PORT" --start-unix "$START" \
+  --request-period-ms 200 --out "$SCRATCH/plc.json" 2>"$SCRATCH/plc.err" &
+PLC=$!
+wait_port "$PORT"
+expect_exit 0 timeout 60 "$MOSAICLOC" --json run --config "$SCRATCH/run.yaml" --start-unix "$START" \
+  --record "$SCRATCH/rec"
+cp "$SCRATCH/out" "$SCRATCH/run.jsonl"
+wait $PLC || fail "the pymodbus PLC failed: $(tail -3 "$SCRATCH/plc.err")"
+tail -1 "$SCRATCH/run.jsonl"
+json_check "$SCRATCH/run.jsonl" 'd["fix_rate"] >= 0.95' 'd["lock_losses"] == 0' 'd["requests"] >= 10' \
+  'd["answered"] == d["requests"]' 'd["plc_read_errors"] == 0' 'd["plc_write_errors"] == 0' \
+  'd["stopped"] == "the camera source ended"'
+$PYTHON -c 'import json,sys; d=json.load(open(sys.argv[1])); d.pop("fixes"); print("PLC:", d)' "$SCRATCH/plc.json"
+# The PLC got an echoed answer to its requests, standing still exact, moving within the
+# time-stamp error of the link (the pose is for the instant it was written).
+json_check "$SCRATCH/plc.json" 'd["answered"] >= d["requests"] - 3' 'd["answered"] >= 10' \
+  'd["still_fixes"] >= 5' 'd["still_max_error_mm"] <= 0.1' 'd["moving_fixes"] >= 5' \
+  'd["moving_max_error_per_speed_ms"] <= 150' 'all(f["status"] in (0, 1) for f in d["fixes"])' \
+  'all(f["status"] == 1 for f in d["fixes"] if f["t_s"] > 0.5)'
+check_recorded_fixes "$SCRATCH/rec"
+# The recording replays offline.
+expect_exit 0 "$MOSAICLOC" --quiet --json replay --dataset "$SCRATCH/rec" --map "$SCRATCH/site.mosaic" \
+  --out "$SCRATCH/rec-report"
+json_check "$SCRATCH/rec-report/metrics.json" 'd["fix_rate"] >= 0.95' 'd["lock_losses"] == 0'
+
+# --- the PLC writes to mosaicloc (server role), word order low word first.
+PORT=$(free_port)
+run_config "$SCRATCH/server.yaml" "$PORT" "  role: server
+  registers: {word_order: low_first}"
+START=$(start_in 2.0)
+$PYTHON "$PLC_DIR/pymodbus_plc.py" --role client --word-order low_first --dataset "$SCRATCH/site-run" \
+  --port "$PORT" --start-unix "$START" --request-period-ms 200 --out "$SCRATCH/plc-client.json" \
+  2>"$SCRATCH/plc-client.err" &
+PLC=$!
+expect_exit 0 timeout 60 "$MOSAICLOC" --json run --config "$SCRATCH/server.yaml" --start-unix "$START"
+cp "$SCRATCH/out" "$SCRATCH/server.jsonl"
+wait $PLC || fail "the pymodbus PLC client failed: $(tail -3 "$SCRATCH/plc-client.err")"
+tail -1 "$SCRATCH/server.jsonl"
+json_check "$SCRATCH/server.jsonl" 'd["fix_rate"] >= 0.95' 'd["lock_losses"] == 0' 'd["requests"] >= 10' \
+  'd["answered"] == d["requests"]'
+$PYTHON -c 'import json,sys; d=json.load(open(sys.argv[1])); d.pop("fixes"); print("PLC client:", d)' \
+  "$SCRATCH/plc-client.json"
+json_check "$SCRATCH/plc-client.json" 'd["answered"] >= 10' 'd["still_fixes"] >= 5' 'd["still_max_error_mm"] <= 0.1' \
+  'd["moving_max_error_per_speed_ms"] <= 150'
+finish
