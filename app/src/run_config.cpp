@@ -26,7 +26,8 @@ void ReadField(core::YamlMap* registers, const char* key, io::RegisterField* fie
   m.Finish();
 }
 
-void ReadRegisters(core::YamlMap* registers, io::RegisterMap* map) {
+// Reads the fields; the map's consistency is then reported on `parent` (the plc section).
+void ReadRegisters(core::YamlMap* parent, core::YamlMap* registers, io::RegisterMap* map) {
   // One word order for every 32-bit field, unless a field says otherwise.
   if (registers->Has("word_order")) {
     std::string order;
@@ -51,7 +52,7 @@ void ReadRegisters(core::YamlMap* registers, io::RegisterMap* map) {
   ReadField(registers, "heartbeat", &map->heartbeat);
   registers->Finish();
   std::string why;
-  if (!map->Check(&why)) registers->AddProblem("registers", why);
+  if (!map->Check(&why)) parent->AddProblem("registers", why);
 }
 
 void ReadPose(core::YamlMap* parent, const char* key, core::Pose2* pose) {
@@ -71,7 +72,7 @@ void ReadRegisterMap(const YAML::Node& node, const std::string& file_name, io::R
   core::YamlMap root = core::YamlMap::Root(node, file_name, &problems);
   core::YamlMap plc = root.OptionalMap("plc");
   core::YamlMap registers = plc.OptionalMap("registers");
-  ReadRegisters(&registers, map);
+  ReadRegisters(&plc, &registers, map);
   problems.ThrowIfAny();
 }
 
@@ -150,7 +151,7 @@ RunConfig LoadRunConfig(const std::filesystem::path& file) {
   plc.Optional("stationary_after_ms", &config.stationary_after_ms, InRange(1.0, 60000.0));
   plc.Optional("counter_period_ms", &config.counter_period_ms, InRange(0.0, 10000.0));
   core::YamlMap registers = plc.OptionalMap("registers");
-  ReadRegisters(&registers, &link.registers);
+  ReadRegisters(&plc, &registers, &link.registers);
   plc.Finish();
   if (link.reconnect_max_ms < link.reconnect_min_ms) {
     plc.AddProblem("reconnect_max_ms", "must be at least reconnect_min_ms");
