@@ -63,6 +63,7 @@ struct ReplayArgs {
   std::filesystem::path config;
   std::string mode;  // empty: mosaic with --map, else an error
   std::optional<double> required_overlap;
+  std::vector<double> start_offset;  // dx_mm, dy_mm, dyaw_deg in the start's vehicle frame
 };
 
 
@@ -245,7 +246,12 @@ void RunMosaic(const ReplayArgs& args, const GlobalOptions& global) {
   auto encoders = reader.Encoders();
   std::optional<dataset::EncoderSample> pending = encoders.Next();
   if (!pending) core::ThrowInvalidInput(args.dataset.string() + ": no encoder samples");
-  const core::Pose2 start = StartPose(groundtruth, info, pending->time);
+  core::Pose2 start = StartPose(groundtruth, info, pending->time);
+  if (!args.start_offset.empty()) {
+    // A wrong start (a kidnapped vehicle): the localizer must find where it really is.
+    start = start * core::Pose2(args.start_offset[0], args.start_offset[1],
+                                args.start_offset[2] * std::numbers::pi / 180.0);
+  }
   const double start_sigma_rad = config.start_sigma_deg * std::numbers::pi / 180.0;
   localizer.Initialize(pending->time, start,
                        Eigen::Vector3d(config.start_sigma_mm * config.start_sigma_mm,
@@ -358,6 +364,11 @@ Action AddReplayCommand(CLI::App& app, const GlobalOptions& global) {
   command->add_option("--required-overlap", args->required_overlap,
                       "Fraction of image overlap the tracker needs (beta of the overlap speed limit)")
       ->check(CLI::Range(0.0, 0.95));
+  command->add_option("--start-offset", args->start_offset,
+                      "mosaic mode: start this far from the true start, dx_mm,dy_mm,dyaw_deg in the vehicle "
+                      "frame (a kidnapped vehicle; relocalization must find it)")
+      ->delimiter(',')
+      ->expected(3);
   return [args, &global] {
     const std::string mode = args->mode.empty() ? (args->map.empty() ? "" : "mosaic") : args->mode;
     if (mode.empty()) {

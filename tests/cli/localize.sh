@@ -57,6 +57,19 @@ assert worst < 0.5, worst
 PY
 done
 
+# A kidnapped start, 400 mm and 2 degrees off: the lock is lost, relocalization finds the
+# vehicle, and from then on it is as precise as ever.
+expect_exit 0 "$MOSAICLOC" --quiet --json replay --dataset "$SCRATCH/asphalt-run" --map "$SCRATCH/asphalt.mosaic" \
+  --out "$SCRATCH/kidnap-report" --start-offset 400,100,2
+python3 - "$SCRATCH/kidnap-report/metrics.json" <<'PY' || fail "kidnapped start not recovered"
+import json, sys
+m = json.load(open(sys.argv[1]))
+print("kidnapped", {k: m[k] for k in ("fix_rate", "lock_losses", "final_position_error_mm")})
+assert m["fix_rate"] >= 0.8 and m["final_position_error_mm"] <= 0.1, m
+PY
+expect_exit 2 "$MOSAICLOC" replay --dataset "$SCRATCH/asphalt-run" --map "$SCRATCH/asphalt.mosaic" \
+  --out "$SCRATCH/x" --start-offset 400,100
+
 # Bad input: no map and no mode, a missing map, a map of another resolution.
 expect_exit 2 "$MOSAICLOC" replay --dataset "$SCRATCH/asphalt-run" --out "$SCRATCH/r1"
 expect_in "$SCRATCH/err" "give --map MAP to localize, or --mode dead-reckoning"

@@ -44,7 +44,7 @@ camera: {source: dataset, dataset: {path: $SCRATCH/site-run, start_unix_s: $NEVE
 plc: {role: server, port: $PORT, registers: {word_order: low_first}}
 start: {x_mm: 1234.56, y_mm: -789.01, yaw_deg: 10.0}
 YAML
-"$MOSAICLOC" --quiet --json run --config "$SCRATCH/server.yaml" --duration 2 --record "$SCRATCH/rec" \
+"$MOSAICLOC" --quiet --json run --config "$SCRATCH/server.yaml" --record "$SCRATCH/rec" \
   >"$SCRATCH/server.jsonl" 2>"$SCRATCH/server.err" &
 RUN=$!
 wait_port "$PORT"
@@ -59,8 +59,11 @@ mb -r 5 -t 4 -p "$PORT" 127.0.0.1 1                   # ask for a fix
 sleep 0.2
 mb -r 108 -c 1 -t 4 -p "$PORT" 127.0.0.1
 [ "$(values)" = "1" ] || fail "the fix request was not echoed: '$(values)'"
-wait $RUN || fail "run in the server role failed: $(tail -3 "$SCRATCH/server.err")"
-json_check "$SCRATCH/server.jsonl" 'd["requests"] == 1' 'd["answered"] == 1' 'd["encoder_samples"] == 1'
+# Ctrl-C: a clean stop, the recording committed.
+kill -INT $RUN
+wait $RUN || fail "run in the server role did not stop cleanly on SIGINT: $(tail -3 "$SCRATCH/server.err")"
+json_check "$SCRATCH/server.jsonl" 'd["stopped"] == "interrupted (SIGINT)"' 'd["requests"] == 1' 'd["answered"] == 1' \
+  'd["encoder_samples"] == 1'
 # What mbpoll wrote is what mosaicloc recorded.
 [ "$(tail -1 "$SCRATCH/rec/encoders/data.csv" | cut -d, -f2,3)" = "-5,70000" ] ||
   fail "recorded ticks: $(tail -1 "$SCRATCH/rec/encoders/data.csv")"
