@@ -5,10 +5,14 @@
 #include <cmath>
 #include <thread>
 
+#include <unistd.h>
+
 #include <fmt/format.h>
 
 #include "mosaicloc/core/error.hpp"
+#include "mosaicloc/core/log.hpp"
 #include "mosaicloc/io/plc_link.hpp"
+#include "sim_config.hpp"
 
 namespace mosaicloc::app {
 
@@ -39,6 +43,19 @@ bool SleepUntil(core::Timestamp when, const std::atomic<bool>& stop) {
     std::this_thread::sleep_for(std::min<core::Duration>(left, std::chrono::milliseconds(20)));
   }
   return false;
+}
+
+SimulatedDrive::SimulatedDrive(const std::filesystem::path& config) {
+  const sim::SimulatorOptions options = config.empty() ? sim::SimulatorOptions{} : LoadSimulatorConfig(config);
+  directory_ = std::filesystem::temp_directory_path() / fmt::format("mosaicloc-drive-{}", getpid());
+  core::Log().info("simulating the drive{} into {}", config.empty() ? "" : " of " + config.string(),
+                   directory_.string());
+  sim::Simulate(options, directory_, /*overwrite=*/true);
+}
+
+SimulatedDrive::~SimulatedDrive() {
+  std::error_code ec;
+  std::filesystem::remove_all(directory_, ec);
 }
 
 DatasetFrameSource::DatasetFrameSource(const std::filesystem::path& directory, double start_unix_s)

@@ -28,6 +28,24 @@ struct Playback {
 /// `stop` is set.
 bool SleepUntil(core::Timestamp when, const std::atomic<bool>& stop);
 
+/// A drive of the built-in simulator, rendered up front into a temporary dataset (removed
+/// when this is destroyed) so it can be played in real time. The simulator is
+/// deterministic: `run` and `plc-sim` given the same simulator configuration play the same
+/// drive, frames on one side and encoder counts on the other.
+class SimulatedDrive {
+ public:
+  /// config: a simulator configuration (config/default/simulator.yaml), or empty for the
+  /// defaults.
+  explicit SimulatedDrive(const std::filesystem::path& config);
+  ~SimulatedDrive();
+  SimulatedDrive(const SimulatedDrive&) = delete;
+  SimulatedDrive& operator=(const SimulatedDrive&) = delete;
+  const std::filesystem::path& directory() const { return directory_; }
+
+ private:
+  std::filesystem::path directory_;
+};
+
 /// A recorded dataset's frames delivered in real time and stamped on the monotonic clock,
 /// as a camera would deliver them.
 class DatasetFrameSource final : public io::FrameSource {

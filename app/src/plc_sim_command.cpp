@@ -38,6 +38,7 @@ extern "C" void OnPlcSignal(int signal) { g_plc_signal = signal; }
 
 struct PlcSimArgs {
   std::filesystem::path dataset;
+  std::optional<std::filesystem::path> simulate;
   std::string host = "127.0.0.1";
   int port = 0;
   int unit = 1;
@@ -62,7 +63,11 @@ std::uint32_t Masked(std::uint32_t value, const io::RegisterField& field) {
 void RunPlcSim(const PlcSimArgs& args, const GlobalOptions& global) {
   io::RegisterMap map;
   if (!args.config.empty()) ReadRegisterMap(core::LoadYamlFile(args.config), args.config.string(), &map);
-  const dataset::DatasetReader reader(args.dataset);
+  std::unique_ptr<SimulatedDrive> drive;
+  if (args.simulate) drive = std::make_unique<SimulatedDrive>(*args.simulate);
+  const std::filesystem::path played = drive ? drive->directory() : args.dataset;
+  if (played.empty()) core::ThrowInvalidInput("plc-sim: give --dataset DIR or --simulate [YAML]");
+  const dataset::DatasetReader reader(played);
   const std::optional<dataset::Trajectory> groundtruth =
       reader.HasGroundTruth() ? std::optional<dataset::Trajectory>(reader.GroundTruth()) : std::nullopt;
   const Playback playback = Playback::Of(reader, args.start_unix_s);
@@ -109,12 +114,12 @@ void RunPlcSim(const PlcSimArgs& args, const GlobalOptions& global) {
   server_ptr = &server;
   if (!global.quiet) {
     std::fprintf(stderr, "plc-sim: serving %s on %s:%d (unit %d), playing %s\n", "holding registers", args.host.c_str(),
-                 args.port, args.unit, args.dataset.string().c_str());
+                 args.port, args.unit, played.string().c_str());
   }
 
   auto encoders = reader.Encoders();
   std::optional<dataset::EncoderSample> pending = encoders.Next();
-  if (!pending) core::ThrowInvalidInput(args.dataset.string() + ": no encoder samples");
+  if (!pending) core::ThrowInvalidInput(played.string() + ": no encoder samples");
   dataset::EncoderSample current = *pending;  // the counters hold the first sample until playback starts
   core::Timestamp last_sample_time = current.time;
   std::uint32_t heartbeat = 0, request = 0;
@@ -264,7 +269,12 @@ Action AddPlcSimCommand(CLI::App& app, const GlobalOptions& global) {
   auto args = std::make_shared<PlcSimArgs>();
   CLI::App* command =
       app.add_subcommand("plc-sim", "A Modbus TCP PLC that plays a dataset's encoder ticks and shows the fixes it gets");
-  command->add_option("--dataset", args->dataset, "Dataset whose encoder ticks to play")->required();
+  auto* dataset = command->add_option("--dataset", args->dataset, "Dataset whose encoder ticks to play");
+  command->add_option("--simulate", args->simulate,
+                      "Play a drive of the simulator instead (its configuration file, or nothing for the defaults): "
+                      "the same drive a run with camera source simulator sees")
+      ->expected(0, 1)
+      ->excludes(dataset);
   command->add_option("--port", args->port, "TCP port to serve on")->required()->check(CLI::Range(1, 65535));
   command->add_option("--host", args->host, "Address to listen on (default 127.0.0.1; 0.0.0.0 for all)");
   command->add_option("--unit", args->unit, "Modbus unit id")->check(CLI::Range(0, 247));

@@ -639,9 +639,12 @@ void Run(const RunArgs& args, const GlobalOptions& global) {
   std::unique_ptr<io::FrameSource> source;
   dataset::CameraInfo camera = config.camera;
   dataset::VehicleInfo vehicle = config.vehicle;
-  if (config.camera_source == "dataset") {
-    // A recording carries its own camera and vehicle calibration.
-    auto played = std::make_unique<DatasetFrameSource>(config.dataset, config.dataset_start_unix_s);
+  std::unique_ptr<SimulatedDrive> drive;
+  if (config.camera_source == "simulator") drive = std::make_unique<SimulatedDrive>(config.simulator_config);
+  if (config.camera_source == "dataset" || drive) {
+    // A recording (or a simulated drive) carries its own camera and vehicle calibration.
+    auto played = std::make_unique<DatasetFrameSource>(drive ? drive->directory() : config.dataset,
+                                                       config.dataset_start_unix_s);
     camera = played->info().camera;
     vehicle = played->info().vehicle;
     source = std::move(played);

@@ -95,7 +95,7 @@ RunConfig LoadRunConfig(const std::filesystem::path& file) {
   root.Optional("localizer", &localizer);
 
   core::YamlMap camera = root.OptionalMap("camera");
-  camera.Optional("source", &config.camera_source, core::OneOf({"v4l2", "dataset"}));
+  camera.Optional("source", &config.camera_source, core::OneOf({"v4l2", "dataset", "simulator"}));
   camera.Optional("width_px", &config.camera.width_px, IntegerInRange(16, 16384));
   camera.Optional("height_px", &config.camera.height_px, IntegerInRange(16, 16384));
   camera.Optional("mm_per_px", &config.camera.mm_per_px, InRange(1e-4, 100.0));
@@ -114,6 +114,12 @@ RunConfig LoadRunConfig(const std::filesystem::path& file) {
   config.dataset = resolve(dataset);
   recording.Optional("start_unix_s", &config.dataset_start_unix_s, InRange(0.0, 1e11));
   recording.Finish();
+  core::YamlMap simulator = camera.OptionalMap("simulator");
+  std::string simulator_config;
+  simulator.Optional("config", &simulator_config);
+  config.simulator_config = resolve(simulator_config);
+  simulator.Optional("start_unix_s", &config.dataset_start_unix_s, InRange(0.0, 1e11));
+  simulator.Finish();
   camera.Finish();
   if (config.camera_source == "dataset" && config.dataset.empty()) {
     camera.AddProblem("dataset", "source: dataset needs dataset.path, the recording to play");

@@ -18,7 +18,7 @@ namespace mosaicloc::app {
 /// its unit and default.
 struct RunConfig {
   std::filesystem::path map;                 ///< resolved against the config file's folder
-  std::string camera_source = "v4l2";        ///< "v4l2" or "dataset"
+  std::string camera_source = "v4l2";        ///< "v4l2", "dataset" or "simulator"
   dataset::CameraInfo camera;                ///< ideal image geometry and mounting
   dataset::VehicleInfo vehicle;
   io::V4l2Options v4l2;
@@ -26,6 +26,9 @@ struct RunConfig {
   /// When the recording starts playing, seconds since the Unix epoch (wall clock), so a PLC
   /// simulator playing the same recording's encoders can be started in step; 0 = at once.
   double dataset_start_unix_s = 0.0;
+  /// camera_source simulator: the simulator configuration (empty: its defaults); played like
+  /// a recording, starting at dataset_start_unix_s.
+  std::filesystem::path simulator_config;
 
   io::PlcLinkOptions plc;
   /// Poll and output period. Faster than the PLC updates its counters, so a change is seen

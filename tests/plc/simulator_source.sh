@@ -1,0 +1,31 @@
+# The simulator as a live source: `run` renders a drive and plays its frames in real time while
+# `plc-sim` plays the same drive's encoder counts (the simulator is deterministic).
+source "$(dirname "$0")/lib.sh"
+TEXTURE="${MOSAICLOC_SHARED_DATA:-}/textures/asphalt_02_2048.jpg"
+if [ ! -f "$TEXTURE" ]; then
+  echo "shared data folder with real textures not found (MOSAICLOC_SHARED_DATA=${MOSAICLOC_SHARED_DATA:-unset}): skipped"
+  exit 77
+fi
+cat > "$SCRATCH/drive.yaml" <<YAML
+floor: {kind: image, image: $TEXTURE}
+route: {name: straight, straight_length_m: 2.0, stop_s: 0.7, speed_mps: 1.0}
+run: {seed: 32, laps: 1}
+YAML
+"$MOSAICLOC" --quiet simulate --out "$SCRATCH/map-run" --config "$SCRATCH/drive.yaml" --speed-mps 0.5 --seed 31 \
+  >/dev/null || fail "simulate the mapping run"
+"$MOSAICLOC" --quiet map build --dataset "$SCRATCH/map-run" --out "$SCRATCH/site.mosaic" >/dev/null || fail "map build"
+PORT=$(free_port)
+printf 'map: %s\ncamera: {source: simulator, simulator: {config: %s}}\nplc: {port: %s}\n' \
+  "$SCRATCH/site.mosaic" "$SCRATCH/drive.yaml" "$PORT" > "$SCRATCH/run.yaml"
+START=$(start_in 5.0)   # both sides render the drive first
+"$MOSAICLOC" --quiet --json plc-sim --simulate "$SCRATCH/drive.yaml" --port "$PORT" --start-unix "$START" \
+  --request-period-ms 200 >"$SCRATCH/plc.json" 2>"$SCRATCH/plc.err" &
+PLC=$!
+expect_exit 0 timeout 60 "$MOSAICLOC" --json run --config "$SCRATCH/run.yaml" --start-unix "$START"
+cp "$SCRATCH/out" "$SCRATCH/run.jsonl"
+wait $PLC || fail "plc-sim failed: $(tail -3 "$SCRATCH/plc.err")"
+tail -1 "$SCRATCH/run.jsonl"
+json_check "$SCRATCH/run.jsonl" 'd["fix_rate"] >= 0.95' 'd["lock_losses"] == 0' 'd["answered"] >= 5' \
+  'd["answered"] == d["requests"]'
+json_check "$SCRATCH/plc.json" 'd["answered"] >= 5' 'd["fixes_received"] >= 20'
+finish
