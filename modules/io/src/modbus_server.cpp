@@ -126,7 +126,10 @@ void RegisterServer::Serve() {
     if (FD_ISSET(state_->listen_socket, &readable)) {
       int listening = state_->listen_socket;
       const int socket = modbus_tcp_accept(context, &listening);
-      if (socket >= 0) clients.push_back(socket);
+      if (socket >= 0) {
+        clients.push_back(socket);
+        ++connections_;
+      }
     }
     for (auto it = clients.begin(); it != clients.end();) {
       if (!FD_ISSET(*it, &readable)) {
@@ -203,6 +206,7 @@ class ModbusServerLink final : public PlcLink {
     const std::lock_guard lock(mutex_);
     PlcLinkStats stats = stats_;
     stats.connected = server_->clients() > 0;
+    stats.connects = server_->connections();
     return stats;
   }
 

@@ -319,6 +319,7 @@ TEST(PlcServerTest, PlcWritesInputsAndReadsFixes) {
   // Outside the table: an exception for the PLC, nothing changes here.
   EXPECT_EQ(modbus_write_register(plc, 150, 1), -1);
   EXPECT_TRUE(link->stats().connected);
+  EXPECT_EQ(link->stats().connects, 1);
   modbus_close(plc);
   modbus_free(plc);
 }

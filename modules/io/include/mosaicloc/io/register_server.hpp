@@ -37,6 +37,8 @@ class RegisterServer {
   void Update(const std::function<void(std::uint16_t* table)>& change);
   int base() const { return base_; }
   int clients() const { return clients_connected_; }
+  /// Connections accepted since the start (TCP), for the link's statistics.
+  std::int64_t connections() const { return connections_; }
   std::int64_t requests() const { return requests_; }
 
  private:
@@ -52,6 +54,7 @@ class RegisterServer {
   mutable std::mutex mutex_;
   std::atomic<int> clients_connected_{0};
   std::atomic<std::int64_t> requests_{0};
+  std::atomic<std::int64_t> connections_{0};
   std::atomic<bool> stop_{false};
   std::thread thread_;
 };
