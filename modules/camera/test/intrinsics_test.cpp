@@ -1,0 +1,226 @@
+#include "mosaicloc/camera/intrinsics.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "mosaicloc/camera/board.hpp"
+#include "mosaicloc/core/error.hpp"
+#include "mosaicloc/sim/raw_imaging.hpp"
+#include "mosaicloc/test/test_support.hpp"
+
+namespace mosaicloc::camera {
+namespace {
+
+TEST(BoardSpec, ParsesTheDocumentedForms) {
+  const BoardSpec chess = ParseBoardSpec("chessboard:9x6:25mm");
+  EXPECT_EQ(chess.kind, BoardSpec::Kind::kChessboard);
+  EXPECT_EQ(chess.cols, 9);
+  EXPECT_EQ(chess.rows, 6);
+  EXPECT_DOUBLE_EQ(chess.pitch_mm, 25.0);
+  EXPECT_EQ(chess.ToString(), "chessboard:9x6:25mm");
+  const BoardSpec circles = ParseBoardSpec("circles:6x6:3.4cm");
+  EXPECT_EQ(circles.kind, BoardSpec::Kind::kCircles);
+  EXPECT_DOUBLE_EQ(circles.pitch_mm, 34.0);
+  EXPECT_EQ(ParseBoardSpec("acircles:4x11:20").kind, BoardSpec::Kind::kAsymmetricCircles);
+  EXPECT_EQ(ParseBoardSpec("acircles:4x11:20").FeaturePoints()[5].x(), 3 * 20.0);  // (2*1 + 1) p
+}
+
+TEST(BoardSpec, RejectsBadSpecsNamingThem) {
+  for (const char* bad : {"chessboard", "chessboard:9x6", "chess:9x6:25mm", "chessboard:9by6:25mm",
+                          "chessboard:9x6:-3mm", "chessboard:7x7:25mm", "chessboard:2x6:25mm", "circles:6x6:25in"}) {
+    try {
+      ParseBoardSpec(bad);
+      ADD_FAILURE() << bad << " was accepted";
+    } catch (const core::Error& e) {
+      EXPECT_EQ(e.kind(), core::ErrorKind::kInvalidInput);
+      EXPECT_NE(std::string(e.what()).find(bad), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(Board, PrintedBoardIsDetectedWhereItsCornersAre) {
+  const BoardSpec board = ParseBoardSpec("chessboard:9x6:10mm");
+  const double px_per_mm = 4.0;
+  const cv::Mat print = DrawBoard(board, px_per_mm);
+  const auto detection = DetectBoard(print, board);
+  ASSERT_TRUE(detection.has_value());
+  // Inner corners are two pitches from the left and bottom edges and one pitch apart. OpenCV
+  // may number them from any end of the board: every corner must be on the grid.
+  const double step = board.pitch_mm * px_per_mm;
+  const double x0 = 2.0 * step - 0.5, y_bottom = print.rows - 2.0 * step - 0.5;
+  for (const Eigen::Vector2d& p : detection->points_px) {
+    const double i = (p.x() - x0) / step, j = (y_bottom - p.y()) / step;
+    EXPECT_NEAR(i, std::round(i), 0.01) << p.transpose();
+    EXPECT_NEAR(j, std::round(j), 0.01) << p.transpose();
+    EXPECT_GE(std::round(i), 0);
+    EXPECT_LT(std::round(i), board.cols);
+    EXPECT_GE(std::round(j), 0);
+    EXPECT_LT(std::round(j), board.rows);
+  }
+  EXPECT_NEAR((detection->points_px[1] - detection->points_px[0]).norm(), step, 0.02);
+  EXPECT_FALSE(DetectBoard(cv::Mat(480, 640, CV_8UC1, cv::Scalar(128)), board).has_value());
+}
+
+// The synthetic camera: known intrinsics and distortion, photographs through the real-camera model.
+camera::RealCameraOptions TruthCamera() {
+  camera::RealCameraOptions truth;
+  truth.fx_px = 812.0;
+  truth.fy_px = 806.0;
+  truth.cx_px = 326.4;
+  truth.cy_px = 233.7;
+  truth.k1 = -0.14;
+  return truth;
+}
+
+std::vector<BoardView> Detect(const std::vector<sim::BoardShot>& shots, const BoardSpec& board) {
+  std::vector<BoardView> views;
+  for (std::size_t i = 0; i < shots.size(); ++i) {
+    BoardView view;
+    view.name = "shot" + std::to_string(i);
+    const auto detection = DetectBoard(shots[i].image, board);
+    if (detection) view.detection = *detection;
+    views.push_back(view);
+  }
+  return views;
+}
+
+void ExpectRecovered(const Intrinsics& estimate, const camera::RealCameraOptions& truth, const char* who) {
+  SCOPED_TRACE(who);
+  EXPECT_LT(std::abs(estimate.fx_px / truth.fx_px - 1.0), 0.002) << estimate.fx_px;
+  EXPECT_LT(std::abs(estimate.fy_px / truth.fy_px - 1.0), 0.002) << estimate.fy_px;
+  EXPECT_LT(std::abs(estimate.cx_px / truth.cx_px - 1.0), 0.002) << estimate.cx_px;
+  EXPECT_LT(std::abs(estimate.cy_px / truth.cy_px - 1.0), 0.002) << estimate.cy_px;
+  EXPECT_LT(std::abs(estimate.kud / truth.k1 - 1.0), 0.02) << estimate.kud;
+}
+
+TEST(CalibrateIntrinsics, RecoversASyntheticCameraFromChessboardShots) {
+  const BoardSpec board = ParseBoardSpec("chessboard:9x6:20mm");
+  const camera::RealCameraOptions truth = TruthCamera();
+  const auto shots = sim::RenderIntrinsicsShots(truth, board, 12, 0.42, sim::RawImagingOptions{}, 11);
+  std::vector<BoardView> views = Detect(shots, board);
+  // A photograph with no board in it is reported, not used.
+  views.push_back({"blank.png", {}});
+  const IntrinsicsResult result = CalibrateIntrinsics(views, board, truth.width_px, truth.height_px, {});
+  ExpectRecovered(result.visp.intrinsics, truth, "ViSP");
+  ExpectRecovered(result.opencv.intrinsics, truth, "OpenCV");
+  EXPECT_LT(result.visp.rms_px, 0.15);
+  EXPECT_LT(result.opencv.rms_px, 0.15);
+  // The two libraries minimise the same error over the same detections.
+  EXPECT_NEAR(result.visp.rms_px, result.opencv.rms_px, 0.01);
+  ASSERT_EQ(result.views.size(), views.size());
+  EXPECT_FALSE(result.views.back().used);
+  EXPECT_EQ(result.views.back().rejected_because, "board not found");
+  std::printf("truth   fx %.2f fy %.2f cx %.2f cy %.2f k1 %.5f\n", truth.fx_px, truth.fy_px, truth.cx_px,
+              truth.cy_px, truth.k1);
+  for (const auto& [who, e] : {std::pair{"ViSP", result.visp}, std::pair{"OpenCV", result.opencv}}) {
+    std::printf("%-7s fx %.2f fy %.2f cx %.2f cy %.2f k1 %.5f rms %.4f px\n", who, e.intrinsics.fx_px,
+                e.intrinsics.fy_px, e.intrinsics.cx_px, e.intrinsics.cy_px, e.intrinsics.kud, e.rms_px);
+  }
+}
+
+TEST(CalibrateIntrinsics, RecoversASyntheticCameraFromCircleGridShots) {
+  const BoardSpec board = ParseBoardSpec("circles:7x5:24mm");
+  const camera::RealCameraOptions truth = TruthCamera();
+  const auto shots = sim::RenderIntrinsicsShots(truth, board, 12, 0.3, sim::RawImagingOptions{}, 5);
+  const IntrinsicsResult result = CalibrateIntrinsics(Detect(shots, board), board, truth.width_px, truth.height_px, {});
+  EXPECT_GE(result.used.size(), 10u);
+  // Blob centroids are not the projected circle centres under perspective: looser bounds.
+  EXPECT_LT(std::abs(result.visp.intrinsics.fx_px / truth.fx_px - 1.0), 0.01);
+  EXPECT_LT(std::abs(result.visp.intrinsics.kud / truth.k1 - 1.0), 0.1);
+  EXPECT_NEAR(result.visp.intrinsics.fx_px, result.opencv.intrinsics.fx_px, 0.002 * truth.fx_px);
+}
+
+TEST(CalibrateIntrinsics, RejectsAnOutlierViewNamingIt) {
+  const BoardSpec board = ParseBoardSpec("chessboard:9x6:20mm");
+  const camera::RealCameraOptions truth = TruthCamera();
+  const auto shots = sim::RenderIntrinsicsShots(truth, board, 6, 0.4, sim::RawImagingOptions{}, 3);
+  std::vector<BoardView> views = Detect(shots, board);
+  for (auto& p : views[2].detection.points_px) p += Eigen::Vector2d(std::sin(7.0 * p.y()), std::cos(5.0 * p.x()));
+  const IntrinsicsResult result = CalibrateIntrinsics(views, board, truth.width_px, truth.height_px, {});
+  EXPECT_FALSE(result.views[2].used);
+  EXPECT_NE(result.views[2].rejected_because.find("outlier"), std::string::npos) << result.views[2].rejected_because;
+  EXPECT_EQ(result.used.size(), 5u);
+  EXPECT_LT(std::abs(result.visp.intrinsics.fx_px / truth.fx_px - 1.0), 0.005);
+}
+
+TEST(CalibrateIntrinsics, TooFewViewsIsBadInputNamingTheRejected) {
+  const BoardSpec board = ParseBoardSpec("chessboard:9x6:20mm");
+  std::vector<BoardView> views = {{"a.png", {}}, {"b.png", {}}};
+  try {
+    CalibrateIntrinsics(views, board, 640, 480, {});
+    FAIL() << "no error";
+  } catch (const core::Error& e) {
+    EXPECT_EQ(e.kind(), core::ErrorKind::kInvalidInput);
+    EXPECT_NE(std::string(e.what()).find("a.png (board not found)"), std::string::npos) << e.what();
+  }
+}
+
+TEST(VispCameraXml, RoundTripsAndOverwrites) {
+  test::ScratchDir dir;
+  Intrinsics k{640, 480, 801.5, 799.25, 321.125, 238.5, -0.125, 0.13};
+  const auto file = dir / "camera.xml";
+  WriteVispCameraXml(file, k, "floor", "test");
+  k.fx_px = 900.0;
+  WriteVispCameraXml(file, k, "floor", "test");  // replaces, does not append
+  const Intrinsics back = ReadVispCameraXml(file, "floor");
+  EXPECT_NEAR(back.fx_px, 900.0, 1e-6);
+  EXPECT_NEAR(back.fy_px, k.fy_px, 1e-6);
+  EXPECT_NEAR(back.cx_px, k.cx_px, 1e-6);
+  EXPECT_NEAR(back.cy_px, k.cy_px, 1e-6);
+  EXPECT_NEAR(back.kud, k.kud, 1e-9);
+  EXPECT_NEAR(back.kdu, k.kdu, 1e-9);
+  EXPECT_EQ(back.width_px, 640);
+  EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir.path()), std::filesystem::directory_iterator()), 1);
+  EXPECT_THROW(ReadVispCameraXml(dir / "missing.xml", ""), core::Error);
+  EXPECT_THROW(ReadVispCameraXml(file, "another"), core::Error);
+  EXPECT_THROW(WriteVispCameraXml(dir / "no" / "such" / "dir.xml", k, "floor", ""), core::Error);
+}
+
+TEST(Distortion, UndistortInvertsProject) {
+  const Intrinsics k{640, 480, 800, 790, 320, 240, -0.2, 0.0};
+  for (const Eigen::Vector3d& p : {Eigen::Vector3d(0.3, -0.2, 1.0), Eigen::Vector3d(-0.35, 0.25, 1.0)}) {
+    const Eigen::Vector2d pixel = ProjectWithDistortion(k, p);
+    EXPECT_NEAR((UndistortToNormalized(k, pixel) - p.head<2>()).norm(), 0.0, 1e-12);
+  }
+}
+
+// ViSP's own calibration photographs (package visp-images-data): a 6x6 circle grid.
+TEST(CalibrateIntrinsics, VispGrid36ImagesCalibrateAndAgreeWithOpenCv) {
+  const std::filesystem::path folder = "/usr/share/visp-images-data/ViSP-images/calibration";
+  if (!std::filesystem::exists(folder / "grid36-01.pgm")) {
+    GTEST_SKIP() << "ViSP's calibration images are absent (" << folder << "): install visp-images-data";
+  }
+  const BoardSpec board = ParseBoardSpec("circles:6x6:34mm");
+  std::vector<BoardView> views;
+  int width = 0, height = 0;
+  for (int i = 1; i <= 4; ++i) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "grid36-%02d.pgm", i);
+    const cv::Mat image = cv::imread((folder / name).string(), cv::IMREAD_GRAYSCALE);
+    ASSERT_FALSE(image.empty()) << name;
+    width = image.cols;
+    height = image.rows;
+    const auto detection = DetectBoard(image, board);
+    ASSERT_TRUE(detection.has_value()) << name;
+    views.push_back({name, *detection});
+  }
+  const IntrinsicsResult result = CalibrateIntrinsics(views, board, width, height, {});
+  EXPECT_EQ(result.used.size(), 4u);
+  EXPECT_LT(result.visp.rms_px, 0.5);
+  EXPECT_LT(result.opencv.rms_px, 0.5);
+  EXPECT_NEAR(result.visp.intrinsics.fx_px / result.opencv.intrinsics.fx_px, 1.0, 0.01);
+  EXPECT_NEAR(result.visp.intrinsics.cx_px, result.opencv.intrinsics.cx_px, 5.0);
+  EXPECT_NEAR(result.visp.intrinsics.cy_px, result.opencv.intrinsics.cy_px, 5.0);
+  for (const auto& [who, e] : {std::pair{"ViSP", result.visp}, std::pair{"OpenCV", result.opencv}}) {
+    std::printf("%-7s fx %.2f fy %.2f cx %.2f cy %.2f kud %.5f kdu %.5f rms %.4f px\n", who, e.intrinsics.fx_px,
+                e.intrinsics.fy_px, e.intrinsics.cx_px, e.intrinsics.cy_px, e.intrinsics.kud, e.intrinsics.kdu,
+                e.rms_px);
+  }
+}
+
+}  // namespace
+}  // namespace mosaicloc::camera
