@@ -24,5 +24,6 @@ Action AddMapCommand(CLI::App& app, const GlobalOptions& global);
 Action AddBenchCommand(CLI::App& app, const GlobalOptions& global);
 Action AddRunCommand(CLI::App& app, const GlobalOptions& global);
 Action AddPlcSimCommand(CLI::App& app, const GlobalOptions& global);
+Action AddLimitsCommand(CLI::App& app, const GlobalOptions& global);
 
 }  // namespace mosaicloc::app

@@ -41,6 +41,7 @@ int main(int argc, char** argv) {
   add(app::AddBenchCommand);
   add(app::AddRunCommand);
   add(app::AddPlcSimCommand);
+  add(app::AddLimitsCommand);
 
   try {
     app.parse(argc, argv);

@@ -19,6 +19,7 @@
 #include "localizer_config.hpp"
 #include "mosaicloc/dataset/trajectory.hpp"
 #include "mosaicloc/localizer/localizer.hpp"
+#include "mosaicloc/localizer/speed_limits.hpp"
 #include "mosaicloc/mosaic/renderer.hpp"
 #include "mosaicloc/mosaic/tile_cache.hpp"
 #include "mosaicloc/mosaic/tile_store.hpp"
@@ -44,16 +45,20 @@ camera::IdealCamera CameraOf(const dataset::DatasetInfo& info) {
       camera::IdealCameraOptions{info.camera.width_px, info.camera.height_px, info.camera.mm_per_px});
 }
 
-// Overlap speed limit (founding paper, section 2.2): V < (footprint along travel / T) (1 - beta),
-// with T the mean frame period of the run.
+// Overlap speed limit of the run (localizer::SpeedLimits), at the run's mean frame period.
 std::optional<double> OverlapSpeedLimit(const dataset::DatasetInfo& info, const dataset::Trajectory& estimate,
                                         double required_overlap) {
   if (estimate.size() < 2) return std::nullopt;
-  const camera::IdealCamera camera = CameraOf(info);
   const double period_s =
       core::ToSeconds(estimate.back().time - estimate.front().time) / static_cast<double>(estimate.size() - 1);
-  const double along_mm = camera.FootprintLengthAlong(-info.camera.vehicle_from_camera.yaw_rad());
-  return along_mm * 1e-3 / period_s * (1.0 - required_overlap);
+  localizer::SpeedLimitOptions setup;
+  setup.width_px = info.camera.width_px;
+  setup.height_px = info.camera.height_px;
+  setup.mm_per_px = info.camera.mm_per_px;
+  setup.frame_rate_hz = 1.0 / period_s;
+  setup.travel_direction_rad = -info.camera.vehicle_from_camera.yaw_rad();
+  setup.required_overlap = required_overlap;
+  return localizer::AnalyseSpeedLimits(setup).overlap_limit_mps;
 }
 
 struct ReplayArgs {

@@ -1,0 +1,123 @@
+// mosaicloc limits: the speed limits of a camera setup (the founding paper's section 2.2
+// analysis), so an integrator can choose frame rate, exposure and field of view for a speed.
+#include <cmath>
+#include <cstdio>
+#include <optional>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "commands.hpp"
+#include "mosaicloc/core/yaml.hpp"
+#include "mosaicloc/localizer/speed_limits.hpp"
+
+namespace mosaicloc::app {
+namespace {
+
+localizer::SpeedLimitOptions ReadLimitsConfig(const std::filesystem::path& file) {
+  using core::InRange;
+  using core::Positive;
+  localizer::SpeedLimitOptions o;
+  core::YamlProblems problems;
+  core::YamlMap root = core::YamlMap::Root(core::LoadYamlFile(file), file.string(), &problems);
+  core::YamlMap camera = root.OptionalMap("camera");
+  camera.Optional("width_px", &o.width_px, core::IntegerInRange(16, 65536));
+  camera.Optional("height_px", &o.height_px, core::IntegerInRange(16, 65536));
+  camera.Optional("mm_per_px", &o.mm_per_px, Positive());
+  camera.Optional("frame_rate_hz", &o.frame_rate_hz, InRange(0.01, 100000.0));
+  camera.Optional("exposure_us", &o.exposure_us, InRange(0.001, 1e6));
+  camera.Optional("height_mm", &o.camera_height_mm, Positive());
+  double yaw_rad = -o.travel_direction_rad;
+  camera.Optional("vehicle_from_camera_yaw_rad", &yaw_rad, InRange(-10.0, 10.0));
+  o.travel_direction_rad = -yaw_rad;
+  camera.Finish();
+  core::YamlMap floor = root.OptionalMap("floor");
+  floor.Optional("depth_gradient", &o.depth_gradient, InRange(1e-9, 1.0));
+  floor.Finish();
+  core::YamlMap tracker = root.OptionalMap("tracker");
+  tracker.Optional("required_overlap", &o.required_overlap, InRange(0.0, 0.99));
+  tracker.Optional("distortion_tolerance_px", &o.distortion_tolerance_px, Positive());
+  tracker.Optional("max_blur_px", &o.max_blur_px, Positive());
+  tracker.Optional("search_range_px", &o.search_range_px, Positive());
+  tracker.Optional("odometry_error", &o.odometry_error, InRange(1e-6, 0.99));
+  tracker.Finish();
+  root.Optional("speed_mps", &o.speed_mps, InRange(0.0, 1000.0));
+  root.Finish();
+  problems.ThrowIfAny();
+  return o;
+}
+
+void PrintLimits(const localizer::SpeedLimitOptions& o, const localizer::SpeedLimits& l) {
+  std::printf("setup: %dx%d px at %.4g mm/px, %.4g Hz (T_cyc %.2f ms), exposure %.4g us, camera %.4g mm above the floor\n",
+              o.width_px, o.height_px, o.mm_per_px, o.frame_rate_hz, 1e3 * l.cycle_s, o.exposure_us,
+              o.camera_height_mm);
+  std::printf("footprint along the travel: Lambda = %.1f mm; image half-diagonal R = %.1f px\n\n",
+              l.footprint_along_mm, l.half_diagonal_px);
+  std::printf("frame-to-frame registration (visual odometry, mapping by chaining frames):\n");
+  std::printf("  overlap speed limit     V < (Lambda / T_cyc)(1 - beta)  = %7.2f m/s   (beta = %.2f)\n",
+              l.overlap_limit_mps, o.required_overlap);
+  std::printf("  distortion speed limit  V < e h / (R g T_cyc)          = %7.2f m/s   (g = %.4g mm/mm, e = %.2f px)\n",
+              l.distortion_limit_mps, o.depth_gradient, o.distortion_tolerance_px);
+  std::printf("tracking against the mosaic:\n");
+  std::printf("  motion-blur limit       V < b s / T_exp                = %7.2f m/s   (b = %.2f px)\n",
+              l.blur_limit_mps, o.max_blur_px);
+  std::printf("  prediction limit        V < r s / (epsilon T_cyc)      = %7.2f m/s   (r = %.0f px, epsilon = %.3g)\n",
+              l.prediction_limit_mps, o.search_range_px, o.odometry_error);
+  std::printf("  height tolerance        |dh| < e h / R                 = %7.3f mm    (floor height against the mapped one)\n",
+              l.height_tolerance_mm);
+  std::printf("  mosaic speed limit      min(blur, prediction)          = %7.2f m/s   (%.1f x the overlap speed limit)\n\n",
+              l.mosaic_limit_mps, l.mosaic_limit_mps / l.overlap_limit_mps);
+  const double visual_odometry_max = 1.0 - o.required_overlap;
+  std::printf("at %.2f m/s: step S = %.1f mm per frame, instability ratio S / Lambda = %.3f (frame-to-frame needs < %.2f),\n",
+              o.speed_mps, l.step_mm, l.instability_ratio, visual_odometry_max);
+  std::printf("  blur %.2f px, odometry drift between fixes %.2f mm against a search half-range of %.1f mm\n",
+              l.blur_px, l.prediction_error_mm, o.search_range_px * o.mm_per_px);
+  const bool vo = l.instability_ratio < visual_odometry_max && o.speed_mps < l.distortion_limit_mps;
+  const bool mosaic = o.speed_mps < l.mosaic_limit_mps;
+  std::printf("  frame-to-frame registration: %s; mosaic tracking: %s\n", vo ? "within its limits" : "beyond its limits",
+              mosaic ? "within its limits" : "beyond its limits");
+}
+
+}  // namespace
+
+Action AddLimitsCommand(CLI::App& app, const GlobalOptions& global) {
+  struct Args {
+    std::filesystem::path config;
+    std::optional<double> speed_mps;
+  };
+  auto args = std::make_shared<Args>();
+  CLI::App* command = app.add_subcommand(
+      "limits", "Speed limits of a camera setup: overlap, distortion, blur, prediction, and the instability ratio");
+  command->add_option("--config", args->config, "Setup YAML (see config/default/limits.yaml); defaults without it")
+      ->check(CLI::ExistingFile);
+  command->add_option("--speed-mps", args->speed_mps, "Speed for the per-frame figures, m/s (overrides speed_mps)")
+      ->check(CLI::Range(0.0, 1000.0));
+  return [args, &global] {
+    localizer::SpeedLimitOptions options;
+    if (!args->config.empty()) options = ReadLimitsConfig(args->config);
+    if (args->speed_mps) options.speed_mps = *args->speed_mps;
+    const localizer::SpeedLimits limits = localizer::AnalyseSpeedLimits(options);
+    if (!global.json) {
+      PrintLimits(options, limits);
+      return;
+    }
+    const nlohmann::json json = {
+        {"cycle_s", limits.cycle_s},
+        {"footprint_along_mm", limits.footprint_along_mm},
+        {"half_diagonal_px", limits.half_diagonal_px},
+        {"overlap_speed_limit_mps", limits.overlap_limit_mps},
+        {"distortion_speed_limit_mps", limits.distortion_limit_mps},
+        {"blur_speed_limit_mps", limits.blur_limit_mps},
+        {"prediction_speed_limit_mps", limits.prediction_limit_mps},
+        {"mosaic_speed_limit_mps", limits.mosaic_limit_mps},
+        {"height_tolerance_mm", limits.height_tolerance_mm},
+        {"speed_mps", options.speed_mps},
+        {"step_mm", limits.step_mm},
+        {"instability_ratio", limits.instability_ratio},
+        {"blur_px", limits.blur_px},
+        {"prediction_error_mm", limits.prediction_error_mm}};
+    std::printf("%s\n", json.dump().c_str());
+  };
+}
+
+}  // namespace mosaicloc::app

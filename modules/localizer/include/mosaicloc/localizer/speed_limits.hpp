@@ -1,0 +1,82 @@
+#pragma once
+
+#include <string>
+
+namespace mosaicloc::localizer {
+
+/// A downward camera on a vehicle, and what the tracker tolerates: the inputs of the speed
+/// limit analysis (`mosaicloc limits`). Defaults are the simulator's camera and the
+/// localizer's defaults.
+struct SpeedLimitOptions {
+  // The ideal (rectified) camera.
+  int width_px = 640;
+  int height_px = 480;
+  double mm_per_px = 0.25;
+  double frame_rate_hz = 30.0;      ///< one tracking cycle per frame: T_cyc = 1 / rate
+  double exposure_us = 100.0;       ///< time the shutter (or strobe) is open, us
+  double camera_height_mm = 200.0;  ///< optical centre above the floor the camera was calibrated on
+  /// Direction of travel in the camera floor frame C, rad: 0 along image right, pi/2 along
+  /// image up. For a vehicle driving forward it is -yaw of vehicle_from_camera.
+  double travel_direction_rad = 0.0;
+
+  // The floor.
+  /// Change of floor height (or of the camera's height through suspension pitch) per unit
+  /// of travel, mm per mm: a slope of 1 mm per metre is 0.001.
+  double depth_gradient = 0.002;
+
+  // The tracker.
+  double required_overlap = 0.5;         ///< beta: share of the footprint consecutive frames must share
+  double distortion_tolerance_px = 0.5;  ///< misfit a rigid registration absorbs at the image corner, px
+  double max_blur_px = 3.0;              ///< motion blur the tracker is known to work with, px
+  double search_range_px = 96.0;         ///< the tracker's largest search half-range, px
+  double odometry_error = 0.02;          ///< odometry error per distance travelled (2 %: 0.02)
+
+  /// Speed at which the per-cycle figures (step, instability ratio, blur) are given, m/s.
+  double speed_mps = 7.2;
+
+  bool Check(std::string* why) const;
+};
+
+/// The speed limits of a setup, in m/s, and the figures at the given speed.
+///
+/// Notation: V speed, T_cyc = 1 / frame rate, s mm per pixel, Lambda the footprint's length
+/// along the direction of travel (how far the camera moves before an image no longer overlaps
+/// the one before), S = V T_cyc the step from one image to the next.
+struct SpeedLimits {
+  double cycle_s = 0.0;                ///< T_cyc
+  double footprint_along_mm = 0.0;     ///< Lambda
+  double half_diagonal_px = 0.0;       ///< R, the image corner's distance from the centre
+
+  /// Overlap speed limit V < (Lambda / T_cyc)(1 - beta): above it consecutive images share
+  /// less than beta of their footprint, so frame-to-frame registration (visual odometry,
+  /// and mapping by chaining frames) fails. The mosaic tracker registers against the map
+  /// and is not bound by it.
+  double overlap_limit_mps = 0.0;
+  /// Distortion speed limit V < e h / (R g T_cyc): a floor whose height changes with
+  /// gradient g moves by g S between frames, which scales one image against the other by
+  /// g S / h; a rigid registration leaves R g S / h of misfit at the image corner, which
+  /// must stay below the tolerance e. Binds frame-to-frame registration.
+  double distortion_limit_mps = 0.0;
+  /// The mosaic's counterpart of the distortion limit, independent of speed: the floor's
+  /// height may differ from the mapped one by at most e h / R, mm.
+  double height_tolerance_mm = 0.0;
+  /// Motion blur limit V < b s / T_exp: the image smears by V T_exp / s pixels.
+  double blur_limit_mps = 0.0;
+  /// Prediction speed limit V < r s / (epsilon T_cyc): between two fixes the odometry
+  /// prediction drifts by epsilon S, which must stay within the search half-range r. This is
+  /// the mosaic tracker's own limit while it holds the lock.
+  double prediction_limit_mps = 0.0;
+  /// The fastest the mosaic tracker holds the lock: min(blur, prediction).
+  double mosaic_limit_mps = 0.0;
+
+  // At speed_mps.
+  double step_mm = 0.0;            ///< S
+  double instability_ratio = 0.0;  ///< S / Lambda: frame-to-frame registration needs < 1 - beta
+  double blur_px = 0.0;            ///< V T_exp / s
+  double prediction_error_mm = 0.0;  ///< epsilon S
+};
+
+/// Throws core::Error (invalid input) when the options fail Check().
+SpeedLimits AnalyseSpeedLimits(const SpeedLimitOptions& options);
+
+}  // namespace mosaicloc::localizer

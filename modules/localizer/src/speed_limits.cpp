@@ -1,0 +1,58 @@
+#include "mosaicloc/localizer/speed_limits.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "mosaicloc/camera/ideal_camera.hpp"
+#include "mosaicloc/core/error.hpp"
+
+namespace mosaicloc::localizer {
+
+bool SpeedLimitOptions::Check(std::string* why) const {
+  auto fail = [why](const char* message) {
+    if (why != nullptr) *why = message;
+    return false;
+  };
+  const camera::IdealCameraOptions camera{width_px, height_px, mm_per_px};
+  if (!camera.Check(why)) return false;
+  if (!(frame_rate_hz > 0.0)) return fail("frame_rate_hz must be > 0");
+  if (!(exposure_us > 0.0)) return fail("exposure_us must be > 0");
+  if (!(camera_height_mm > 0.0)) return fail("camera_height_mm must be > 0");
+  if (!std::isfinite(travel_direction_rad)) return fail("travel_direction_rad must be finite");
+  if (!(depth_gradient > 0.0)) return fail("depth_gradient must be > 0");
+  if (!(required_overlap >= 0.0 && required_overlap < 1.0)) return fail("required_overlap must be in [0, 1)");
+  if (!(distortion_tolerance_px > 0.0)) return fail("distortion_tolerance_px must be > 0");
+  if (!(max_blur_px > 0.0)) return fail("max_blur_px must be > 0");
+  if (!(search_range_px > 0.0)) return fail("search_range_px must be > 0");
+  if (!(odometry_error > 0.0 && odometry_error < 1.0)) return fail("odometry_error must be in (0, 1)");
+  if (!(speed_mps >= 0.0 && std::isfinite(speed_mps))) return fail("speed_mps must be >= 0");
+  return true;
+}
+
+SpeedLimits AnalyseSpeedLimits(const SpeedLimitOptions& options) {
+  std::string why;
+  if (!options.Check(&why)) core::ThrowInvalidInput("speed limits: " + why);
+  const camera::IdealCamera camera({options.width_px, options.height_px, options.mm_per_px});
+  SpeedLimits limits;
+  const double s = options.mm_per_px;
+  const double cycle_s = 1.0 / options.frame_rate_hz;
+  const double exposure_s = options.exposure_us * 1e-6;
+  limits.cycle_s = cycle_s;
+  limits.footprint_along_mm = camera.FootprintLengthAlong(options.travel_direction_rad);
+  limits.half_diagonal_px = 0.5 * std::hypot(options.width_px, options.height_px);
+  // mm/s to m/s below: every limit is a length in mm over a time in s.
+  limits.overlap_limit_mps = 1e-3 * limits.footprint_along_mm * (1.0 - options.required_overlap) / cycle_s;
+  limits.height_tolerance_mm = options.distortion_tolerance_px * options.camera_height_mm / limits.half_diagonal_px;
+  limits.distortion_limit_mps = 1e-3 * limits.height_tolerance_mm / (options.depth_gradient * cycle_s);
+  limits.blur_limit_mps = 1e-3 * options.max_blur_px * s / exposure_s;
+  limits.prediction_limit_mps = 1e-3 * options.search_range_px * s / (options.odometry_error * cycle_s);
+  limits.mosaic_limit_mps = std::min(limits.blur_limit_mps, limits.prediction_limit_mps);
+
+  limits.step_mm = 1e3 * options.speed_mps * cycle_s;
+  limits.instability_ratio = limits.step_mm / limits.footprint_along_mm;
+  limits.blur_px = 1e3 * options.speed_mps * exposure_s / s;
+  limits.prediction_error_mm = options.odometry_error * limits.step_mm;
+  return limits;
+}
+
+}  // namespace mosaicloc::localizer

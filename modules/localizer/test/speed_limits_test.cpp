@@ -1,0 +1,97 @@
+#include "mosaicloc/localizer/speed_limits.hpp"
+
+#include <cmath>
+#include <numbers>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "mosaicloc/camera/real_camera.hpp"
+#include "mosaicloc/core/error.hpp"
+
+namespace mosaicloc::localizer {
+namespace {
+
+// The simulator's camera: 640x480 at 0.25 mm/px, 30 Hz, 100 us, travelling along image right.
+TEST(SpeedLimits, NominalSetup) {
+  const SpeedLimits limits = AnalyseSpeedLimits(SpeedLimitOptions{});
+  EXPECT_NEAR(limits.cycle_s, 1.0 / 30.0, 1e-12);
+  EXPECT_NEAR(limits.footprint_along_mm, 160.0, 1e-9);
+  EXPECT_NEAR(limits.half_diagonal_px, 400.0, 1e-9);
+  EXPECT_NEAR(limits.overlap_limit_mps, 2.4, 1e-9);          // 160 mm * 0.5 * 30 Hz
+  EXPECT_NEAR(limits.height_tolerance_mm, 0.25, 1e-12);      // 0.5 px * 200 mm / 400 px
+  EXPECT_NEAR(limits.distortion_limit_mps, 3.75, 1e-9);      // 0.25 mm / (0.002 * 1/30 s)
+  EXPECT_NEAR(limits.blur_limit_mps, 7.5, 1e-9);             // 3 px * 0.25 mm / 100 us
+  EXPECT_NEAR(limits.prediction_limit_mps, 36.0, 1e-9);      // 96 px * 0.25 mm / (0.02 / 30 Hz)
+  EXPECT_NEAR(limits.mosaic_limit_mps, 7.5, 1e-9);
+  EXPECT_NEAR(limits.step_mm, 240.0, 1e-9);                  // 7.2 m/s / 30 Hz
+  EXPECT_NEAR(limits.instability_ratio, 1.5, 1e-12);
+  EXPECT_NEAR(limits.blur_px, 2.88, 1e-12);
+  EXPECT_NEAR(limits.prediction_error_mm, 4.8, 1e-12);
+}
+
+TEST(SpeedLimits, TravelAlongTheShortSideHalvesLess) {
+  SpeedLimitOptions options;
+  options.travel_direction_rad = std::numbers::pi / 2.0;  // along image up: 480 px of footprint
+  const SpeedLimits limits = AnalyseSpeedLimits(options);
+  EXPECT_NEAR(limits.footprint_along_mm, 120.0, 1e-9);
+  EXPECT_NEAR(limits.overlap_limit_mps, 1.8, 1e-9);
+  EXPECT_NEAR(limits.instability_ratio, 2.0, 1e-12);
+}
+
+// At the overlap limit, consecutive footprints share exactly beta of their length along the
+// travel: the shifted rectangle's centre is (1 - beta) Lambda away, and one more Lambda
+// (beta = 0) puts it exactly on the other's edge, whatever the direction.
+TEST(SpeedLimits, OverlapLimitIsWhereFootprintsStopSharingBeta) {
+  std::mt19937 random(7);
+  std::uniform_real_distribution<double> angle(-std::numbers::pi, std::numbers::pi), beta(0.0, 0.9);
+  for (int i = 0; i < 100; ++i) {
+    SpeedLimitOptions options;
+    options.travel_direction_rad = angle(random);
+    options.required_overlap = beta(random);
+    const SpeedLimits limits = AnalyseSpeedLimits(options);
+    const double step_mm = 1e3 * limits.overlap_limit_mps * limits.cycle_s;
+    const double dx = step_mm * std::cos(options.travel_direction_rad);
+    const double dy = step_mm * std::sin(options.travel_direction_rad);
+    // Largest relative offset along the image axes: 1 when the footprints just touch.
+    const double relative = std::max(std::abs(dx) / 160.0, std::abs(dy) / 120.0);
+    EXPECT_NEAR(relative, 1.0 - options.required_overlap, 1e-9) << options.travel_direction_rad;
+  }
+}
+
+// The distortion limit against a pinhole camera: at the limit speed the floor rises by
+// g S between frames, and the corner of the image of the raised floor lies e pixels from
+// where the calibrated height puts it.
+TEST(SpeedLimits, DistortionLimitMatchesAPinholeCamera) {
+  SpeedLimitOptions options;
+  options.depth_gradient = 0.004;
+  const SpeedLimits limits = AnalyseSpeedLimits(options);
+  const double rise_mm = options.depth_gradient * 1e3 * limits.distortion_limit_mps * limits.cycle_s;
+  camera::RealCameraOptions calibrated;
+  calibrated.fx_px = calibrated.fy_px = options.camera_height_mm / options.mm_per_px;  // 0.25 mm/px
+  camera::RealCameraOptions raised = calibrated;
+  raised.height_mm = calibrated.height_mm - rise_mm;  // the floor came closer
+  const camera::RealCamera before(calibrated), after(raised);
+  // The floor point under the image corner (-319.5, -239.5 px from the centre is 400 px away
+  // up to half a pixel).
+  const Eigen::Vector2d corner_mm(320.0 * options.mm_per_px, 240.0 * options.mm_per_px);
+  const auto p0 = before.FloorToPixel(corner_mm), p1 = after.FloorToPixel(corner_mm);
+  ASSERT_TRUE(p0 && p1);
+  EXPECT_NEAR((*p1 - *p0).norm(), options.distortion_tolerance_px, 0.01 * options.distortion_tolerance_px);
+}
+
+TEST(SpeedLimits, BadOptionsAreRejected) {
+  SpeedLimitOptions options;
+  options.required_overlap = 1.0;
+  std::string why;
+  EXPECT_FALSE(options.Check(&why));
+  EXPECT_EQ(why, "required_overlap must be in [0, 1)");
+  EXPECT_THROW(AnalyseSpeedLimits(options), core::Error);
+  options = SpeedLimitOptions{};
+  options.frame_rate_hz = 0.0;
+  EXPECT_FALSE(options.Check(&why));
+  EXPECT_EQ(why, "frame_rate_hz must be > 0");
+}
+
+}  // namespace
+}  // namespace mosaicloc::localizer
