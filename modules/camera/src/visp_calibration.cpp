@@ -2,6 +2,8 @@
 
 #include <cmath>
 #include <exception>
+#include <iostream>
+#include <sstream>
 
 #include <visp3/core/vpCameraParameters.h>
 #include <visp3/core/vpException.h>
@@ -123,8 +125,13 @@ std::string LoadVispXml(const std::string& file, const std::string& camera_name,
   try {
     vpCameraParameters cam;
     vpXmlParserCamera parser;
-    if (parser.parse(cam, file, camera_name, vpCameraParameters::perspectiveProjWithDistortion) !=
-        vpXmlParserCamera::SEQUENCE_OK) {
+    // The parser announces the camera it found on standard output, which belongs to the
+    // program: silence it for the call.
+    std::ostringstream chatter;
+    std::streambuf* const stdout_buffer = std::cout.rdbuf(chatter.rdbuf());
+    const int status = parser.parse(cam, file, camera_name, vpCameraParameters::perspectiveProjWithDistortion);
+    std::cout.rdbuf(stdout_buffer);
+    if (status != vpXmlParserCamera::SEQUENCE_OK) {
       return camera_name.empty() ? "no camera with distortion in it"
                                  : "no camera named '" + camera_name + "' with distortion in it";
     }
