@@ -1,10 +1,16 @@
 #include "mosaicloc/mosaic/renderer.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdint>
+#include <memory>
+#include <utility>
+#include <vector>
 
 #include <opencv2/core.hpp>
-#include <opencv2/imgproc.hpp>
+
+#include "warp.hpp"
 
 namespace mosaicloc::mosaic {
 
@@ -84,35 +90,102 @@ RenderedView MapRenderer::RenderView(const core::Pose2& world_from_camera, int w
   const auto row0 = static_cast<std::int64_t>(std::floor(min_v)) - 1;
   const int cols = static_cast<int>(static_cast<std::int64_t>(std::ceil(max_u)) - col0) + 2;
   const int rows = static_cast<int>(static_cast<std::int64_t>(std::ceil(max_v)) - row0) + 2;
-  RasterPatch region = Region(level, col0, row0, cols, rows);
 
-  cv::Mat map(2, 3, CV_64F);
-  map.at<double>(0, 0) = linear(0, 0);
-  map.at<double>(0, 1) = linear(0, 1);
-  map.at<double>(0, 2) = offset.x() - static_cast<double>(col0);
-  map.at<double>(1, 0) = linear(1, 0);
-  map.at<double>(1, 1) = linear(1, 1);
-  map.at<double>(1, 2) = offset.y() - static_cast<double>(row0);
+  // The view's samples lie in the parallelogram of its corner pixels' centres (region
+  // pixels); pair row r serves the samples with r <= y < r + 1.
+  const Eigen::Vector2d origin(static_cast<double>(col0), static_cast<double>(row0));
+  const std::array<Eigen::Vector2d, 4> corners = {
+      linear * Eigen::Vector2d(0.0, 0.0) + offset - origin, linear * Eigen::Vector2d(width_px - 1.0, 0.0) + offset - origin,
+      linear * Eigen::Vector2d(width_px - 1.0, height_px - 1.0) + offset - origin,
+      linear * Eigen::Vector2d(0.0, height_px - 1.0) + offset - origin};
+  const auto span = [&](int r) {
+    // x extent of the parallelogram within the band [r - e, r + 1 + e]: its vertices in the
+    // band and its edges' crossings of the band's limits. e covers rounding to 1/32 px.
+    constexpr double kMargin = 0.1;
+    const double band_low = r - kMargin, band_high = r + 1.0 + kMargin;
+    double low = 1e300, high = -1e300;
+    for (std::size_t i = 0; i < 4; ++i) {
+      const Eigen::Vector2d& a = corners[i];
+      const Eigen::Vector2d& b = corners[(i + 1) % 4];
+      if (a.y() >= band_low && a.y() <= band_high) {
+        low = std::min(low, a.x());
+        high = std::max(high, a.x());
+      }
+      for (const double limit : {band_low, band_high}) {
+        if ((a.y() - limit) * (b.y() - limit) < 0.0) {
+          const double x = a.x() + (b.x() - a.x()) * (limit - a.y()) / (b.y() - a.y());
+          low = std::min(low, x);
+          high = std::max(high, x);
+        }
+      }
+    }
+    if (low > high) return std::pair<int, int>(0, 0);
+    // Samples at x read pair columns floor(x) and floor(x) + 1.
+    const int begin = std::max(0, static_cast<int>(std::floor(low - kMargin)) - 1);
+    const int end = std::min(cols, static_cast<int>(std::floor(high + kMargin)) + 3);
+    return std::pair<int, int>(begin, std::max(begin, end));
+  };
 
+  // Lay the pairs out straight from the tiles, loading only the tiles a span touches.
   RenderedView view;
-  view.tiles_loaded = region.tiles_loaded;
-  view.problems = std::move(region.problems);
-  const cv::Size size(width_px, height_px);
-  cv::warpAffine(region.image, view.image, map, size, cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT,
-                 cv::Scalar(kUnmapped));
-  if (region.all_mapped) {
-    view.mask = cv::Mat(size, CV_8UC1, cv::Scalar(255));
-    view.mapped_fraction = 1.0;
-    return view;
+  const int t = g.tile_size_px;
+  const std::int64_t tc0 = FloorDiv(col0, t), tr0 = FloorDiv(row0, t);
+  const int tile_cols = static_cast<int>(FloorDiv(col0 + cols - 1, t) - tc0) + 1;
+  const int tile_rows = static_cast<int>(FloorDiv(row0 + rows - 1, t) - tr0) + 1;
+  std::vector<std::shared_ptr<const Tile>> tiles(static_cast<std::size_t>(tile_cols * tile_rows));
+  bool all_mapped = true;
+  const auto tile_at = [&](std::int64_t tc, std::int64_t tr) -> const Tile& {
+    std::shared_ptr<const Tile>& slot = tiles[static_cast<std::size_t>((tr - tr0) * tile_cols + (tc - tc0))];
+    if (!slot) {
+      const TileKey key{level, tc, tr};
+      slot = cache_.Peek(key);
+      if (!slot) {
+        slot = cache_.Get(key);
+        ++view.tiles_loaded;
+      }
+      if (slot->status == TileStatus::kCorrupt) view.problems.push_back(slot->problem);
+      all_mapped = all_mapped && slot->status == TileStatus::kOk && slot->fully_mapped;
+    }
+    return *slot;
+  };
+  // Per-thread buffers, kept between renders (and not cleared: only the spans are read).
+  thread_local std::unique_ptr<std::uint8_t[]> pairs;
+  thread_local std::size_t pairs_capacity = 0;
+  thread_local std::vector<std::uint8_t> zeros;
+  const std::size_t stride = 2 * static_cast<std::size_t>(cols);
+  const std::size_t pairs_bytes = stride * static_cast<std::size_t>(rows - 1);
+  if (pairs_capacity < pairs_bytes) {
+    pairs.reset(new std::uint8_t[pairs_bytes]);
+    pairs_capacity = pairs_bytes;
   }
-  // Fixed-point bilinear weights sum exactly to one, so 255 survives only where every
-  // contributing source pixel is mapped.
-  cv::Mat warped_mask;
-  cv::warpAffine(region.mask, warped_mask, map, size, cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT,
-                 cv::Scalar(0));
-  view.mask = warped_mask == 255;
-  view.image.setTo(cv::Scalar(kUnmapped), ~view.mask);
-  view.mapped_fraction = static_cast<double>(cv::countNonZero(view.mask)) / static_cast<double>(view.mask.total());
+  if (zeros.size() < static_cast<std::size_t>(t)) zeros.assign(static_cast<std::size_t>(t), 0);
+  for (int r = 0; r + 1 < rows; ++r) {
+    const auto [begin, end] = span(r);
+    const std::int64_t top_row = row0 + r, bottom_row = top_row + 1;
+    const std::int64_t top_tile = FloorDiv(top_row, t), bottom_tile = FloorDiv(bottom_row, t);
+    for (int c = begin; c < end;) {
+      const std::int64_t col = col0 + c;
+      const std::int64_t tc = FloorDiv(col, t);
+      const int count = static_cast<int>(std::min<std::int64_t>(end - c, (tc + 1) * t - col));
+      const auto row_of = [&](std::int64_t tile_row, std::int64_t level_row) -> const std::uint8_t* {
+        const Tile& tile = tile_at(tc, tile_row);
+        if (tile.status != TileStatus::kOk) return zeros.data();
+        return tile.pixels.ptr<std::uint8_t>(static_cast<int>(level_row - tile_row * t)) + (col - tc * t);
+      };
+      internal::InterleaveRows(row_of(top_tile, top_row), row_of(bottom_tile, bottom_row), count,
+                               pairs.get() + static_cast<std::size_t>(r) * stride + 2 * static_cast<std::size_t>(c));
+      c += count;
+    }
+  }
+  const internal::PairRaster raster{pairs.get(), static_cast<std::ptrdiff_t>(stride), cols, rows};
+
+  const double map[6] = {linear(0, 0), linear(0, 1), offset.x() - static_cast<double>(col0),
+                         linear(1, 0), linear(1, 1), offset.y() - static_cast<double>(row0)};
+  const cv::Size size(width_px, height_px);
+  view.image.create(size, CV_8UC1);
+  const int valid = internal::WarpAffineBilinear(raster, map, view.image, all_mapped ? nullptr : &view.mask, all_mapped);
+  if (all_mapped) view.mask = cv::Mat(size, CV_8UC1, cv::Scalar(255));
+  view.mapped_fraction = static_cast<double>(valid) / static_cast<double>(view.image.total());
   return view;
 }
 

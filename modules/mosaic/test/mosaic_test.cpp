@@ -237,6 +237,68 @@ TEST(MapRenderer, ViewEqualsADirectWarpOfTheSource) {
     cv::absdiff(view.image, direct, difference);
     EXPECT_LE(cv::norm(difference, cv::NORM_INF), 1.0) << "trial " << trial;
     EXPECT_LT(cv::mean(difference)[0], 0.02) << "trial " << trial;
+    // The same fixed-point arithmetic: only a position within 1e-12 px of a rounding step
+    // of 1/1024 px can round the other way (the region's origin is subtracted first).
+    EXPECT_LE(cv::countNonZero(difference), 10) << "trial " << trial;
+  }
+}
+
+TEST(MapRenderer, MaskFollowsHolesAcrossTileBorders) {
+  test::ScratchDir dir;
+  MapGrid grid;
+  grid.tile_size_px = 64;
+  auto store = TileStore::Create(dir / "h.mosaic", grid);
+  cv::Mat source = SourceTexture(512);
+  cv::max(source, 1, source);
+  // Holes: two absent tiles side by side, and unmapped specks and a stripe inside a tile.
+  source(cv::Rect(192, 192, 128, 64)).setTo(cv::Scalar(kUnmapped));
+  for (int i = 0; i < 40; ++i) source.at<std::uint8_t>(70 + 3 * i, 130 + (i * 7) % 60) = kUnmapped;
+  source(cv::Rect(60, 300, 9, 70)).setTo(cv::Scalar(kUnmapped));  // across a tile border
+  std::vector<TileWrite> tiles;
+  for (int tr = 0; tr < 8; ++tr) {
+    for (int tc = 0; tc < 8; ++tc) {
+      if (tr == 3 && (tc == 3 || tc == 4)) continue;
+      tiles.push_back({TileKey{0, tc, tr}, source(cv::Rect(tc * 64, tr * 64, 64, 64)).clone()});
+    }
+  }
+  store->Write(tiles);
+  TileCache cache(*store);
+  const MapRenderer renderer(cache);
+  const cv::Mat mapped = source != kUnmapped;
+  std::mt19937_64 rng(23);
+  std::uniform_real_distribution<double> position(30.0, 98.0);
+  std::uniform_real_distribution<double> yaw(-3.2, 3.2);
+  for (int trial = 0; trial < 12; ++trial) {
+    const core::Pose2 world_from_camera(position(rng), -position(rng), yaw(rng));
+    const RenderedView view = renderer.RenderView(world_from_camera, 200, 150, 0.25, 0);
+    cv::Mat map(2, 3, CV_64F);
+    const Eigen::Matrix2d r = world_from_camera.Rotation();
+    const Eigen::Vector2d centre = grid.WorldToRaster(world_from_camera.translation_mm(), 0);
+    map.at<double>(0, 0) = r(0, 0);
+    map.at<double>(0, 1) = -r(0, 1);
+    map.at<double>(1, 0) = -r(1, 0);
+    map.at<double>(1, 1) = r(1, 1);
+    map.at<double>(0, 2) = centre.x() - r(0, 0) * 99.5 + r(0, 1) * 74.5;
+    map.at<double>(1, 2) = centre.y() + r(1, 0) * 99.5 - r(1, 1) * 74.5;
+    // 255 in the warped mapped-mask means at most 2/1024 of the weight fell on unmapped
+    // pixels; the view's mask is stricter (none of it), so it lies inside that one and
+    // differs from it only where the bilinear weights of the unmapped neighbours are tiny.
+    cv::Mat warped_mask, direct;
+    cv::warpAffine(mapped, warped_mask, map, view.image.size(), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP);
+    cv::warpAffine(source, direct, map, view.image.size(), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP);
+    const cv::Mat loose = warped_mask == 255;
+    EXPECT_EQ(cv::countNonZero(view.mask & ~loose), 0) << "trial " << trial;
+    const int edge = cv::countNonZero((warped_mask > 0) & (warped_mask < 255));
+    EXPECT_LE(cv::countNonZero(loose & ~view.mask), edge / 8 + 4) << "trial " << trial;
+    EXPECT_GT(edge, 0) << "trial " << trial << ": the view missed the holes";
+    EXPECT_DOUBLE_EQ(view.mapped_fraction, cv::countNonZero(view.mask) / static_cast<double>(view.mask.total()));
+    // Where the view is mapped it is the direct warp; elsewhere it is kUnmapped.
+    cv::Mat difference;
+    cv::absdiff(view.image, direct, difference);
+    difference.setTo(cv::Scalar(0), ~view.mask);
+    EXPECT_LE(cv::norm(difference, cv::NORM_INF), 1.0) << "trial " << trial;
+    EXPECT_EQ(cv::countNonZero(view.image & ~view.mask), 0) << "trial " << trial;
+    EXPECT_EQ(cv::countNonZero((view.image == kUnmapped) & view.mask), 0) << "trial " << trial;
   }
 }
 

@@ -41,7 +41,10 @@ class MapRenderer {
 
   /// The view of an ideal camera (width x height pixels of mm_per_px, principal point at the
   /// centre, frames of design.md section 3) at world_from_camera, sampled bilinearly from
-  /// `level`.
+  /// `level` with the values cv::warpAffine(INTER_LINEAR) gives on the assembled level (its
+  /// fixed-point arithmetic, repeated). A pixel is mapped when every level pixel of non-zero
+  /// bilinear weight is. Loads only the tiles under the view; keeps a per-thread buffer of
+  /// about twice the view's footprint between calls.
   RenderedView RenderView(const core::Pose2& world_from_camera, int width_px, int height_px, double mm_per_px,
                           int level) const;
   /// The pixels [col0, col0 + cols) x [row0, row0 + rows) of a level, as stored.
