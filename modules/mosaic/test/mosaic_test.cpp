@@ -357,6 +357,41 @@ TEST(MapBuilder, PaintedMapReproducesTheFrames) {
   }
 }
 
+TEST(MapBuilder, AFrameOnTheGridPaintsItsPixelsAndAHalfPixelRimBeyond) {
+  MapGrid grid;
+  grid.tile_size_px = 64;
+  grid.levels = 1;
+  cv::Mat frame = SourceTexture(256)(cv::Rect(0, 0, 100, 80)).clone();
+  cv::max(frame, 1, frame);
+  // Frame pixel centres on map pixel centres: its pixel (u, v) is map pixel (30 + u, 20 + v).
+  const double s = grid.mm_per_px;
+  const core::Pose2 on_grid((30 + 49.5 + 0.5) * s, -(20 + 39.5 + 0.5) * s, 0.0);
+  // Half a pixel off: the map pixels whose centres lie on the frame's edges get painted too.
+  const core::Pose2 half_off = on_grid * core::Pose2(0.5 * s, -0.5 * s, 0.0);
+  for (const Blend blend : {Blend::kFeather, Blend::kBestView}) {
+    for (const bool shifted : {false, true}) {
+      MapBuilder builder(grid, blend);
+      builder.AddFrame(frame, shifted ? half_off : on_grid, s);
+      cv::Mat painted = cv::Mat::zeros(256, 256, CV_8UC1);
+      for (int tr = 0; tr < 4; ++tr) {
+        for (int tc = 0; tc < 4; ++tc) {
+          try {
+            builder.FinishTile(TileKey{0, tc, tr}).copyTo(painted(cv::Rect(tc * 64, tr * 64, 64, 64)));
+          } catch (const std::out_of_range&) {
+          }
+        }
+      }
+      const cv::Rect footprint = shifted ? cv::Rect(30, 20, 101, 81) : cv::Rect(30, 20, 100, 80);
+      EXPECT_EQ(cv::countNonZero(painted), footprint.area()) << "shifted " << shifted;
+      EXPECT_EQ(cv::countNonZero(painted(footprint)), footprint.area()) << "shifted " << shifted;
+      if (!shifted) {
+        // Bicubic weights at a whole-pixel offset are (0, 1, 0, 0): the pixels themselves.
+        EXPECT_EQ(cv::norm(painted(footprint), frame, cv::NORM_INF), 0.0);
+      }
+    }
+  }
+}
+
 TEST(TileStore, KilledWriterLeavesEveryTileOldOrNew) {
   test::ScratchDir dir;
   MapGrid grid;

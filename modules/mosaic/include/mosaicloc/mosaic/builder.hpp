@@ -14,8 +14,9 @@
 
 namespace mosaicloc::mosaic {
 
-/// How overlapping frames combine into one map pixel. Each frame pixel carries a weight that
-/// falls linearly from the frame centre to zero at its edges.
+/// How overlapping frames combine into one map pixel. A frame gives each map pixel it
+/// overlaps its bicubic value at the pixel's centre and a weight that falls linearly from the
+/// frame centre to zero half a pixel beyond its edges.
 enum class Blend {
   kFeather,   ///< weighted mean of every frame that saw the pixel
   kBestView,  ///< the value from the frame that saw the pixel closest to its centre
@@ -43,13 +44,12 @@ class MapBuilder {
   /// Per pixel, CV_32FC2: feather (sum of value x weight, sum of weight); best view
   /// (value, weight) of the best frame so far.
   using Accumulator = cv::Mat;
-  const cv::Mat& WeightMap(int width, int height);
 
   MapGrid grid_;
   Blend blend_;
   std::int64_t frames_ = 0;
   std::unordered_map<TileKey, Accumulator, TileKeyHash> accumulators_;
-  cv::Mat weight_map_;
+  cv::Mat padded_;  ///< the frame being painted, with a replicated border
 };
 
 /// Replaces level-0 tiles and recomputes every pyramid tile above them (reading their
