@@ -11,7 +11,7 @@ PACKAGES=(
   libsqlite3-dev zlib1g-dev libyaml-cpp-dev libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev python3
-  # ViSP's own calibration images (circle grid), for the calibration tests
+  # ViSP's own test images: the calibration tests' circle grid, the renderer's reference warps
   visp-images-data
   # independent Modbus peers for the PLC tests, and linked pseudo-terminals for Modbus RTU
   python3-pymodbus python3-serial python3-serial-asyncio mbpoll socat
