@@ -123,7 +123,8 @@ std::optional<BoardDetection> DetectBoard(const cv::Mat& image, const BoardSpec&
   std::vector<cv::Point2f> found;
   bool ok = false;
   if (board.kind == BoardSpec::Kind::kChessboard) {
-    ok = cv::findChessboardCorners(image, pattern, found, cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE);
+    ok = cv::findChessboardCorners(image, pattern, found,
+                                     cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE | cv::CALIB_CB_FAST_CHECK);
     if (ok) {
       // The refinement window must stay inside the squares around each corner: less than
       // half the shortest distance between neighbouring corners.

@@ -217,10 +217,25 @@ void WriteVispCameraXml(const std::filesystem::path& file, const Intrinsics& int
 
 Intrinsics ReadVispCameraXml(const std::filesystem::path& file, const std::string& camera_name) {
   if (!std::filesystem::is_regular_file(file)) core::ThrowInvalidInput(file.string() + ": no such camera XML file");
+  std::string name = camera_name;
+  if (name.empty()) {
+    // vpXmlParserCamera needs a name: take the first camera's.
+    std::ifstream in(file);
+    std::ostringstream buffer;
+    buffer << in.rdbuf();
+    const std::string text = buffer.str();
+    const std::size_t begin = text.find("<name>"), end = text.find("</name>");
+    if (begin != std::string::npos && end != std::string::npos && end > begin) {
+      name = text.substr(begin + 6, end - begin - 6);
+      name.erase(0, name.find_first_not_of(" \t\n"));
+      name.erase(name.find_last_not_of(" \t\n") + 1);
+    }
+    if (name.empty()) core::ThrowInvalidInput(file.string() + ": no camera in it (not a ViSP camera XML?)");
+  }
   detail::VispCameraModel model;
   Intrinsics intrinsics;
   const std::string error =
-      detail::LoadVispXml(file.string(), camera_name, &model, &intrinsics.width_px, &intrinsics.height_px);
+      detail::LoadVispXml(file.string(), name, &model, &intrinsics.width_px, &intrinsics.height_px);
   if (!error.empty()) core::ThrowInvalidInput(file.string() + ": " + error);
   intrinsics.fx_px = model.fx_px;
   intrinsics.fy_px = model.fy_px;

@@ -174,6 +174,7 @@ TEST(VispCameraXml, RoundTripsAndOverwrites) {
   EXPECT_NEAR(back.kud, k.kud, 1e-9);
   EXPECT_NEAR(back.kdu, k.kdu, 1e-9);
   EXPECT_EQ(back.width_px, 640);
+  EXPECT_NEAR(ReadVispCameraXml(file, "").fx_px, 900.0, 1e-6);  // the first camera
   EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir.path()), std::filesystem::directory_iterator()), 1);
   EXPECT_THROW(ReadVispCameraXml(dir / "missing.xml", ""), core::Error);
   EXPECT_THROW(ReadVispCameraXml(file, "another"), core::Error);
