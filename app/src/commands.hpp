@@ -25,5 +25,6 @@ Action AddBenchCommand(CLI::App& app, const GlobalOptions& global);
 Action AddRunCommand(CLI::App& app, const GlobalOptions& global);
 Action AddPlcSimCommand(CLI::App& app, const GlobalOptions& global);
 Action AddLimitsCommand(CLI::App& app, const GlobalOptions& global);
+Action AddCalibrateCommand(CLI::App& app, const GlobalOptions& global);
 
 }  // namespace mosaicloc::app

@@ -42,6 +42,7 @@ int main(int argc, char** argv) {
   add(app::AddRunCommand);
   add(app::AddPlcSimCommand);
   add(app::AddLimitsCommand);
+  add(app::AddCalibrateCommand);
 
   try {
     app.parse(argc, argv);
