@@ -1,6 +1,11 @@
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <iterator>
+#include <map>
+#include <memory>
 #include <limits>
 #include <sstream>
 
@@ -11,6 +16,7 @@
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/file.hpp"
 #include "mosaicloc/dataset/dataset.hpp"
+#include "mosaicloc/mosaic/build_checkpoint.hpp"
 #include "mosaicloc/mosaic/builder.hpp"
 #include "mosaicloc/mosaic/renderer.hpp"
 #include "mosaicloc/mosaic/tile_store.hpp"
@@ -32,10 +38,25 @@ struct MapArgs {
   int level = -1;
   std::string region;
   bool overwrite = false;
+  bool resume = false;
+  double checkpoint_s = 10.0;
 };
 
+// CRC32 of a file's bytes, in hex: part of a build's identity, so a checkpoint is never
+// resumed against changed inputs.
+std::string FileCrc(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) core::ThrowInvalidInput(file.string() + ": cannot be read");
+  const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  char text[16];
+  std::snprintf(text, sizeof(text), "%08x", mosaic::TileStore::Crc32(bytes));
+  return text;
+}
+
 // Paints every frame at its pose into a new map, written under a temporary name and renamed
-// into place at the end: an interrupted build leaves no map (or the previous one).
+// into place at the end: an interrupted build leaves no map (or the previous one). Progress
+// is saved in MAP.checkpoint as it goes; --resume continues from there, and since the saved
+// accumulators are exact, the map equals that of an uninterrupted build.
 void Build(const MapArgs& args, const GlobalOptions& global) {
   const dataset::DatasetReader reader(args.dataset);
   const dataset::DatasetInfo& info = reader.info();
@@ -45,6 +66,7 @@ void Build(const MapArgs& args, const GlobalOptions& global) {
   if (fs::exists(args.out, ec) && !args.overwrite) {
     core::ThrowInvalidInput(args.out.string() + ": already exists (add --overwrite to replace it)");
   }
+  if (!(args.checkpoint_s >= 0.0)) core::ThrowInvalidInput("--checkpoint-s must be >= 0");
   mosaic::MapGrid grid;
   grid.mm_per_px = info.camera.mm_per_px;
   grid.tile_size_px = args.tile_size_px;
@@ -54,20 +76,56 @@ void Build(const MapArgs& args, const GlobalOptions& global) {
   ProgressBar progress("map build", global.quiet);
   std::int64_t total = 0;
   for (auto count = reader.Frames(); count.Next(false);) ++total;
+  const fs::path poses_file = args.poses == "groundtruth" ? args.dataset / "groundtruth" / "data.tum" : fs::path(args.poses);
+  const std::map<std::string, std::string> identity = {
+      {"dataset", fs::absolute(args.dataset).lexically_normal().string()},
+      {"frames", std::to_string(total)},
+      {"frame_list_crc32", FileCrc(args.dataset / "cam0" / "data.csv")},
+      {"dataset_yaml_crc32", FileCrc(args.dataset / "dataset.yaml")},
+      {"poses", args.poses == "groundtruth" ? "groundtruth" : fs::absolute(args.poses).lexically_normal().string()},
+      {"poses_crc32", FileCrc(poses_file)},
+      {"blend", args.blend},
+      {"tile_size_px", std::to_string(args.tile_size_px)},
+      {"levels", std::to_string(args.levels)}};
+  const fs::path checkpoint_file = args.out.string() + ".checkpoint";
+  std::unique_ptr<mosaic::BuildCheckpoint> checkpoint;
   std::int64_t painted = 0;
   std::int64_t skipped = 0;
+  std::int64_t resumed_after = 0;
+  if (args.resume && fs::exists(checkpoint_file, ec)) {
+    checkpoint = mosaic::BuildCheckpoint::Open(checkpoint_file, identity);
+    checkpoint->Restore(builder);
+    resumed_after = checkpoint->frames_done();
+    painted = checkpoint->counter("painted");
+    skipped = checkpoint->counter("skipped");
+  } else {
+    checkpoint = mosaic::BuildCheckpoint::Create(checkpoint_file, identity);
+  }
+  const auto save = [&](std::int64_t frames_done) {
+    checkpoint->Save(builder, frames_done, {{"painted", painted}, {"skipped", skipped}});
+  };
   auto frames = reader.Frames();
+  std::int64_t done = 0;
+  for (; done < resumed_after && frames.Next(false); ++done) {
+  }
+  auto last_save = std::chrono::steady_clock::now();
   while (const auto frame = frames.Next()) {
     const auto pose = dataset::PoseAt(poses, frame->time, std::chrono::milliseconds(100));
-    if (!pose) {
+    if (pose) {
+      builder.AddFrame(frame->image, *pose * info.camera.vehicle_from_camera, info.camera.mm_per_px);
+      ++painted;
+    } else {
       ++skipped;
-      continue;
     }
-    builder.AddFrame(frame->image, *pose * info.camera.vehicle_from_camera, info.camera.mm_per_px);
-    ++painted;
-    progress.Update(0.8 * static_cast<double>(painted + skipped) / static_cast<double>(std::max<std::int64_t>(total, 1)));
+    ++done;
+    if (std::chrono::duration<double>(std::chrono::steady_clock::now() - last_save).count() >= args.checkpoint_s) {
+      save(done);
+      last_save = std::chrono::steady_clock::now();
+    }
+    progress.Update(0.8 * static_cast<double>(done) / static_cast<double>(std::max<std::int64_t>(total, 1)));
   }
   if (painted == 0) core::ThrowInvalidInput(args.dataset.string() + ": no frame has a pose in " + args.poses);
+  save(done);  // every frame painted: a build killed while writing resumes with the writing
 
   const fs::path partial = args.out.string() + ".partial";
   for (const char* suffix : {"", "-wal", "-shm"}) fs::remove(partial.string() + suffix, ec);
@@ -77,17 +135,22 @@ void Build(const MapArgs& args, const GlobalOptions& global) {
   }  // closing checkpoints the write-ahead log into the file
   fs::rename(partial, args.out, ec);
   if (ec) core::ThrowRuntime(args.out.string() + ": cannot move the new map into place (" + ec.message() + ")");
+  checkpoint.reset();
+  mosaic::BuildCheckpoint::Remove(checkpoint_file);
   progress.Finish();
   const auto store = mosaic::TileStore::Open(args.out, false);
   if (global.json) {
     const nlohmann::json result = {{"map", fs::absolute(args.out).string()}, {"frames_painted", painted},
                                    {"frames_without_pose", skipped}, {"tiles", store->Count()},
-                                   {"level0_tiles", store->Count(0)}};
+                                   {"level0_tiles", store->Count(0)}, {"resumed_after_frames", resumed_after}};
     std::printf("%s\n", result.dump(2).c_str());
   } else {
-    std::printf("map %s: %lld frames painted (%lld without a pose), %lld tiles (%lld at level 0)\n",
+    std::printf("map %s: %lld frames painted (%lld without a pose), %lld tiles (%lld at level 0)",
                 args.out.string().c_str(), static_cast<long long>(painted), static_cast<long long>(skipped),
                 static_cast<long long>(store->Count()), static_cast<long long>(store->Count(0)));
+    if (resumed_after > 0) std::printf("; resumed after %lld of %lld frames", static_cast<long long>(resumed_after),
+                                       static_cast<long long>(total));
+    std::printf("\n");
   }
 }
 
@@ -240,6 +303,10 @@ Action AddMapCommand(CLI::App& app, const GlobalOptions& global) {
       ->check(CLI::IsMember({32, 64, 128, 256, 512, 1024}));
   build->add_option("--levels", args->levels, "Pyramid levels (default 6)")->check(CLI::Range(1, 16));
   build->add_flag("--overwrite", args->overwrite, "Replace an existing map");
+  build->add_flag("--resume", args->resume,
+                  "Continue an interrupted build of the same arguments from its last checkpoint (MAP.checkpoint)");
+  build->add_option("--checkpoint-s", args->checkpoint_s,
+                    "Seconds between saves of the build's progress (default 10; 0: after every frame)");
   CLI::App* info = command->add_subcommand("info", "Extent, resolution, levels, tiles and size of a map");
   info->add_option("MAP", args->map, "Map file")->required();
   CLI::App* check = command->add_subcommand("check", "Verify every tile (CRC, PNG, size); exit 2 on damage");

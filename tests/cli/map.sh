@@ -1,5 +1,5 @@
-# map build / info / check / export as a user runs them, damage on disk, and a build killed
-# half way.
+# map build / info / check / export as a user runs them, damage on disk, a build killed
+# half way, and builds resumed after an interruption.
 source "$(dirname "$0")/lib.sh"
 printf 'camera: {width_px: 320, height_px: 240}\nroute: {speed_mps: 1.0}\nrun: {frames: 90}\n' > "$SCRATCH/c.yaml"
 expect_exit 0 "$MOSAICLOC" --quiet simulate --out "$SCRATCH/ds" --config "$SCRATCH/c.yaml"
@@ -51,6 +51,85 @@ if [ "$before" != "$after" ]; then
   echo "note: the build finished before it was killed"
 fi
 expect_exit 0 "$MOSAICLOC" map check "$SCRATCH/c.mosaic"
+
+# Resumable builds. same_map A B: the two maps hold the same tiles, byte for byte.
+same_map() {
+  python3 - "$1" "$2" <<'PY' || fail "$1 and $2 differ"
+import sqlite3, sys
+def tiles(path):
+    db = sqlite3.connect(path)
+    rows = db.execute("SELECT level, col, row, crc32, length(data) FROM tiles ORDER BY level, col, row").fetchall()
+    meta = db.execute("SELECT name, value FROM metadata ORDER BY name").fetchall()
+    return rows, meta
+a, b = tiles(sys.argv[1]), tiles(sys.argv[2])
+if a != b:
+    print(f"{len(a[0])} against {len(b[0])} tiles", file=sys.stderr)
+    sys.exit(1)
+PY
+}
+expect_exit 0 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/ds" --out "$SCRATCH/ref.mosaic" --tile-size 64
+[ -e "$SCRATCH/ref.mosaic.checkpoint" ] && fail "a finished build left its checkpoint"
+
+# Stopped by a damaged frame half way: no map, a checkpoint (which is not a map); the
+# frame repaired, --resume continues after the frames already painted and gives the same map.
+cp -r "$SCRATCH/ds" "$SCRATCH/ds2"
+frame=$(sed -n '47p' "$SCRATCH/ds2/cam0/data.csv" | cut -d, -f2)
+cp "$SCRATCH/ds2/cam0/data/$frame" "$SCRATCH/frame.png"
+head -c 100 "$SCRATCH/frame.png" > "$SCRATCH/ds2/cam0/data/$frame"
+expect_exit 2 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/ds2" --out "$SCRATCH/r.mosaic" --tile-size 64 \
+  --checkpoint-s 0
+expect_in "$SCRATCH/err" "cannot be decoded"
+[ -e "$SCRATCH/r.mosaic" ] && fail "an interrupted build left a map"
+[ -s "$SCRATCH/r.mosaic.checkpoint" ] || fail "an interrupted build left no checkpoint"
+expect_exit 2 "$MOSAICLOC" map info "$SCRATCH/r.mosaic.checkpoint"
+cp "$SCRATCH/frame.png" "$SCRATCH/ds2/cam0/data/$frame"
+expect_exit 2 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/ds2" --out "$SCRATCH/r.mosaic" --tile-size 64 \
+  --resume --blend best-view
+expect_in "$SCRATCH/err" "made by a build with blend 'feather', not 'best-view'"
+expect_exit 0 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/ds2" --out "$SCRATCH/r.mosaic" --tile-size 64 --resume
+expect_in "$SCRATCH/out" "90 frames painted"
+expect_in "$SCRATCH/out" "resumed after 45 of 90 frames"
+same_map "$SCRATCH/ref.mosaic" "$SCRATCH/r.mosaic"
+[ -e "$SCRATCH/r.mosaic.checkpoint" ] && fail "a resumed build left its checkpoint"
+
+# kill -9 part way through painting (once 20 frames are saved), then --resume.
+killed_at=$(python3 - "$MOSAICLOC" "$SCRATCH" <<'PY'
+import signal, sqlite3, subprocess, sys, time
+program, scratch = sys.argv[1:3]
+out = scratch + "/k.mosaic"
+build = subprocess.Popen([program, "--quiet", "map", "build", "--dataset", scratch + "/ds", "--out", out,
+                          "--tile-size", "64", "--checkpoint-s", "0"],
+                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+done, deadline = 0, time.time() + 30
+while build.poll() is None and time.time() < deadline:
+    try:
+        db = sqlite3.connect(out + ".checkpoint", timeout=0.05)
+        row = db.execute("SELECT value FROM build WHERE name = 'frames_done'").fetchone()
+        db.close()
+        done = int(row[0]) if row else 0
+    except sqlite3.Error:
+        pass
+    if done >= 20:
+        build.send_signal(signal.SIGKILL)
+        break
+    time.sleep(0.002)
+build.wait()
+print(done if build.returncode == -signal.SIGKILL else -1)
+PY
+)
+if [ "$killed_at" -ge 0 ]; then
+  [ -e "$SCRATCH/k.mosaic" ] && fail "a killed build left a map"
+  expect_exit 0 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/ds" --out "$SCRATCH/k.mosaic" --tile-size 64 --resume
+  resumed=$(sed -n 's/.*resumed after \([0-9]*\) of 90 frames.*/\1/p' "$SCRATCH/out")
+  if [ "$killed_at" -lt 90 ] && [ "${resumed:-0}" -lt "$killed_at" ]; then
+    fail "killed after $killed_at frames were saved, resumed after ${resumed:-0}"
+  fi
+else
+  echo "note: the build finished before it could be killed"
+fi
+same_map "$SCRATCH/ref.mosaic" "$SCRATCH/k.mosaic"
+expect_exit 0 "$MOSAICLOC" map check "$SCRATCH/k.mosaic"
+
 expect_exit 2 "$MOSAICLOC" map info "$SCRATCH/missing.mosaic"
 expect_in "$SCRATCH/err" "no such map file"
 finish

@@ -99,6 +99,7 @@ void MapBuilder::AddFrame(const cv::Mat& image, const core::Pose2& world_from_ca
       if (x1 <= x0 || y1 <= y0) continue;
       auto [it, inserted] = accumulators_.try_emplace(TileKey{0, tc, tr});
       if (inserted) it->second = cv::Mat::zeros(static_cast<int>(t), static_cast<int>(t), CV_32FC2);
+      changed_.insert(it->first);
       for (std::int64_t row = y0; row < y1; ++row) {
         // Frame position of raster (x, row) = offset + linear (x, row).
         const double u_row = offset.x() + linear(0, 1) * static_cast<double>(row);

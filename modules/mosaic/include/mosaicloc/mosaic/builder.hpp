@@ -4,6 +4,7 @@
 #include <functional>
 #include <string>
 #include <unordered_map>
+#include <unordered_set>
 #include <vector>
 
 #include <opencv2/core/mat.hpp>
@@ -45,10 +46,13 @@ class MapBuilder {
   /// (value, weight) of the best frame so far.
   using Accumulator = cv::Mat;
 
+  friend class BuildCheckpoint;  // saves and restores the accumulators
+
   MapGrid grid_;
   Blend blend_;
   std::int64_t frames_ = 0;
   std::unordered_map<TileKey, Accumulator, TileKeyHash> accumulators_;
+  std::unordered_set<TileKey, TileKeyHash> changed_;  ///< painted since the last checkpoint
   cv::Mat padded_;  ///< the frame being painted, with a replicated border
 };
 
