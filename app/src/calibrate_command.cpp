@@ -4,6 +4,7 @@
 #include <glob.h>
 
 #include <algorithm>
+#include <chrono>
 #include <array>
 #include <optional>
 #include <cmath>
@@ -22,9 +23,13 @@
 #include "mosaicloc/core/file.hpp"
 #include "mosaicloc/camera/vehicle_calibration.hpp"
 #include "mosaicloc/core/log.hpp"
+#include "mosaicloc/core/yaml.hpp"
 #include "mosaicloc/dataset/dataset.hpp"
 #include "mosaicloc/sim/calibration_drive.hpp"
+#include "mosaicloc/dataset/trajectory.hpp"
 #include "mosaicloc/sim/raw_imaging.hpp"
+#include "mosaicloc/sim/simulator.hpp"
+#include "sim_config.hpp"
 #include "mosaicloc/tracking/tracker.hpp"
 #include "progress.hpp"
 
@@ -584,6 +589,150 @@ void RunSimulateDrive(const DriveArgs& args, const GlobalOptions& global) {
   }
 }
 
+
+// ---- calibrate simulate-raw / rectify-dataset ------------------------------------------
+
+// A simulated calibration drive records nominal values in dataset.yaml and its truth in
+// the provenance; the raw images must be made at the true mounting.
+core::Pose2 TrueMounting(const dataset::DatasetInfo& info) {
+  const auto truth = info.provenance.find("truth_vehicle_from_camera");
+  double x = 0.0, y = 0.0, yaw = 0.0;
+  if (truth != info.provenance.end() && std::sscanf(truth->second.c_str(), "%lf %lf %lf", &x, &y, &yaw) == 3) {
+    return core::Pose2(x, y, yaw);
+  }
+  return info.camera.vehicle_from_camera;
+}
+
+// vehicle_from_camera from a vehicle calibration file (calibrate vehicle --out).
+core::Pose2 ReadVehicleMounting(const std::filesystem::path& file) {
+  const YAML::Node node = core::LoadYamlFile(file);
+  core::YamlProblems problems;
+  core::YamlMap root = core::YamlMap::Root(node, file.string(), &problems);
+  int version = 0;
+  root.Required("format_version", &version, core::IntegerInRange(1, 1));
+  double x = 0.0, y = 0.0, yaw = 0.0, ignored = 0.0;
+  core::YamlMap mounting = root.RequiredMap("vehicle_from_camera");
+  mounting.Required("x_mm", &x);
+  mounting.Required("y_mm", &y);
+  mounting.Required("yaw_rad", &yaw, core::InRange(-M_PI, M_PI));
+  mounting.Finish();
+  core::YamlMap sigma = root.RequiredMap("vehicle_from_camera_sigma");
+  for (const char* key : {"x_mm", "y_mm", "yaw_rad"}) sigma.Required(key, &ignored);
+  sigma.Finish();
+  for (const char* key : {"left_wheel_radius_mm", "right_wheel_radius_mm", "track_width_mm"}) {
+    root.Required(key, &ignored, core::Positive());
+  }
+  core::YamlMap wheel_sigma = root.RequiredMap("wheel_sigma");
+  for (const char* key : {"left_wheel_radius_mm", "right_wheel_radius_mm", "track_width_mm"}) {
+    wheel_sigma.Required(key, &ignored);
+  }
+  wheel_sigma.Finish();
+  root.Finish();
+  problems.ThrowIfAny();
+  return core::Pose2(x, y, yaw);
+}
+
+struct RawArgs {
+  std::filesystem::path dataset;
+  std::filesystem::path config;
+  std::filesystem::path out;
+  std::filesystem::path ground;   // rectify-dataset
+  std::filesystem::path vehicle;  // rectify-dataset: calibrated vehicle_from_camera
+  bool overwrite = false;
+};
+
+dataset::DatasetWriter CopyHeader(const dataset::DatasetReader& reader, const dataset::CameraInfo& camera,
+                                  const std::string& note, const std::filesystem::path& out, bool overwrite) {
+  dataset::DatasetInfo info = reader.info();
+  info.camera.width_px = camera.width_px;
+  info.camera.height_px = camera.height_px;
+  info.camera.mm_per_px = camera.mm_per_px;
+  info.camera.vehicle_from_camera = camera.vehicle_from_camera;
+  info.provenance["calibration"] = note;
+  return dataset::DatasetWriter(out, info, overwrite);
+}
+
+void CopyEncodersAndTruth(const dataset::DatasetReader& reader, dataset::DatasetWriter* writer) {
+  auto encoders = reader.Encoders();
+  while (auto sample = encoders.Next()) writer->AddEncoderSample(*sample);
+  if (reader.HasGroundTruth()) writer->SetGroundTruth(reader.GroundTruth());
+}
+
+// The same drive seen through the simulated real camera: every frame rendered raw (distorted,
+// tilted) at its true camera pose, over the floor of the simulator configuration.
+void RunSimulateRaw(const RawArgs& args, const GlobalOptions& global) {
+  const dataset::DatasetReader reader(args.dataset);
+  if (!reader.HasGroundTruth()) core::ThrowInvalidInput(args.dataset.string() + ": needs ground truth");
+  const sim::SimulatorOptions options = args.config.empty() ? sim::SimulatorOptions{} : LoadSimulatorConfig(args.config);
+  const auto floor = sim::MakeFloor(options.floor);
+  const dataset::Trajectory truth = reader.GroundTruth();
+  const core::Pose2 vehicle_from_camera = TrueMounting(reader.info());
+  const camera::RealCamera raw_camera(SimulatedCamera());
+  sim::RawImagingOptions imaging;
+  imaging.noise_std_dn = options.imaging.noise_std_dn;
+  imaging.black_dn = 0.0;
+  imaging.white_dn = 255.0;
+  dataset::CameraInfo raw_info = reader.info().camera;
+  raw_info.width_px = raw_camera.options().width_px;
+  raw_info.height_px = raw_camera.options().height_px;
+  dataset::DatasetWriter writer =
+      CopyHeader(reader, raw_info, "raw images of the simulated real camera (calibrate simulate-raw)", args.out,
+                 args.overwrite);
+  std::int64_t total = 0;
+  for (auto listing = reader.Frames(); listing.Next(/*decode=*/false);) ++total;
+  ProgressBar progress("simulate raw", global.quiet);
+  auto frames = reader.Frames();
+  std::int64_t count = 0;
+  while (auto frame = frames.Next(/*decode=*/false)) {
+    const auto world_from_vehicle = dataset::PoseAt(truth, frame->time, std::chrono::milliseconds(100));
+    if (!world_from_vehicle) core::ThrowInvalidInput(frame->path.string() + ": no ground truth at its time");
+    writer.AddFrame(frame->time, sim::RenderFloorRaw(raw_camera, *floor, *world_from_vehicle * vehicle_from_camera,
+                                                     imaging, options.seed * 7919 + static_cast<std::uint64_t>(count)));
+    progress.Update(static_cast<double>(++count) / static_cast<double>(std::max<std::int64_t>(1, total)));
+  }
+  CopyEncodersAndTruth(reader, &writer);
+  writer.Commit();
+  progress.Finish();
+  if (global.json) {
+    std::printf("%s\n", nlohmann::json{{"dataset", args.out.string()}, {"frames", count}}.dump(2).c_str());
+  } else {
+    std::printf("%lld raw frames in %s\n", static_cast<long long>(count), args.out.string().c_str());
+  }
+}
+
+// A recording of raw images made ideal, as a camera source does it live.
+void RunRectifyDataset(const RawArgs& args, const GlobalOptions& global) {
+  const camera::Rectifier rectifier(camera::ReadGroundCalibration(args.ground));
+  const dataset::DatasetReader reader(args.dataset);
+  const camera::IdealCameraOptions& ideal = rectifier.calibration().ideal;
+  dataset::CameraInfo ideal_info = reader.info().camera;
+  ideal_info.width_px = ideal.width_px;
+  ideal_info.height_px = ideal.height_px;
+  ideal_info.mm_per_px = ideal.mm_per_px;
+  if (!args.vehicle.empty()) ideal_info.vehicle_from_camera = ReadVehicleMounting(args.vehicle);
+  dataset::DatasetWriter writer = CopyHeader(
+      reader, ideal_info, "rectified with " + args.ground.filename().string() + " (calibrate rectify-dataset)",
+      args.out, args.overwrite);
+  auto frames = reader.Frames();
+  std::int64_t count = 0;
+  while (auto frame = frames.Next()) {
+    cv::Mat rectified;
+    if (!rectifier.Rectify(frame->image, &rectified)) {
+      core::ThrowInvalidInput(frame->path.string() + ": not the calibrated raw size");
+    }
+    writer.AddFrame(frame->time, rectified);
+    ++count;
+  }
+  CopyEncodersAndTruth(reader, &writer);
+  writer.Commit();
+  if (global.json) {
+    std::printf("%s\n", nlohmann::json{{"dataset", args.out.string()}, {"frames", count}}.dump(2).c_str());
+  } else {
+    std::printf("%lld frames rectified into %s (%dx%d at %.4f mm/px)\n", static_cast<long long>(count),
+                args.out.string().c_str(), ideal.width_px, ideal.height_px, ideal.mm_per_px);
+  }
+}
+
 }  // namespace
 
 Action AddCalibrateCommand(CLI::App& app, const GlobalOptions& global) {
@@ -658,7 +807,27 @@ Action AddCalibrateCommand(CLI::App& app, const GlobalOptions& global) {
   drive->add_option("--seed", drive_args->seed, "Floor and noise seed")->capture_default_str();
   drive->add_flag("--overwrite", drive_args->overwrite, "Replace an existing dataset directory");
 
+  auto raw_args = std::make_shared<RawArgs>();
+  CLI::App* raw = command->add_subcommand(
+      "simulate-raw", "A simulated dataset seen through the simulated real camera (distorted, tilted raw images)");
+  raw->add_option("--dataset", raw_args->dataset, "Simulated dataset with ground truth")->required();
+  raw->add_option("--config", raw_args->config, "The simulator configuration it was made with (its floor)");
+  raw->add_option("--out", raw_args->out, "Dataset directory to write")->required();
+  raw->add_flag("--overwrite", raw_args->overwrite, "Replace an existing dataset directory");
+
+  auto rectify_dataset_args = std::make_shared<RawArgs>();
+  CLI::App* rectify_dataset =
+      command->add_subcommand("rectify-dataset", "Make a recording of raw images ideal with a ground calibration");
+  rectify_dataset->add_option("--dataset", rectify_dataset_args->dataset, "Recording of raw images")->required();
+  rectify_dataset->add_option("--ground", rectify_dataset_args->ground, "Ground calibration YAML")->required();
+  rectify_dataset->add_option("--out", rectify_dataset_args->out, "Dataset directory to write")->required();
+  rectify_dataset->add_option("--vehicle", rectify_dataset_args->vehicle,
+                              "Vehicle calibration YAML (calibrate vehicle): its vehicle_from_camera goes in the dataset");
+  rectify_dataset->add_flag("--overwrite", rectify_dataset_args->overwrite, "Replace an existing dataset directory");
+
   return [=, &global] {
+    if (raw->parsed()) RunSimulateRaw(*raw_args, global);
+    if (rectify_dataset->parsed()) RunRectifyDataset(*rectify_dataset_args, global);
     if (vehicle->parsed()) RunVehicle(*vehicle_args, global);
     if (drive->parsed()) RunSimulateDrive(*drive_args, global);
     if (board->parsed()) RunBoard(*board_args, global);
