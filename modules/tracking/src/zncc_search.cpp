@@ -2,9 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <vector>
 
 #include <opencv2/core.hpp>
+#include <opencv2/core/hal/intrin.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "mosaicloc/core/error.hpp"
@@ -25,9 +27,87 @@ struct ScoreMap {
   double peak = -1.0;
 };
 
+// Largest score map computed directly, and the largest template (its products summed in
+// int32: 32768 x 255^2 < 2^31).
+constexpr int kMaxDirectScores = 40 * 40;
+constexpr int kMaxDirectTemplatePixels = 32768;
+
+// TM_CCOEFF_NORMED by direct summation, for the small score maps of a search around a
+// prediction, where OpenCV's DFT-based correlation spends most of its time setting up. With
+// n template pixels, at each offset over the window patch W under the template T:
+//   zncc = (n sum TW - sum T sum W) / sqrt((n sum T^2 - (sum T)^2) (n sum W^2 - (sum W)^2)),
+// sum TW by 16-bit dot products, sum W and sum W^2 from integral images. A patch without
+// variance scores as OpenCV scores it (0, or +-1 within its rounding margin).
+cv::Mat DirectZncc(const cv::Mat& templ, const cv::Mat& window) {
+  const int tw = templ.cols, th = templ.rows;
+  const int rw = window.cols - tw + 1, rh = window.rows - th + 1;
+  // Rows padded to whole SIMD vectors with zeros (they add nothing to the dot products).
+  constexpr int kLanes = cv::v_int16x8::nlanes;
+  const int padded = (tw + kLanes - 1) / kLanes * kLanes;
+  const int window_padded = window.cols + padded;
+  thread_local std::vector<std::int16_t> t16, w16;
+  t16.assign(static_cast<std::size_t>(padded) * th, 0);
+  w16.assign(static_cast<std::size_t>(window_padded) * window.rows, 0);
+  double sum_t = 0.0, sum_tt = 0.0;
+  for (int r = 0; r < th; ++r) {
+    const std::uint8_t* row = templ.ptr<std::uint8_t>(r);
+    for (int c = 0; c < tw; ++c) {
+      t16[static_cast<std::size_t>(r) * padded + c] = row[c];
+      sum_t += row[c];
+      sum_tt += static_cast<double>(row[c]) * row[c];
+    }
+  }
+  for (int r = 0; r < window.rows; ++r) {
+    const std::uint8_t* row = window.ptr<std::uint8_t>(r);
+    std::int16_t* out = &w16[static_cast<std::size_t>(r) * window_padded];
+    for (int c = 0; c < window.cols; ++c) out[c] = row[c];
+  }
+  // sum TW at an offset: one vector accumulator over the whole template, reduced once.
+  const auto dot = [&](int dx, int dy) {
+    cv::v_int32x4 acc = cv::v_setzero_s32();
+    for (int r = 0; r < th; ++r) {
+      const std::int16_t* t = &t16[static_cast<std::size_t>(r) * padded];
+      const std::int16_t* w = &w16[static_cast<std::size_t>(r + dy) * window_padded + dx];
+      for (int c = 0; c < padded; c += kLanes) acc += cv::v_dotprod(cv::v_load(t + c), cv::v_load(w + c));
+    }
+    return cv::v_reduce_sum(acc);
+  };
+  cv::Mat sum, sq_sum;
+  cv::integral(window, sum, sq_sum, CV_32S, CV_64F);
+  const double n = static_cast<double>(tw) * th;
+  const double t_norm = std::sqrt(std::max(n * sum_tt - sum_t * sum_t, 0.0));
+  cv::Mat scores(rh, rw, CV_32F);
+  for (int y = 0; y < rh; ++y) {
+    const std::int32_t* s0 = sum.ptr<std::int32_t>(y);
+    const std::int32_t* s1 = sum.ptr<std::int32_t>(y + th);
+    const double* q0 = sq_sum.ptr<double>(y);
+    const double* q1 = sq_sum.ptr<double>(y + th);
+    float* out = scores.ptr<float>(y);
+    for (int x = 0; x < rw; ++x) {
+      const double sum_w = static_cast<double>(s1[x + tw] - s1[x] - s0[x + tw] + s0[x]);
+      const double sum_ww = q1[x + tw] - q1[x] - q0[x + tw] + q0[x];
+      const double numerator = n * dot(x, y) - sum_t * sum_w;
+      const double denominator = std::sqrt(std::max(n * sum_ww - sum_w * sum_w, 0.0)) * t_norm;
+      double score = 0.0;
+      if (std::abs(numerator) < denominator) {
+        score = numerator / denominator;
+      } else if (std::abs(numerator) < 1.125 * denominator) {
+        score = numerator > 0.0 ? 1.0 : -1.0;
+      }
+      out[x] = static_cast<float>(score);
+    }
+  }
+  return scores;
+}
+
 ScoreMap Match(const cv::Mat& templ, const cv::Mat& window) {
   ScoreMap m;
-  cv::matchTemplate(window, templ, m.scores, cv::TM_CCOEFF_NORMED);
+  const int score_pixels = (window.cols - templ.cols + 1) * (window.rows - templ.rows + 1);
+  if (score_pixels <= kMaxDirectScores && templ.total() <= static_cast<std::size_t>(kMaxDirectTemplatePixels)) {
+    m.scores = DirectZncc(templ, window);
+  } else {
+    cv::matchTemplate(window, templ, m.scores, cv::TM_CCOEFF_NORMED);
+  }
   double min_value = 0.0;
   cv::minMaxLoc(m.scores, &min_value, &m.peak, nullptr, &m.best);
   return m;
