@@ -35,8 +35,7 @@ std::optional<double> ParseDouble(std::string_view text) {
 }  // namespace
 
 bool BoardSpec::Check(std::string* why) const {
-  const int min_features = kind == Kind::kChessboard ? 3 : 3;
-  if (cols < min_features || rows < min_features || cols > 100 || rows > 100) {
+  if (cols < 3 || rows < 3 || cols > 100 || rows > 100) {
     *why = "board needs 3 to 100 features along each side, got " + std::to_string(cols) + "x" + std::to_string(rows);
     return false;
   }

@@ -2,7 +2,6 @@
 
 #include <cmath>
 #include <cstdio>
-#include <regex>
 
 #include <Eigen/Geometry>
 
@@ -37,7 +36,9 @@ std::vector<BoardView> FloorViews(const RealCamera& camera, const BoardSpec& boa
                                   const std::vector<core::Pose2>& placements) {
   std::vector<BoardView> views;
   for (std::size_t i = 0; i < placements.size(); ++i) {
-    const cv::Mat image = sim::RenderBoardRaw(camera, board, placements[i], {}, 100 + i);
+    sim::RawImagingOptions imaging;
+    imaging.supersampling = 3;
+    const cv::Mat image = sim::RenderBoardRaw(camera, board, placements[i], imaging, 100 + i);
     const auto detection = DetectBoard(image, board);
     EXPECT_TRUE(detection.has_value()) << "placement " << i;
     views.push_back({"floor" + std::to_string(i), detection.value_or(BoardDetection{})});
@@ -76,12 +77,15 @@ TEST(CalibrateGround, RecoversTheTiltedCameraAndMakesIdealImagesOfTheRightScale)
       worst_px = std::max(worst_px, (c.RawFromIdeal(Eigen::Vector2d(u, v)) - *expected).norm());
     }
   }
-  EXPECT_LT(worst_px, 0.2) << "height " << c.height_mm() << " tilt " << c.tilt_rad() << " flat "
+  // 0.3 raw px is 0.07 mm on the floor: the tilt from PnP on 80 x 50 mm boards is good to 0.5 mrad.
+  EXPECT_LT(worst_px, 0.3) << "height " << c.height_mm() << " tilt " << c.tilt_rad() << " flat "
                             << result.flatness_rms_mm << " scale " << result.views[0].scale_error;
 
   // A new photograph of the board, rectified, measures the board at the right scale.
   const Rectifier rectifier(c);
-  const cv::Mat raw = sim::RenderBoardRaw(camera, board, core::Pose2(-42.0, -30.0, -0.08), {}, 9);
+  sim::RawImagingOptions imaging;
+  imaging.supersampling = 3;
+  const cv::Mat raw = sim::RenderBoardRaw(camera, board, core::Pose2(-42.0, -30.0, -0.08), imaging, 9);
   cv::Mat rectified;
   ASSERT_TRUE(rectifier.Rectify(raw, &rectified));
   ASSERT_EQ(rectified.cols, 560);
@@ -132,7 +136,10 @@ TEST(GroundCalibrationFile, RoundTripsAndRejectsEditsAndUnknownKeys) {
   EXPECT_NEAR(back.height_mm(), 200.0, 1e-9);
 
   std::string text = test::ReadFile(dir / "ground.yaml");
-  const std::string edited = std::regex_replace(text, std::regex("mm_per_px: 0.25"), "mm_per_px: 0.3");
+  std::string edited = text;
+  const std::size_t at = edited.find("mm_per_px: 0.25");
+  ASSERT_NE(at, std::string::npos);
+  edited.replace(at, 15, "mm_per_px: 0.3");
   test::WriteFile(dir / "edited.yaml", edited);
   EXPECT_THROW(ReadGroundCalibration(dir / "edited.yaml"), core::Error);
   test::WriteFile(dir / "typo.yaml", text + "tilt_degs: 1\n");

@@ -66,6 +66,14 @@ TEST(Board, PrintedBoardIsDetectedWhereItsCornersAre) {
 }
 
 // The synthetic camera: known intrinsics and distortion, photographs through the real-camera model.
+// Three samples per pixel along each axis keep the rendering (and the tests under the
+// sanitizers) fast; the edges stay smooth enough for sub-pixel detection.
+sim::RawImagingOptions Imaging() {
+  sim::RawImagingOptions options;
+  options.supersampling = 3;
+  return options;
+}
+
 camera::RealCameraOptions TruthCamera() {
   camera::RealCameraOptions truth;
   truth.fx_px = 812.0;
@@ -100,7 +108,7 @@ void ExpectRecovered(const Intrinsics& estimate, const camera::RealCameraOptions
 TEST(CalibrateIntrinsics, RecoversASyntheticCameraFromChessboardShots) {
   const BoardSpec board = ParseBoardSpec("chessboard:9x6:20mm");
   const camera::RealCameraOptions truth = TruthCamera();
-  const auto shots = sim::RenderIntrinsicsShots(truth, board, 12, 0.42, sim::RawImagingOptions{}, 11);
+  const auto shots = sim::RenderIntrinsicsShots(truth, board, 12, 0.42, Imaging(), 11);
   std::vector<BoardView> views = Detect(shots, board);
   // A photograph with no board in it is reported, not used.
   views.push_back({"blank.png", {}});
@@ -125,9 +133,9 @@ TEST(CalibrateIntrinsics, RecoversASyntheticCameraFromChessboardShots) {
 TEST(CalibrateIntrinsics, RecoversASyntheticCameraFromCircleGridShots) {
   const BoardSpec board = ParseBoardSpec("circles:7x5:24mm");
   const camera::RealCameraOptions truth = TruthCamera();
-  const auto shots = sim::RenderIntrinsicsShots(truth, board, 12, 0.3, sim::RawImagingOptions{}, 5);
+  const auto shots = sim::RenderIntrinsicsShots(truth, board, 8, 0.3, Imaging(), 5);
   const IntrinsicsResult result = CalibrateIntrinsics(Detect(shots, board), board, truth.width_px, truth.height_px, {});
-  EXPECT_GE(result.used.size(), 10u);
+  EXPECT_GE(result.used.size(), 7u);
   // Blob centroids are not the projected circle centres under perspective: looser bounds.
   EXPECT_LT(std::abs(result.visp.intrinsics.fx_px / truth.fx_px - 1.0), 0.01);
   EXPECT_LT(std::abs(result.visp.intrinsics.kud / truth.k1 - 1.0), 0.1);
@@ -137,7 +145,7 @@ TEST(CalibrateIntrinsics, RecoversASyntheticCameraFromCircleGridShots) {
 TEST(CalibrateIntrinsics, RejectsAnOutlierViewNamingIt) {
   const BoardSpec board = ParseBoardSpec("chessboard:9x6:20mm");
   const camera::RealCameraOptions truth = TruthCamera();
-  const auto shots = sim::RenderIntrinsicsShots(truth, board, 6, 0.4, sim::RawImagingOptions{}, 3);
+  const auto shots = sim::RenderIntrinsicsShots(truth, board, 6, 0.4, Imaging(), 3);
   std::vector<BoardView> views = Detect(shots, board);
   for (auto& p : views[2].detection.points_px) p += Eigen::Vector2d(std::sin(7.0 * p.y()), std::cos(5.0 * p.x()));
   const IntrinsicsResult result = CalibrateIntrinsics(views, board, truth.width_px, truth.height_px, {});
