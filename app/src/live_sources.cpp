@@ -77,4 +77,28 @@ std::string DatasetFrameSource::Describe() const {
                      reader_.info().camera.width_px, reader_.info().camera.height_px);
 }
 
+RectifyingFrameSource::RectifyingFrameSource(std::unique_ptr<io::FrameSource> raw,
+                                             const camera::GroundCalibration& calibration)
+    : raw_(std::move(raw)), rectifier_(calibration) {}
+
+std::optional<io::CapturedFrame> RectifyingFrameSource::Next() {
+  std::optional<io::CapturedFrame> frame = raw_->Next();
+  if (!frame) return std::nullopt;
+  cv::Mat ideal;
+  if (!rectifier_.Rectify(frame->image, &ideal)) {
+    const camera::Intrinsics& raw = rectifier_.calibration().intrinsics;
+    core::ThrowRuntime(fmt::format("{}: a {}x{} frame (type {}) where the ground calibration expects {}x{} 8-bit grey",
+                                   raw_->Describe(), frame->image.cols, frame->image.rows, frame->image.type(),
+                                   raw.width_px, raw.height_px));
+  }
+  frame->image = std::move(ideal);
+  return frame;
+}
+
+std::string RectifyingFrameSource::Describe() const {
+  const camera::IdealCameraOptions& ideal = rectifier_.calibration().ideal;
+  return fmt::format("{}, rectified to {}x{} at {} mm/px", raw_->Describe(), ideal.width_px, ideal.height_px,
+                     ideal.mm_per_px);
+}
+
 }  // namespace mosaicloc::app

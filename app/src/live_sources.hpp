@@ -2,8 +2,10 @@
 
 #include <atomic>
 #include <filesystem>
+#include <memory>
 #include <optional>
 
+#include "mosaicloc/camera/ground.hpp"
 #include "mosaicloc/core/timestamp.hpp"
 #include "mosaicloc/dataset/dataset.hpp"
 #include "mosaicloc/io/frame_source.hpp"
@@ -63,6 +65,24 @@ class DatasetFrameSource final : public io::FrameSource {
   Playback playback_;
   std::int64_t sequence_ = 0;
   std::atomic<bool> stop_{false};
+};
+
+/// A real camera's raw frames made ideal (camera::Rectifier, from the ground calibration)
+/// before they enter the pipeline: what every source of raw images is wrapped in.
+class RectifyingFrameSource final : public io::FrameSource {
+ public:
+  /// Throws core::Error (invalid input) if the calibration fails its check.
+  RectifyingFrameSource(std::unique_ptr<io::FrameSource> raw, const camera::GroundCalibration& calibration);
+  /// The next frame, rectified. Throws core::Error (runtime) naming the source when a frame
+  /// is not the calibrated raw size.
+  std::optional<io::CapturedFrame> Next() override;
+  void Stop() override { raw_->Stop(); }
+  std::string Describe() const override;
+  std::int64_t dropped() const override { return raw_->dropped(); }
+
+ private:
+  std::unique_ptr<io::FrameSource> raw_;
+  camera::Rectifier rectifier_;
 };
 
 }  // namespace mosaicloc::app

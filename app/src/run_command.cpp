@@ -651,6 +651,14 @@ void Run(const RunArgs& args, const GlobalOptions& global) {
   } else {
     source = std::make_unique<io::V4l2Camera>(config.v4l2);
   }
+  if (config.ground_calibration) {
+    // A real camera: its raw frames are made ideal, and the ideal image is the camera.
+    const camera::IdealCameraOptions& ideal = config.ground_calibration->ideal;
+    camera.width_px = ideal.width_px;
+    camera.height_px = ideal.height_px;
+    camera.mm_per_px = ideal.mm_per_px;
+    source = std::make_unique<RectifyingFrameSource>(std::move(source), *config.ground_calibration);
+  }
   LiveRun run(config, global, std::move(source), camera, vehicle, args.record);
   g_signal = 0;
   std::signal(SIGINT, OnSignal);

@@ -1,5 +1,6 @@
 #include "run_config.hpp"
 
+#include <cmath>
 #include <numbers>
 
 #include <fmt/format.h>
@@ -120,12 +121,35 @@ RunConfig LoadRunConfig(const std::filesystem::path& file) {
   config.simulator_config = resolve(simulator_config);
   simulator.Optional("start_unix_s", &config.dataset_start_unix_s, InRange(0.0, 1e11));
   simulator.Finish();
+  std::string ground;
+  camera.Optional("ground", &ground);
   camera.Finish();
   if (config.camera_source == "dataset" && config.dataset.empty()) {
     camera.AddProblem("dataset", "source: dataset needs dataset.path, the recording to play");
   }
   config.v4l2.width_px = config.camera.width_px;
   config.v4l2.height_px = config.camera.height_px;
+  if (!ground.empty()) {
+    config.ground = resolve(ground);
+    if (config.camera_source == "simulator") {
+      camera.AddProblem("ground", "the simulator renders ideal images; a ground calibration is for a real camera");
+    } else {
+      config.ground_calibration = camera::ReadGroundCalibration(config.ground);
+      const camera::IdealCameraOptions& ideal = config.ground_calibration->ideal;
+      if (config.camera_source == "v4l2" &&
+          (ideal.width_px != config.camera.width_px || ideal.height_px != config.camera.height_px ||
+           std::abs(ideal.mm_per_px - config.camera.mm_per_px) > 1e-9)) {
+        camera.AddProblem("ground", fmt::format("{} makes {}x{} ideal images at {} mm/px, but camera.width_px, "
+                                                "height_px and mm_per_px say {}x{} at {} mm/px",
+                                                config.ground.string(), ideal.width_px, ideal.height_px,
+                                                ideal.mm_per_px, config.camera.width_px, config.camera.height_px,
+                                                config.camera.mm_per_px));
+      }
+      // The device delivers the raw image the calibration was made with.
+      config.v4l2.width_px = config.ground_calibration->intrinsics.width_px;
+      config.v4l2.height_px = config.ground_calibration->intrinsics.height_px;
+    }
+  }
 
   core::YamlMap vehicle = root.OptionalMap("vehicle");
   vehicle.Optional("left_wheel_radius_mm", &config.vehicle.left_wheel_radius_mm, InRange(1.0, 5000.0));

@@ -7,6 +7,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "localizer_config.hpp"
+#include "mosaicloc/camera/ground.hpp"
 #include "mosaicloc/core/pose2.hpp"
 #include "mosaicloc/dataset/dataset.hpp"
 #include "mosaicloc/io/plc_link.hpp"
@@ -29,6 +30,12 @@ struct RunConfig {
   /// camera_source simulator: the simulator configuration (empty: its defaults); played like
   /// a recording, starting at dataset_start_unix_s.
   std::filesystem::path simulator_config;
+  /// Ground-plane calibration of a real camera (`mosaicloc calibrate ground`). When given,
+  /// the source delivers raw images (a V4L2 camera at the calibration's raw size, or a raw
+  /// recording) and every frame is rectified into the ideal image it describes before it
+  /// enters the pipeline.
+  std::filesystem::path ground;
+  std::optional<camera::GroundCalibration> ground_calibration;
 
   io::PlcLinkOptions plc;
   /// Poll and output period. Faster than the PLC updates its counters, so a change is seen

@@ -6,38 +6,6 @@ source "$(dirname "$0")/lib.sh"
 require_peers
 make_site site 1.0
 
-# Every visual fix the run recorded is within the replay accuracy of the ground truth
-# (recorded frame k is the played dataset's frame k).
-check_recorded_fixes() {
-  $PYTHON - "$1" "$SCRATCH/site-run" <<'PY' || fail "recorded fixes of $1 are off the ground truth"
-import bisect, math, sys
-rec, run = sys.argv[1], sys.argv[2]
-def rows(path):
-    return [l.strip().split(",") for l in open(path) if l.strip() and not l.startswith("#")]
-recorded = [int(r[0]) for r in rows(rec + "/cam0/data.csv")]
-played = [int(r[0]) for r in rows(run + "/cam0/data.csv")]
-truth = []
-for l in open(run + "/groundtruth/data.tum"):
-    if l.startswith("#") or not l.strip():
-        continue
-    v = [float(x) for x in l.split()]
-    truth.append((round(v[0] * 1e9), v[1] * 1000.0, v[2] * 1000.0))
-times = [t for t, _, _ in truth]
-errors = []
-for r in rows(rec + "/fixes/data.csv"):
-    k = recorded.index(int(r[0]))
-    t = played[k]
-    i = min(max(bisect.bisect_left(times, t), 1), len(truth) - 1)
-    (t0, x0, y0), (t1, x1, y1) = truth[i - 1], truth[i]
-    a = (t - t0) / (t1 - t0)
-    errors.append(math.hypot(float(r[1]) - (x0 + a * (x1 - x0)), float(r[2]) - (y0 + a * (y1 - y0))))
-rms = math.sqrt(sum(e * e for e in errors) / len(errors))
-print(f"recorded fixes: {len(errors)} of {len(recorded)} frames, rms {rms:.4f} mm, max {max(errors):.4f} mm")
-assert len(errors) >= 0.95 * len(played), len(errors)
-assert rms <= 0.02 and max(errors) <= 0.5, (rms, max(errors))
-PY
-}
-
 # --- mosaicloc polls the PLC (client role), word order high word first.
 PORT=$(free_port)
 run_config "$SCRATCH/run.yaml" "$PORT"
@@ -61,7 +29,7 @@ json_check "$SCRATCH/plc.json" 'd["answered"] >= d["requests"] - 3' 'd["answered
   'd["still_fixes"] >= 5' 'd["still_max_error_mm"] <= 0.1' 'd["moving_fixes"] >= 5' \
   'd["moving_max_error_per_speed_ms"] <= 150' 'all(f["status"] in (0, 1) for f in d["fixes"])' \
   'all(f["status"] == 1 for f in d["fixes"] if f["t_s"] > 0.5)'
-check_recorded_fixes "$SCRATCH/rec"
+check_recorded_fixes "$SCRATCH/rec" "$SCRATCH/site-run"
 # The recording replays offline.
 expect_exit 0 "$MOSAICLOC" --quiet --json replay --dataset "$SCRATCH/rec" --map "$SCRATCH/site.mosaic" \
   --out "$SCRATCH/rec-report"
