@@ -22,11 +22,11 @@ class ModbusClient final : public PlcLink {
   explicit ModbusClient(const PlcLinkOptions& options)
       : options_(options),
         context_(detail::NewContext(options, /*server=*/false)),
-        read_spans_(GroupIntoSpans(options.registers.Inputs(), /*max_gap=*/8)),
-        write_spans_(GroupIntoSpans(options.registers.Outputs(), /*max_gap=*/0)),
-        input_range_(detail::RangeOf(options.registers.Inputs())),
-        output_range_(detail::RangeOf(options.registers.Outputs())),
-        decoder_(options.registers),
+        read_spans_(GroupIntoSpans(options_.registers.Inputs(), /*max_gap=*/8)),
+        write_spans_(GroupIntoSpans(options_.registers.Outputs(), /*max_gap=*/0)),
+        input_range_(detail::RangeOf(options_.registers.Inputs())),
+        output_range_(detail::RangeOf(options_.registers.Outputs())),
+        decoder_(options_.registers),
         backoff_(Milliseconds(options.reconnect_min_ms)) {}
 
   core::Result<PlcInputs> Read() override {
