@@ -1,36 +1,18 @@
 #include "mosaicloc/mosaic/build_checkpoint.hpp"
 
 #include <sqlite3.h>
-#include <zlib.h>
 
 #include <charconv>
 #include <cstring>
 
 #include "mosaicloc/core/error.hpp"
+#include "sqlite_util.hpp"
 
 namespace mosaicloc::mosaic {
 namespace {
 
-class Statement {
- public:
-  Statement(sqlite3* db, const char* sql, const std::filesystem::path& file) {
-    if (sqlite3_prepare_v2(db, sql, -1, &statement_, nullptr) != SQLITE_OK) {
-      core::ThrowRuntime(file.string() + ": SQLite cannot prepare '" + sql + "': " + sqlite3_errmsg(db));
-    }
-  }
-  ~Statement() { sqlite3_finalize(statement_); }
-  Statement(const Statement&) = delete;
-  Statement& operator=(const Statement&) = delete;
-  sqlite3_stmt* get() const { return statement_; }
-
- private:
-  sqlite3_stmt* statement_ = nullptr;
-};
-
-std::uint32_t Crc32(const void* data, std::size_t bytes) {
-  return static_cast<std::uint32_t>(
-      crc32(crc32(0L, Z_NULL, 0), static_cast<const Bytef*>(data), static_cast<uInt>(bytes)));
-}
+using internal::Crc32;
+using internal::Statement;
 
 constexpr const char* kFramesDone = "frames_done";
 constexpr const char* kFramesPainted = "frames_painted";

@@ -1,7 +1,6 @@
 #include "mosaicloc/mosaic/tile_store.hpp"
 
 #include <sqlite3.h>
-#include <zlib.h>
 
 #include <charconv>
 #include <map>
@@ -9,26 +8,12 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "mosaicloc/core/error.hpp"
+#include "sqlite_util.hpp"
 
 namespace mosaicloc::mosaic {
 namespace {
 
-// A prepared statement that finalizes itself.
-class Statement {
- public:
-  Statement(sqlite3* db, const char* sql, const std::filesystem::path& file) {
-    if (sqlite3_prepare_v2(db, sql, -1, &statement_, nullptr) != SQLITE_OK) {
-      core::ThrowRuntime(file.string() + ": SQLite cannot prepare '" + sql + "': " + sqlite3_errmsg(db));
-    }
-  }
-  ~Statement() { sqlite3_finalize(statement_); }
-  Statement(const Statement&) = delete;
-  Statement& operator=(const Statement&) = delete;
-  sqlite3_stmt* get() const { return statement_; }
-
- private:
-  sqlite3_stmt* statement_ = nullptr;
-};
+using internal::Statement;
 
 std::string FormatDouble(double value) {
   char buffer[64];
@@ -144,8 +129,7 @@ std::vector<unsigned char> TileStore::Encode(const cv::Mat& pixels) {
 }
 
 std::uint32_t TileStore::Crc32(const std::vector<unsigned char>& data) {
-  return static_cast<std::uint32_t>(
-      crc32(crc32(0L, Z_NULL, 0), data.data(), static_cast<uInt>(data.size())));
+  return internal::Crc32(data.data(), data.size());
 }
 
 TileRead TileStore::Read(const TileKey& key, cv::Mat buffer) const {
