@@ -48,15 +48,18 @@ std::pair<double, double> ResidentMib() {
   return {rss, peak};
 }
 
-void Build(const std::filesystem::path& file, int tiles_per_side, int threads) {
+void Build(const std::filesystem::path& file, int tiles_per_side, int threads, int png_compression) {
   const auto start = Clock::now();
   mosaic::MapGrid grid;
   grid.levels = 1;
   auto store = mosaic::TileStore::Create(file, grid);
+  store->SetPngCompression(png_compression);
   sim::ProceduralFloorOptions floor_options;
   floor_options.mm_per_texel = grid.mm_per_px;
   floor_options.cache_bytes = std::size_t{8} << 20;
   const auto floor = sim::MakeProceduralFloor(floor_options);
+  // One row is encoded and written while the next is generated.
+  std::future<void> writer;
   for (int row = 0; row < tiles_per_side; ++row) {
     std::vector<mosaic::TileWrite> tiles(static_cast<std::size_t>(tiles_per_side));
     std::vector<std::future<void>> workers;
@@ -70,17 +73,19 @@ void Build(const std::filesystem::path& file, int tiles_per_side, int threads) {
       }));
     }
     for (auto& worker : workers) worker.get();
-    store->Write(tiles);
+    if (writer.valid()) writer.get();
+    writer = std::async(std::launch::async, [&store, tiles = std::move(tiles)] { store->Write(tiles); });
     if (row % 16 == 15) {
       std::fprintf(stderr, "build: %d / %d rows, %.0f s\n", row + 1, tiles_per_side,
                    std::chrono::duration<double>(Clock::now() - start).count());
     }
   }
+  if (writer.valid()) writer.get();
   const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
   const double gigapixels = static_cast<double>(tiles_per_side) * tiles_per_side * 65536.0 / 1e9;
-  std::printf("built %s: %d x %d tiles = %.2f gigapixels (%.1f x %.1f m), %.1f GiB on disk, %.0f s\n",
+  std::printf("built %s: %d x %d tiles = %.2f gigapixels (%.1f x %.1f m), PNG level %d, %.2f GiB on disk, %.0f s\n",
               file.c_str(), tiles_per_side, tiles_per_side, gigapixels, tiles_per_side * 0.064, tiles_per_side * 0.064,
-              static_cast<double>(std::filesystem::file_size(file)) / (1 << 30), seconds);
+              png_compression, static_cast<double>(std::filesystem::file_size(file)) / (1 << 30), seconds);
 }
 
 void Drive(const std::filesystem::path& file, double drive_km, double speed_mps, double frame_rate_hz,
@@ -185,12 +190,14 @@ int main(int argc, char** argv) {
   std::filesystem::path map = "/tmp/mosaicloc-scale.mosaic";
   int tiles_per_side = 248;
   int threads = 2;
+  int png_compression = mosaic::kDefaultTilePngCompression;
   double drive_km = 10.0, speed_mps = 3.0, frame_rate_hz = 30.0, time_scale = 10.0;
   std::size_t budget_mib = 256;
   bool no_prefetch = false;
   app.add_option("--map", map, "Map file; built when missing");
   app.add_option("--tiles-per-side", tiles_per_side, "Tiles per side of the square map built (248: 4.03 gigapixels)");
   app.add_option("--threads", threads, "Tile generation threads for the build");
+  app.add_option("--png-compression", png_compression, "zlib level of the tiles built")->check(CLI::Range(0, 9));
   app.add_option("--drive-km", drive_km, "Route length (0: build only)");
   app.add_option("--speed-mps", speed_mps, "Vehicle speed");
   app.add_option("--frame-rate-hz", frame_rate_hz, "Camera frame rate");
@@ -198,7 +205,7 @@ int main(int argc, char** argv) {
   app.add_option("--budget-mib", budget_mib, "Tile cache budget");
   app.add_flag("--no-prefetch", no_prefetch, "Drive without the prefetcher (the baseline)");
   CLI11_PARSE(app, argc, argv);
-  if (!std::filesystem::exists(map)) Build(map, tiles_per_side, threads);
+  if (!std::filesystem::exists(map)) Build(map, tiles_per_side, threads, png_compression);
   if (drive_km > 0) Drive(map, drive_km, speed_mps, frame_rate_hz, time_scale, budget_mib, !no_prefetch);
   return 0;
 }

@@ -120,9 +120,16 @@ std::unique_ptr<TileStore> TileStore::Open(const std::filesystem::path& file, bo
   return store;
 }
 
-std::vector<unsigned char> TileStore::Encode(const cv::Mat& pixels) {
+void TileStore::SetPngCompression(int level) {
+  if (level < 0 || level > 9) {
+    core::ThrowInvalidInput(file_.string() + ": PNG compression level " + std::to_string(level) + " is not in 0-9");
+  }
+  png_compression_ = level;
+}
+
+std::vector<unsigned char> TileStore::Encode(const cv::Mat& pixels, int png_compression) {
   std::vector<unsigned char> png;
-  if (!cv::imencode(".png", pixels, png, {cv::IMWRITE_PNG_COMPRESSION, 3})) {
+  if (!cv::imencode(".png", pixels, png, {cv::IMWRITE_PNG_COMPRESSION, png_compression})) {
     core::ThrowRuntime("cannot encode a map tile as PNG");
   }
   return png;
@@ -178,7 +185,7 @@ void TileStore::Write(const std::vector<TileWrite>& tiles) {
         tile.pixels.cols != grid_.tile_size_px) {
       core::ThrowInvalidInput(file_.string() + ": tile " + tile.key.ToString() + " to write has the wrong size or type");
     }
-    encoded.push_back(Encode(tile.pixels));
+    encoded.push_back(Encode(tile.pixels, png_compression_));
   }
   const std::lock_guard lock(mutex_);
   Execute("BEGIN IMMEDIATE;");

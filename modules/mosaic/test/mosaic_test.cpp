@@ -105,6 +105,53 @@ void SqlOn(const fs::path& file, const std::string& sql) {
   sqlite3_close(db);
 }
 
+// The stored size of one tile's PNG.
+std::int64_t BlobBytes(const fs::path& file, const TileKey& key) {
+  sqlite3* db = nullptr;
+  EXPECT_EQ(sqlite3_open(file.c_str(), &db), SQLITE_OK);
+  sqlite3_stmt* statement = nullptr;
+  EXPECT_EQ(sqlite3_prepare_v2(db, "SELECT length(data) FROM tiles WHERE level = ? AND col = ? AND row = ?", -1,
+                               &statement, nullptr), SQLITE_OK);
+  sqlite3_bind_int(statement, 1, key.level);
+  sqlite3_bind_int64(statement, 2, key.col);
+  sqlite3_bind_int64(statement, 3, key.row);
+  const std::int64_t bytes = sqlite3_step(statement) == SQLITE_ROW ? sqlite3_column_int64(statement, 0) : -1;
+  sqlite3_finalize(statement);
+  sqlite3_close(db);
+  return bytes;
+}
+
+TEST(TileStore, TilesOfEveryPngLevelReadBackExactly) {
+  test::ScratchDir dir;
+  MapGrid grid;
+  grid.tile_size_px = 64;
+  cv::Mat texture = SourceTexture(64);
+  cv::max(texture, 1, texture);
+  {
+    auto store = TileStore::Create(dir / "p.mosaic", grid);
+    EXPECT_EQ(store->png_compression(), kDefaultTilePngCompression);
+    EXPECT_THROW(store->SetPngCompression(10), core::Error);
+    EXPECT_THROW(store->SetPngCompression(-1), core::Error);
+    for (const int level : {0, 3, 9}) {
+      store->SetPngCompression(level);
+      store->Write({{TileKey{0, level, 0}, texture}});
+    }
+  }
+  // A map written at another level (as maps were before level 0 was the default) opens and
+  // reads the same pixels.
+  auto store = TileStore::Open(dir / "p.mosaic", false);
+  for (const int level : {0, 3, 9}) {
+    const TileRead read = store->Read(TileKey{0, level, 0});
+    ASSERT_EQ(read.status, TileStatus::kOk) << read.problem;
+    EXPECT_EQ(cv::norm(read.pixels, texture, cv::NORM_INF), 0.0) << "level " << level;
+  }
+  // Level 0 stores the filtered rows as they are; the others do compress.
+  const std::int64_t stored = BlobBytes(dir / "p.mosaic", TileKey{0, 0, 0});
+  EXPECT_GE(stored, 64 * 65);
+  EXPECT_LT(BlobBytes(dir / "p.mosaic", TileKey{0, 3, 0}), stored);
+  EXPECT_LE(BlobBytes(dir / "p.mosaic", TileKey{0, 9, 0}), BlobBytes(dir / "p.mosaic", TileKey{0, 3, 0}));
+}
+
 TEST(TileStore, BadMetadataIsNamed) {
   test::ScratchDir dir;
   TileStore::Create(dir / "m.mosaic", MapGrid{});
