@@ -85,31 +85,38 @@ int RowInsideScalar(const Row& row, int begin, int end, std::uint8_t* out, std::
 // (32 - fx, fx) their sum, exactly sum w p.
 #define MOSAICLOC_AVX2_INLINE __attribute__((target("avx2"), always_inline)) inline
 
-MOSAICLOC_AVX2_INLINE __m256i EightAvx2(const Row& row, int at, bool all_mapped, __m256i* good) {
+// What the vector path needs of a row, in registers.
+struct RowAvx2 {
+  const std::uint8_t* data;
+  const int* adelta;
+  const int* bdelta;
+  __m256i x0, y0;
+  __m256i stride;  // 16-bit pairs (1, stride): madd with (2 ix, iy) gives the byte offset
+};
+
+MOSAICLOC_AVX2_INLINE __m256i EightAvx2(const RowAvx2& row, int at, bool all_mapped, __m256i* good) {
   const __m256i m31 = _mm256_set1_epi32(31);
   const __m256i m32 = _mm256_set1_epi32(32);
   const __m256i X = _mm256_srai_epi32(
-      _mm256_add_epi32(_mm256_set1_epi32(row.x0), _mm256_loadu_si256(reinterpret_cast<const __m256i*>(row.adelta + at))),
-      kFractionBits);
+      _mm256_add_epi32(row.x0, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(row.adelta + at))), kFractionBits);
   const __m256i Y = _mm256_srai_epi32(
-      _mm256_add_epi32(_mm256_set1_epi32(row.y0), _mm256_loadu_si256(reinterpret_cast<const __m256i*>(row.bdelta + at))),
-      kFractionBits);
+      _mm256_add_epi32(row.y0, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(row.bdelta + at))), kFractionBits);
   // Byte offset iy stride + 2 ix, from 16-bit (2 ix, iy) pairs (both below 2^15).
   const __m256i index = _mm256_or_si256(_mm256_srai_epi32(X, kFractionBits - 1),
                                         _mm256_slli_epi32(_mm256_srai_epi32(Y, kFractionBits), 16));
-  const __m256i offset = _mm256_madd_epi16(
-      _mm256_and_si256(index, _mm256_set1_epi32(~1)), _mm256_set1_epi32(1 | static_cast<int>(row.source->stride << 16)));
+  const __m256i offset = _mm256_madd_epi16(_mm256_and_si256(index, _mm256_set1_epi32(~1)), row.stride);
   const __m256i fx = _mm256_and_si256(X, m31);
   const __m256i fy = _mm256_and_si256(Y, m31);
   const __m256i wy = _mm256_or_si256(_mm256_sub_epi32(m32, fy), _mm256_slli_epi32(fy, 8));  // bytes (32 - fy, fy)
   const __m256i wy2 = _mm256_or_si256(wy, _mm256_slli_epi32(wy, 16));
   const __m256i wx = _mm256_or_si256(_mm256_sub_epi32(m32, fx), _mm256_slli_epi32(fx, 16));  // words (32 - fx, fx)
   // Eight loads beat one gather instruction on the processors measured (AMD Zen 3: 0.34
-  // against 0.40 ms for a 640 x 480 view).
-  alignas(32) int offsets[8];
+  // against 0.40 ms for a 640 x 480 view). The offsets are unsigned, so each indexes a
+  // load as extracted, without a sign extension.
+  alignas(32) std::uint32_t offsets[8];
   _mm256_store_si256(reinterpret_cast<__m256i*>(offsets), offset);
   int quads[8];
-  for (int k = 0; k < 8; ++k) std::memcpy(&quads[k], row.source->data + offsets[k], 4);
+  for (int k = 0; k < 8; ++k) std::memcpy(&quads[k], row.data + offsets[k], 4);
   const __m256i p = _mm256_setr_epi32(quads[0], quads[1], quads[2], quads[3], quads[4], quads[5], quads[6], quads[7]);
   const __m256i sum = _mm256_madd_epi16(_mm256_maddubs_epi16(p, wy2), wx);
   __m256i value = _mm256_srai_epi32(_mm256_add_epi32(sum, _mm256_set1_epi32(512)), 10);
@@ -123,10 +130,15 @@ MOSAICLOC_AVX2_INLINE __m256i EightAvx2(const Row& row, int at, bool all_mapped,
   return value;
 }
 
-__attribute__((target("avx2"))) int RowInsideAvx2(const Row& row, int end, std::uint8_t* out, std::uint8_t* mask,
-                                                   bool all_mapped, int* done) {
+__attribute__((target("avx2"))) int RowInsideAvx2(const Row& scalar_row, int begin, int end, std::uint8_t* out,
+                                                   std::uint8_t* mask, bool all_mapped, int* done) {
+  // Copies in registers: the byte stores below could alias anything the compiler must
+  // otherwise reload.
+  const RowAvx2 row{scalar_row.source->data, scalar_row.adelta, scalar_row.bdelta, _mm256_set1_epi32(scalar_row.x0),
+                    _mm256_set1_epi32(scalar_row.y0),
+                    _mm256_set1_epi32(1 | static_cast<int>(scalar_row.source->stride << 16))};
   int valid = 0;
-  int x = 0;
+  int x = begin;
   for (; x + 16 <= end; x += 16) {
     __m256i good_a = _mm256_set1_epi32(-1), good_b = good_a;
     const __m256i a = EightAvx2(row, x, all_mapped, &good_a);
@@ -144,6 +156,108 @@ __attribute__((target("avx2"))) int RowInsideAvx2(const Row& row, int end, std::
     if (mask) _mm_storeu_si128(reinterpret_cast<__m128i*>(mask + x), good_bytes);
     valid += __builtin_popcount(static_cast<unsigned>(_mm_movemask_epi8(good_bytes)));
   }
+  *done = x;
+  return valid;
+}
+
+// The same arithmetic sixteen pixels at a time, positions in 16 bits. With x0 = 32 q + r and
+// adelta = 32 qa + ra (0 <= r, ra < 32), X = (x0 + adelta) >> 5 = q + qa + ((r + ra) >> 5):
+// exact in wrapping 16-bit arithmetic when X < 2^16, which holds for rasters of at most
+// 2048 columns. Words (2 ix, iy) interleaved by unpacklo / unpackhi give pixels 0-3, 8-11
+// and 4-7, 12-15, which packing puts back in order.
+struct Row16Avx2 {
+  const std::uint8_t* data;
+  const std::int16_t* qa;  // per column: adelta >> 5, wrapped to 16 bits
+  const std::int16_t* ra;  // adelta & 31
+  const std::int16_t* qb;  // bdelta likewise
+  const std::int16_t* rb;
+  __m256i qx, rx, qy, ry;  // the row's x0 and y0 split likewise, broadcast
+  __m256i stride;          // 16-bit pairs (1, stride)
+};
+
+MOSAICLOC_AVX2_INLINE __m256i Load16(const std::int16_t* words) {
+  return _mm256_loadu_si256(reinterpret_cast<const __m256i*>(words));
+}
+
+MOSAICLOC_AVX2_INLINE __m256i Broadcast16(int value) { return _mm256_set1_epi16(static_cast<std::int16_t>(value)); }
+
+MOSAICLOC_AVX2_INLINE __m256i LoadQuads(const std::uint8_t* data, __m256i offset) {
+  alignas(32) std::uint32_t offsets[8];
+  _mm256_store_si256(reinterpret_cast<__m256i*>(offsets), offset);
+  int quads[8];
+  for (int k = 0; k < 8; ++k) std::memcpy(&quads[k], data + offsets[k], 4);
+  return _mm256_setr_epi32(quads[0], quads[1], quads[2], quads[3], quads[4], quads[5], quads[6], quads[7]);
+}
+
+// 8 x int32 (lanes of pixels 0-3, 8-11) and (4-7, 12-15) -> 16 bytes of pixels 0-15.
+MOSAICLOC_AVX2_INLINE __m128i PackSixteen(__m256i low, __m256i high, bool saturate_signed) {
+  const __m256i words = saturate_signed ? _mm256_packs_epi32(low, high) : _mm256_packus_epi32(low, high);
+  const __m256i bytes = saturate_signed ? _mm256_packs_epi16(words, words) : _mm256_packus_epi16(words, words);
+  return _mm256_castsi256_si128(_mm256_permute4x64_epi64(bytes, 0x08));
+}
+
+MOSAICLOC_AVX2_INLINE int SixteenAvx2(const Row16Avx2& row, int at, bool all_mapped, std::uint8_t* out,
+                                      std::uint8_t* mask) {
+  const __m256i m31 = _mm256_set1_epi16(31);
+  const __m256i X = _mm256_add_epi16(_mm256_add_epi16(row.qx, Load16(row.qa + at)),
+                                     _mm256_srli_epi16(_mm256_add_epi16(row.rx, Load16(row.ra + at)), kFractionBits));
+  const __m256i Y = _mm256_add_epi16(_mm256_add_epi16(row.qy, Load16(row.qb + at)),
+                                     _mm256_srli_epi16(_mm256_add_epi16(row.ry, Load16(row.rb + at)), kFractionBits));
+  const __m256i two_ix = _mm256_and_si256(_mm256_srli_epi16(X, kFractionBits - 1), _mm256_set1_epi16(~1));
+  const __m256i iy = _mm256_srli_epi16(Y, kFractionBits);
+  const __m256i offset_low = _mm256_madd_epi16(_mm256_unpacklo_epi16(two_ix, iy), row.stride);
+  const __m256i offset_high = _mm256_madd_epi16(_mm256_unpackhi_epi16(two_ix, iy), row.stride);
+  const __m256i fx = _mm256_and_si256(X, m31);
+  const __m256i fy = _mm256_and_si256(Y, m31);
+  // Bytes (32 - fy, fy) are the word 32 + 255 fy; words (32 - fx, fx) pair up by unpacking.
+  const __m256i wy = _mm256_add_epi16(_mm256_mullo_epi16(fy, _mm256_set1_epi16(255)), _mm256_set1_epi16(32));
+  const __m256i wy_low = _mm256_unpacklo_epi16(wy, wy), wy_high = _mm256_unpackhi_epi16(wy, wy);
+  const __m256i fx_complement = _mm256_sub_epi16(_mm256_set1_epi16(32), fx);
+  const __m256i wx_low = _mm256_unpacklo_epi16(fx_complement, fx), wx_high = _mm256_unpackhi_epi16(fx_complement, fx);
+  const __m256i p_low = LoadQuads(row.data, offset_low);
+  const __m256i p_high = LoadQuads(row.data, offset_high);
+  const __m256i half = _mm256_set1_epi32(512);
+  __m256i value_low =
+      _mm256_srai_epi32(_mm256_add_epi32(_mm256_madd_epi16(_mm256_maddubs_epi16(p_low, wy_low), wx_low), half), 10);
+  __m256i value_high =
+      _mm256_srai_epi32(_mm256_add_epi32(_mm256_madd_epi16(_mm256_maddubs_epi16(p_high, wy_high), wx_high), half), 10);
+  if (all_mapped) {
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(out + at), PackSixteen(value_low, value_high, false));
+    if (mask) _mm_storeu_si128(reinterpret_cast<__m128i*>(mask + at), _mm_set1_epi8(-1));
+    return 16;
+  }
+  // The mapped neighbours carry all the weight exactly when no neighbour of non-zero weight
+  // is unmapped.
+  const __m256i one = _mm256_set1_epi8(1), full = _mm256_set1_epi32(1024);
+  const __m256i good_low = _mm256_cmpeq_epi32(
+      _mm256_madd_epi16(_mm256_maddubs_epi16(_mm256_min_epu8(p_low, one), wy_low), wx_low), full);
+  const __m256i good_high = _mm256_cmpeq_epi32(
+      _mm256_madd_epi16(_mm256_maddubs_epi16(_mm256_min_epu8(p_high, one), wy_high), wx_high), full);
+  value_low = _mm256_and_si256(value_low, good_low);
+  value_high = _mm256_and_si256(value_high, good_high);
+  _mm_storeu_si128(reinterpret_cast<__m128i*>(out + at), PackSixteen(value_low, value_high, false));
+  const __m128i good = PackSixteen(good_low, good_high, true);
+  if (mask) _mm_storeu_si128(reinterpret_cast<__m128i*>(mask + at), good);
+  return __builtin_popcount(static_cast<unsigned>(_mm_movemask_epi8(good)));
+}
+
+__attribute__((target("avx2"))) int RowInside16Avx2(const Row& scalar_row, const std::int16_t* split, int width,
+                                                     std::uint8_t* out, std::uint8_t* mask, bool all_mapped,
+                                                     int* done) {
+  const std::size_t n = static_cast<std::size_t>(width);
+  const Row16Avx2 row{scalar_row.source->data,
+                      split,
+                      split + n,
+                      split + 2 * n,
+                      split + 3 * n,
+                      Broadcast16(scalar_row.x0 >> kFractionBits),
+                      Broadcast16(scalar_row.x0 & 31),
+                      Broadcast16(scalar_row.y0 >> kFractionBits),
+                      Broadcast16(scalar_row.y0 & 31),
+                      _mm256_set1_epi32(1 | static_cast<int>(scalar_row.source->stride << 16))};
+  int valid = 0;
+  int x = 0;
+  for (; x + 16 <= width; x += 16) valid += SixteenAvx2(row, x, all_mapped, out, mask);
   *done = x;
   return valid;
 }
@@ -196,8 +310,20 @@ int WarpAffineBilinear(const PairRaster& source, const double map[6], cv::Mat& o
     bdelta[x] = Round(map[3] * x * kAbScale);
   }
   Row row{&source, adelta, bdelta, 0, 0};
-  // The vector path packs (2 ix, iy) and the stride into 16 bits.
+  // The vector paths pack (2 ix, iy) and the stride into 16 bits; the sixteen-pixel one
+  // also the positions X and Y, in 1/32 px.
   const bool vector = source.cols < (1 << 14) && source.rows < (1 << 15) && source.stride < (1 << 15);
+  const bool vector16 = vector && source.cols <= 2048 && source.rows <= 2048;
+  thread_local std::vector<std::int16_t> split;  // qa, ra, qb, rb of each column (see Row16Avx2)
+  if (vector16) {
+    split.resize(4 * static_cast<std::size_t>(width));
+    for (int x = 0; x < width; ++x) {
+      split[x] = static_cast<std::int16_t>(adelta[x] >> kFractionBits);
+      split[width + x] = static_cast<std::int16_t>(adelta[x] & 31);
+      split[2 * width + x] = static_cast<std::int16_t>(bdelta[x] >> kFractionBits);
+      split[3 * width + x] = static_cast<std::int16_t>(bdelta[x] & 31);
+    }
+  }
   int valid = 0;
   for (int y = 0; y < height; ++y) {
     row.x0 = Round((map[1] * y + map[2]) * kAbScale) + kRoundDelta;
@@ -215,7 +341,11 @@ int WarpAffineBilinear(const PairRaster& source, const double map[6], cv::Mat& o
     if (width > 0 && inside(0) && inside(width - 1)) {
       int x = 0;
 #ifdef MOSAICLOC_WARP_AVX2
-      if (vector && HaveAvx2()) valid += RowInsideAvx2(row, width, o, m, source_all_mapped, &x);
+      if (vector16 && HaveAvx2()) {
+        valid += RowInside16Avx2(row, split.data(), width, o, m, source_all_mapped, &x);
+      } else if (vector && HaveAvx2()) {
+        valid += RowInsideAvx2(row, 0, width, o, m, source_all_mapped, &x);
+      }
 #endif
       valid += RowInsideScalar(row, x, width, o, m, source_all_mapped);
       continue;
