@@ -8,6 +8,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "low_pass.hpp"
 #include "mosaicloc/mosaic/tile_store.hpp"
 #include "visp_refine.hpp"
 
@@ -66,28 +67,28 @@ RefinedMatch RefineDirect(const cv::Mat& frame, const cv::Rect& rect, const Refe
                           const Affine& frame_to_raster, const RefineOptions& options) {
   RefinedMatch match;
   const cv::Rect inner = rect & cv::Rect(1, 1, frame.cols - 2, frame.rows - 2);
-  const int blur_radius =
-      options.prefilter_sigma_px > 0.0 ? static_cast<int>(std::ceil(3.0 * options.prefilter_sigma_px)) : 0;
+  const int blur_radius = detail::LowPassRadius(options.prefilter_sigma_px);
   const int margin = static_cast<int>(std::ceil(options.max_shift_px)) + 2 + blur_radius;
   const mosaic::RasterPatch region = FetchRegion(reference, frame_to_raster, inner, margin);
 
   // Both sides low-pass filtered alike: real floors carry detail up to the pixel scale, where
   // bilinear interpolation is a poor model of the image between samples and would bias the
   // sub-pixel estimate. The mask shrinks by the kernel radius so no unknown pixel leaks in.
-  cv::Mat raster, raster_mask = region.mask;
-  bool all_known = region.all_mapped;
+  cv::Mat raster_mask = region.mask;
+  // The store says "all mapped" per tile; a block inside a partly mapped tile may still be.
+  const bool all_known = region.all_mapped || cv::countNonZero(region.mask) == static_cast<int>(region.mask.total());
   const cv::Rect around = cv::Rect(inner.x - 1 - blur_radius, inner.y - 1 - blur_radius,
                                    inner.width + 2 + 2 * blur_radius, inner.height + 2 + 2 * blur_radius) &
                           cv::Rect(0, 0, frame.cols, frame.rows);
-  cv::Mat templ_source;
-  frame(around).convertTo(templ_source, CV_32F);
-  region.image.convertTo(raster, CV_32F);
-  if (blur_radius > 0) {
+  // Per-thread buffers: several templates are refined every frame.
+  thread_local cv::Mat templ_store, raster_store;
+  cv::Mat templ_source = detail::ScratchImage(templ_store, around.size(), CV_32FC1);
+  cv::Mat raster = detail::ScratchImage(raster_store, region.image.size(), CV_32FC1);
+  detail::GaussianLowPass(frame(around), templ_source, options.prefilter_sigma_px, CV_32F);
+  detail::GaussianLowPass(region.image, raster, options.prefilter_sigma_px, CV_32F);
+  if (blur_radius > 0 && !all_known) {
     const cv::Size k(2 * blur_radius + 1, 2 * blur_radius + 1);
-    cv::GaussianBlur(templ_source, templ_source, k, options.prefilter_sigma_px, options.prefilter_sigma_px,
-                     cv::BORDER_REPLICATE);
-    cv::GaussianBlur(raster, raster, k, options.prefilter_sigma_px, options.prefilter_sigma_px, cv::BORDER_REPLICATE);
-    if (!all_known) cv::erode(region.mask, raster_mask, cv::getStructuringElement(cv::MORPH_RECT, k));
+    cv::erode(region.mask, raster_mask, cv::getStructuringElement(cv::MORPH_RECT, k));
   }
 
   const Eigen::Matrix2d a = frame_to_raster.leftCols<2>();
@@ -236,12 +237,8 @@ RefinedMatch RefineDirect(const cv::Mat& frame, const cv::Rect& rect, const Refe
 double SubPixelZncc(const cv::Mat& frame, const cv::Rect& rect, const cv::Mat& window, const cv::Point& origin,
                     const Eigen::Vector2d& shift, double sigma) {
   cv::Mat templ, win;
-  frame(rect).convertTo(templ, CV_32F);
-  window.convertTo(win, CV_32F);
-  if (sigma > 0.0) {
-    cv::GaussianBlur(templ, templ, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
-    cv::GaussianBlur(win, win, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
-  }
+  detail::GaussianLowPass(frame(rect), templ, sigma, CV_32F);
+  detail::GaussianLowPass(window, win, sigma, CV_32F);
   double st = 0.0, sm = 0.0, stt = 0.0, smm = 0.0, stm = 0.0;
   int n = 0;
   const cv::Mat no_mask;
@@ -364,6 +361,36 @@ cv::Mat RenderWindow(const ReferenceRaster& reference, const Affine& frame_to_ra
                                                                       static_cast<double>(region.row0));
   cv::Mat out(size, CV_8UC1);
   if (mask != nullptr) mask->create(size, CV_8UC1);
+  // Every sample inside the block and every block pixel known (the usual case, away from the
+  // map's edge): the same arithmetic as Sample without its per-pixel checks. The sample
+  // positions are an affine image of the window, so they lie within the hull of its corners.
+  bool inside = region.all_mapped || cv::countNonZero(region.mask) == static_cast<int>(region.mask.total());
+  for (const int x : {0, size.width - 1}) {
+    for (const int y : {0, size.height - 1}) {
+      const Eigen::Vector2d r = a * Eigen::Vector2d(origin.x + x, origin.y + y) + b;
+      inside = inside && r.x() >= 0.0 && r.y() >= 0.0 && r.x() < region.image.cols - 1.0 &&
+               r.y() < region.image.rows - 1.0;
+    }
+  }
+  if (inside) {
+    const std::uint8_t* pixels = region.image.ptr<std::uint8_t>(0);
+    const std::size_t stride = region.image.step[0];
+    for (int y = 0; y < size.height; ++y) {
+      auto* o = out.ptr<std::uint8_t>(y);
+      const Eigen::Vector2d row_start = a * Eigen::Vector2d(origin.x, origin.y + y) + b;
+      for (int x = 0; x < size.width; ++x) {
+        const double rx = row_start.x() + a(0, 0) * x, ry = row_start.y() + a(1, 0) * x;
+        const double fx0 = std::floor(rx), fy0 = std::floor(ry);
+        const std::uint8_t* p = pixels + static_cast<std::size_t>(fy0) * stride + static_cast<std::size_t>(fx0);
+        const std::uint8_t* q = p + stride;
+        const double fx = rx - fx0, fy = ry - fy0;
+        const double v = (1.0 - fy) * ((1.0 - fx) * p[0] + fx * p[1]) + fy * ((1.0 - fx) * q[0] + fx * q[1]);
+        o[x] = static_cast<std::uint8_t>(v + 0.5);
+      }
+    }
+    if (mask != nullptr) mask->setTo(cv::Scalar(255));
+    return out;
+  }
   for (int y = 0; y < size.height; ++y) {
     auto* o = out.ptr<std::uint8_t>(y);
     std::uint8_t* m = mask != nullptr ? mask->ptr<std::uint8_t>(y) : nullptr;

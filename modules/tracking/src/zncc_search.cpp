@@ -9,6 +9,7 @@
 #include <opencv2/core/hal/intrin.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "low_pass.hpp"
 #include "mosaicloc/core/error.hpp"
 
 namespace mosaicloc::tracking {
@@ -154,13 +155,16 @@ SearchPeak SearchZncc(const cv::Mat& raw_templ, const cv::Mat& raw_window, const
   if (raw_templ.empty() || raw_window.cols < raw_templ.cols || raw_window.rows < raw_templ.rows) return result;
   // Pyramid by 2x2 area averaging: level k pixel i covers level-0 pixels [2^k i, 2^k (i + 1)),
   // so a template offset scales exactly by 2^k between levels.
-  // Fresh buffers: a header copy of the inputs would share their pixels, and blurring into
-  // it would blur the caller's images.
+  // Filtered into buffers of their own (kept per thread): a header copy of the inputs would
+  // share their pixels, and blurring into it would blur the caller's images.
   std::vector<cv::Mat> templ(1), window(1);
   if (options.prefilter_sigma_px > 0.0) {
     const double sigma = options.prefilter_sigma_px;
-    cv::GaussianBlur(raw_templ, templ[0], cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
-    cv::GaussianBlur(raw_window, window[0], cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
+    thread_local cv::Mat templ_store, window_store;
+    templ[0] = detail::ScratchImage(templ_store, raw_templ.size(), CV_8UC1);
+    window[0] = detail::ScratchImage(window_store, raw_window.size(), CV_8UC1);
+    detail::GaussianLowPass(raw_templ, templ[0], sigma, CV_8U);
+    detail::GaussianLowPass(raw_window, window[0], sigma, CV_8U);
   } else {
     templ[0] = raw_templ;
     window[0] = raw_window;
