@@ -196,8 +196,8 @@ MOSAICLOC_AVX2_INLINE __m128i PackSixteen(__m256i low, __m256i high, bool satura
   return _mm256_castsi256_si128(_mm256_permute4x64_epi64(bytes, 0x08));
 }
 
-MOSAICLOC_AVX2_INLINE int SixteenAvx2(const Row16Avx2& row, int at, bool all_mapped, std::uint8_t* out,
-                                      std::uint8_t* mask) {
+template <bool kAllMapped, bool kMask>
+MOSAICLOC_AVX2_INLINE int SixteenAvx2(const Row16Avx2& row, int at, std::uint8_t* out, std::uint8_t* mask) {
   const __m256i m31 = _mm256_set1_epi16(31);
   const __m256i X = _mm256_add_epi16(_mm256_add_epi16(row.qx, Load16(row.qa + at)),
                                      _mm256_srli_epi16(_mm256_add_epi16(row.rx, Load16(row.ra + at)), kFractionBits));
@@ -221,9 +221,9 @@ MOSAICLOC_AVX2_INLINE int SixteenAvx2(const Row16Avx2& row, int at, bool all_map
       _mm256_srai_epi32(_mm256_add_epi32(_mm256_madd_epi16(_mm256_maddubs_epi16(p_low, wy_low), wx_low), half), 10);
   __m256i value_high =
       _mm256_srai_epi32(_mm256_add_epi32(_mm256_madd_epi16(_mm256_maddubs_epi16(p_high, wy_high), wx_high), half), 10);
-  if (all_mapped) {
+  if constexpr (kAllMapped) {
     _mm_storeu_si128(reinterpret_cast<__m128i*>(out + at), PackSixteen(value_low, value_high, false));
-    if (mask) _mm_storeu_si128(reinterpret_cast<__m128i*>(mask + at), _mm_set1_epi8(-1));
+    if constexpr (kMask) _mm_storeu_si128(reinterpret_cast<__m128i*>(mask + at), _mm_set1_epi8(-1));
     return 16;
   }
   // The mapped neighbours carry all the weight exactly when no neighbour of non-zero weight
@@ -237,8 +237,19 @@ MOSAICLOC_AVX2_INLINE int SixteenAvx2(const Row16Avx2& row, int at, bool all_map
   value_high = _mm256_and_si256(value_high, good_high);
   _mm_storeu_si128(reinterpret_cast<__m128i*>(out + at), PackSixteen(value_low, value_high, false));
   const __m128i good = PackSixteen(good_low, good_high, true);
-  if (mask) _mm_storeu_si128(reinterpret_cast<__m128i*>(mask + at), good);
+  if constexpr (kMask) _mm_storeu_si128(reinterpret_cast<__m128i*>(mask + at), good);
   return __builtin_popcount(static_cast<unsigned>(_mm_movemask_epi8(good)));
+}
+
+// One loop per case, so that none tests the case per pixel.
+template <bool kAllMapped, bool kMask>
+__attribute__((target("avx2"))) int Sixteens(const Row16Avx2& row, int width, std::uint8_t* out, std::uint8_t* mask,
+                                             int* done) {
+  int valid = 0;
+  int x = 0;
+  for (; x + 16 <= width; x += 16) valid += SixteenAvx2<kAllMapped, kMask>(row, x, out, mask);
+  *done = x;
+  return valid;
 }
 
 __attribute__((target("avx2"))) int RowInside16Avx2(const Row& scalar_row, const std::int16_t* split, int width,
@@ -255,11 +266,10 @@ __attribute__((target("avx2"))) int RowInside16Avx2(const Row& scalar_row, const
                       Broadcast16(scalar_row.y0 >> kFractionBits),
                       Broadcast16(scalar_row.y0 & 31),
                       _mm256_set1_epi32(1 | static_cast<int>(scalar_row.source->stride << 16))};
-  int valid = 0;
-  int x = 0;
-  for (; x + 16 <= width; x += 16) valid += SixteenAvx2(row, x, all_mapped, out, mask);
-  *done = x;
-  return valid;
+  if (all_mapped) {
+    return mask ? Sixteens<true, true>(row, width, out, mask, done) : Sixteens<true, false>(row, width, out, mask, done);
+  }
+  return mask ? Sixteens<false, true>(row, width, out, mask, done) : Sixteens<false, false>(row, width, out, mask, done);
 }
 
 bool HaveAvx2() {
