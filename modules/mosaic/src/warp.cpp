@@ -280,17 +280,50 @@ bool HaveAvx2() {
 
 }  // namespace
 
-void InterleaveRows(const std::uint8_t* top, const std::uint8_t* bottom, int count, std::uint8_t* pairs) {
-  int c = 0;
 #ifdef MOSAICLOC_WARP_AVX2
-  for (; c + 16 <= count; c += 16) {  // SSE2: always there on x86-64
-    const __m128i a = _mm_loadu_si128(reinterpret_cast<const __m128i*>(top + c));
-    const __m128i b = _mm_loadu_si128(reinterpret_cast<const __m128i*>(bottom + c));
-    _mm_storeu_si128(reinterpret_cast<__m128i*>(pairs + 2 * c), _mm_unpacklo_epi8(a, b));
-    _mm_storeu_si128(reinterpret_cast<__m128i*>(pairs + 2 * c + 16), _mm_unpackhi_epi8(a, b));
+namespace {
+
+MOSAICLOC_AVX2_INLINE void Interleave32(const std::uint8_t* top, const std::uint8_t* bottom, std::uint8_t* pairs) {
+  const __m256i a = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(top));
+  const __m256i b = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(bottom));
+  const __m256i low = _mm256_unpacklo_epi8(a, b), high = _mm256_unpackhi_epi8(a, b);  // in-lane
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(pairs), _mm256_permute2x128_si256(low, high, 0x20));
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(pairs + 32), _mm256_permute2x128_si256(low, high, 0x31));
+}
+
+__attribute__((target("avx2"))) void InterleaveAvx2(const std::uint8_t* top, const std::uint8_t* bottom, int count,
+                                                    std::uint8_t* pairs) {
+  int c = 0;
+  for (; c + 32 <= count; c += 32) Interleave32(top + c, bottom + c, pairs + 2 * c);
+  // The rest as one more block ending at the last column, over pairs already written.
+  if (c < count) Interleave32(top + count - 32, bottom + count - 32, pairs + 2 * (count - 32));
+}
+
+void Interleave16(const std::uint8_t* top, const std::uint8_t* bottom, std::uint8_t* pairs) {  // SSE2
+  const __m128i a = _mm_loadu_si128(reinterpret_cast<const __m128i*>(top));
+  const __m128i b = _mm_loadu_si128(reinterpret_cast<const __m128i*>(bottom));
+  _mm_storeu_si128(reinterpret_cast<__m128i*>(pairs), _mm_unpacklo_epi8(a, b));
+  _mm_storeu_si128(reinterpret_cast<__m128i*>(pairs + 16), _mm_unpackhi_epi8(a, b));
+}
+
+}  // namespace
+#endif
+
+void InterleaveRows(const std::uint8_t* top, const std::uint8_t* bottom, int count, std::uint8_t* pairs) {
+#ifdef MOSAICLOC_WARP_AVX2
+  // Whole vectors only, never past `count`: the rows end at tile and buffer edges.
+  if (count >= 32 && HaveAvx2()) {
+    InterleaveAvx2(top, bottom, count, pairs);
+    return;
+  }
+  if (count >= 16) {
+    int c = 0;
+    for (; c + 16 <= count; c += 16) Interleave16(top + c, bottom + c, pairs + 2 * c);
+    if (c < count) Interleave16(top + count - 16, bottom + count - 16, pairs + 2 * (count - 16));
+    return;
   }
 #endif
-  for (; c < count; ++c) {
+  for (int c = 0; c < count; ++c) {
     pairs[2 * c] = top[c];
     pairs[2 * c + 1] = bottom[c];
   }

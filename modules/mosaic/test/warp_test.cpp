@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <random>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -101,6 +102,24 @@ TEST(WarpAffineBilinear, EqualsItsFormulaOnRastersOfSixteenBitPositions) {
 TEST(WarpAffineBilinear, EqualsItsFormulaOnWiderRasters) {
   CheckMaps(Raster(2300, 200, false, 4), cv::Size(720, 96), false, 10, 14);
   CheckMaps(Raster(2300, 200, true, 5), cv::Size(720, 96), true, 10, 15);
+}
+
+TEST(InterleaveRows, PairsEveryColumnAndWritesNothingBeyond) {
+  std::mt19937 rng(7);
+  for (int count = 0; count <= 100; ++count) {
+    std::vector<std::uint8_t> top(static_cast<std::size_t>(count)), bottom(top.size());
+    for (std::size_t c = 0; c < top.size(); ++c) {
+      top[c] = static_cast<std::uint8_t>(rng());
+      bottom[c] = static_cast<std::uint8_t>(rng());
+    }
+    std::vector<std::uint8_t> pairs(2 * top.size() + 64, 0xA5);
+    InterleaveRows(top.data(), bottom.data(), count, pairs.data());
+    for (std::size_t c = 0; c < top.size(); ++c) {
+      ASSERT_EQ(pairs[2 * c], top[c]) << "count " << count << " column " << c;
+      ASSERT_EQ(pairs[2 * c + 1], bottom[c]) << "count " << count << " column " << c;
+    }
+    for (std::size_t i = 2 * top.size(); i < pairs.size(); ++i) ASSERT_EQ(pairs[i], 0xA5) << "count " << count;
+  }
 }
 
 TEST(WarpAffineBilinear, EqualsOpenCvOnAnAxisAlignedShift) {
