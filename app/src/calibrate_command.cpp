@@ -332,25 +332,10 @@ struct SimulateArgs {
   std::uint64_t seed = 1;
 };
 
-// The simulated camera: a 640x480 floor camera 200 mm up, a little tilted, with barrel
-// distortion. Its truth is written beside the images.
-camera::RealCameraOptions SimulatedCamera() {
-  camera::RealCameraOptions truth;
-  truth.fx_px = 812.0;
-  truth.fy_px = 806.0;
-  truth.cx_px = 326.4;
-  truth.cy_px = 233.7;
-  truth.k1 = -0.14;
-  truth.height_mm = 200.0;
-  truth.tilt_x_rad = 0.035;
-  truth.tilt_y_rad = -0.02;
-  return truth;
-}
-
 void RunSimulate(const SimulateArgs& args, const GlobalOptions& global) {
   const camera::BoardSpec board = camera::ParseBoardSpec(args.board);
   const camera::BoardSpec floor_board = camera::ParseBoardSpec(args.floor_board);
-  const camera::RealCameraOptions truth = SimulatedCamera();
+  const camera::RealCameraOptions truth = sim::CalibrationTruthCamera();
   const std::vector<sim::BoardShot> shots =
       sim::RenderIntrinsicsShots(truth, board, args.shots, 0.42, sim::RawImagingOptions{}, args.seed);
   // The floor board in the four quadrants of the view, so the fitted plane spans the image.
@@ -667,7 +652,7 @@ void RunSimulateRaw(const RawArgs& args, const GlobalOptions& global) {
   const auto floor = sim::MakeFloor(options.floor);
   const dataset::Trajectory truth = reader.GroundTruth();
   const core::Pose2 vehicle_from_camera = TrueMounting(reader.info());
-  const camera::RealCamera raw_camera(SimulatedCamera());
+  const camera::RealCamera raw_camera(sim::CalibrationTruthCamera());
   sim::RawImagingOptions imaging;
   imaging.noise_std_dn = options.imaging.noise_std_dn;
   imaging.black_dn = 0.0;

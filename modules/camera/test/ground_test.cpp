@@ -14,19 +14,6 @@
 namespace mosaicloc::camera {
 namespace {
 
-RealCameraOptions TruthCamera() {
-  RealCameraOptions truth;
-  truth.fx_px = 812.0;
-  truth.fy_px = 806.0;
-  truth.cx_px = 326.4;
-  truth.cy_px = 233.7;
-  truth.k1 = -0.14;
-  truth.height_mm = 200.0;
-  truth.tilt_x_rad = 0.035;
-  truth.tilt_y_rad = -0.02;
-  return truth;
-}
-
 Intrinsics IntrinsicsOf(const RealCameraOptions& truth) {
   return {truth.width_px, truth.height_px, truth.fx_px, truth.fy_px, truth.cx_px, truth.cy_px, truth.k1, 0.0};
 }
@@ -47,7 +34,7 @@ std::vector<BoardView> FloorViews(const RealCamera& camera, const BoardSpec& boa
 }
 
 TEST(CalibrateGround, RecoversTheTiltedCameraAndMakesIdealImagesOfTheRightScale) {
-  const RealCameraOptions truth = TruthCamera();
+  const RealCameraOptions truth = sim::CalibrationTruthCamera();
   const RealCamera camera(truth);
   const BoardSpec board = ParseBoardSpec("chessboard:9x6:10mm");
   const std::vector<core::Pose2> placements = {
@@ -105,7 +92,7 @@ TEST(CalibrateGround, ABoardMissingFromAViewIsBadInputNamingIt) {
   const BoardSpec board = ParseBoardSpec("chessboard:9x6:10mm");
   const std::vector<BoardView> views = {{"empty.png", {}}};
   try {
-    CalibrateGround(views, board, IntrinsicsOf(TruthCamera()), {});
+    CalibrateGround(views, board, IntrinsicsOf(sim::CalibrationTruthCamera()), {});
     FAIL();
   } catch (const core::Error& e) {
     EXPECT_EQ(e.kind(), core::ErrorKind::kInvalidInput);
@@ -115,9 +102,9 @@ TEST(CalibrateGround, ABoardMissingFromAViewIsBadInputNamingIt) {
 
 GroundCalibration SomeCalibration() {
   GroundCalibration c;
-  c.intrinsics = IntrinsicsOf(TruthCamera());
+  c.intrinsics = IntrinsicsOf(sim::CalibrationTruthCamera());
   c.ideal = {600, 400, 0.25};
-  const RealCameraOptions truth = TruthCamera();
+  const RealCameraOptions truth = sim::CalibrationTruthCamera();
   const Eigen::Matrix3d rotation = (Eigen::AngleAxisd(truth.tilt_x_rad, Eigen::Vector3d::UnitX()) *
                                     Eigen::AngleAxisd(truth.tilt_y_rad, Eigen::Vector3d::UnitY()))
                                        .toRotationMatrix();
@@ -154,7 +141,7 @@ TEST(GroundCalibrationFile, RoundTripsAndRejectsEditsAndUnknownKeys) {
 TEST(RealCamera, SharesTheGroundCalibrationsFloorFrame) {
   // RealCamera's model written as a ground calibration maps the floor the same way.
   const GroundCalibration c = SomeCalibration();
-  const RealCamera camera(TruthCamera());
+  const RealCamera camera(sim::CalibrationTruthCamera());
   for (const Eigen::Vector2d& p : {Eigen::Vector2d(10.0, -20.0), Eigen::Vector2d(-60.0, 45.0)}) {
     const auto raw = camera.FloorToPixel(p);
     ASSERT_TRUE(raw.has_value());

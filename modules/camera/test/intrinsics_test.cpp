@@ -74,16 +74,6 @@ sim::RawImagingOptions Imaging() {
   return options;
 }
 
-camera::RealCameraOptions TruthCamera() {
-  camera::RealCameraOptions truth;
-  truth.fx_px = 812.0;
-  truth.fy_px = 806.0;
-  truth.cx_px = 326.4;
-  truth.cy_px = 233.7;
-  truth.k1 = -0.14;
-  return truth;
-}
-
 std::vector<BoardView> Detect(const std::vector<sim::BoardShot>& shots, const BoardSpec& board) {
   std::vector<BoardView> views;
   for (std::size_t i = 0; i < shots.size(); ++i) {
@@ -107,7 +97,7 @@ void ExpectRecovered(const Intrinsics& estimate, const camera::RealCameraOptions
 
 TEST(CalibrateIntrinsics, RecoversASyntheticCameraFromChessboardShots) {
   const BoardSpec board = ParseBoardSpec("chessboard:9x6:20mm");
-  const camera::RealCameraOptions truth = TruthCamera();
+  const camera::RealCameraOptions truth = sim::CalibrationTruthCamera();
   const auto shots = sim::RenderIntrinsicsShots(truth, board, 12, 0.42, Imaging(), 11);
   std::vector<BoardView> views = Detect(shots, board);
   // A photograph with no board in it is reported, not used.
@@ -132,7 +122,7 @@ TEST(CalibrateIntrinsics, RecoversASyntheticCameraFromChessboardShots) {
 
 TEST(CalibrateIntrinsics, RecoversASyntheticCameraFromCircleGridShots) {
   const BoardSpec board = ParseBoardSpec("circles:7x5:24mm");
-  const camera::RealCameraOptions truth = TruthCamera();
+  const camera::RealCameraOptions truth = sim::CalibrationTruthCamera();
   const auto shots = sim::RenderIntrinsicsShots(truth, board, 8, 0.3, Imaging(), 5);
   const IntrinsicsResult result = CalibrateIntrinsics(Detect(shots, board), board, truth.width_px, truth.height_px, {});
   EXPECT_GE(result.used.size(), 7u);
@@ -144,7 +134,7 @@ TEST(CalibrateIntrinsics, RecoversASyntheticCameraFromCircleGridShots) {
 
 TEST(CalibrateIntrinsics, RejectsAnOutlierViewNamingIt) {
   const BoardSpec board = ParseBoardSpec("chessboard:9x6:20mm");
-  const camera::RealCameraOptions truth = TruthCamera();
+  const camera::RealCameraOptions truth = sim::CalibrationTruthCamera();
   const auto shots = sim::RenderIntrinsicsShots(truth, board, 6, 0.4, Imaging(), 3);
   std::vector<BoardView> views = Detect(shots, board);
   for (auto& p : views[2].detection.points_px) p += Eigen::Vector2d(std::sin(7.0 * p.y()), std::cos(5.0 * p.x()));

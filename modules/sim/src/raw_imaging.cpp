@@ -148,6 +148,22 @@ cv::Mat RenderFloorRaw(const camera::RealCamera& camera, const Floor& floor, con
   });
 }
 
+camera::RealCameraOptions CalibrationTruthCamera() {
+  camera::RealCameraOptions truth;
+  truth.width_px = 640;
+  truth.height_px = 480;
+  truth.fx_px = 812.0;
+  truth.fy_px = 806.0;
+  truth.cx_px = 326.4;
+  truth.cy_px = 233.7;
+  truth.k1 = -0.14;
+  truth.k2 = 0.0;
+  truth.height_mm = 200.0;
+  truth.tilt_x_rad = 0.035;
+  truth.tilt_y_rad = -0.02;
+  return truth;
+}
+
 std::vector<BoardShot> RenderIntrinsicsShots(const camera::RealCameraOptions& camera, const camera::BoardSpec& board,
                                              int count, double max_tilt_rad, const RawImagingOptions& options,
                                              std::uint64_t seed) {

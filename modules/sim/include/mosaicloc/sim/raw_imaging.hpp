@@ -44,6 +44,13 @@ struct BoardShot {
   cv::Mat image;
 };
 
+/// The real camera the simulated calibration photographs and raw drives are made with (the
+/// truth `calibrate simulate` writes beside them, and the calibration tests hold their
+/// results to): a 640x480 floor camera with fx 812, fy 806, principal point (326.4, 233.7)
+/// px, barrel distortion k1 = -0.14, 200 mm above the floor, tilted by 0.035 rad about the
+/// image x axis and -0.02 rad about the image y axis.
+camera::RealCameraOptions CalibrationTruthCamera();
+
 /// `count` photographs of `board` for intrinsic calibration, as an integrator takes them:
 /// the intrinsics of `camera`, the camera tilted by up to `max_tilt_rad` about both axes,
 /// at 0.8-1.4 times the height where the board spans 70 % of the image width, the board
