@@ -6,7 +6,6 @@
 #include <limits>
 
 #include <Eigen/Geometry>
-#include <Eigen/SVD>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -182,10 +181,17 @@ GroundResult CalibrateGround(const std::vector<BoardView>& views, const BoardSpe
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
   for (const Eigen::Vector3d& p : all_optical) centroid += p;
   centroid /= static_cast<double>(all_optical.size());
-  Eigen::MatrixXd spread(all_optical.size(), 3);
-  for (std::size_t i = 0; i < all_optical.size(); ++i) spread.row(static_cast<long>(i)) = (all_optical[i] - centroid).transpose();
-  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(spread, Eigen::ComputeFullV);
-  Eigen::Vector3d up = svd.matrixV().col(2);
+  // The direction of least spread is the right singular vector of the centred points with the
+  // smallest singular value. OpenCV's compiled SVD: Eigen's JacobiSVD template costs about a
+  // minute of compilation per translation unit under the sanitizers.
+  cv::Mat spread(static_cast<int>(all_optical.size()), 3, CV_64F);
+  for (std::size_t i = 0; i < all_optical.size(); ++i) {
+    const Eigen::Vector3d d = all_optical[i] - centroid;
+    for (int c = 0; c < 3; ++c) spread.at<double>(static_cast<int>(i), c) = d(c);
+  }
+  cv::Mat singular_values, u, vt;
+  cv::SVD::compute(spread, singular_values, u, vt, cv::SVD::MODIFY_A);
+  Eigen::Vector3d up(vt.at<double>(2, 0), vt.at<double>(2, 1), vt.at<double>(2, 2));
   if (up.dot(centroid) > 0.0) up = -up;
   GroundResult result;
   double sum_sq = 0.0;

@@ -3,8 +3,8 @@
 #include <cmath>
 
 #include <Eigen/Cholesky>
-#include <Eigen/Dense>
-#include <Eigen/SVD>
+#include <Eigen/LU>
+#include <opencv2/core.hpp>
 
 namespace mosaicloc::camera {
 namespace {
@@ -146,8 +146,15 @@ VehicleCalibrationResult CalibrateVehicle(const std::vector<DriveStep>& steps,
     determined = determined && norm > 1e-9;
     if (norm > 0.0) normalized.col(c) /= norm;
   }
-  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(normalized);
-  determined = determined && svd.singularValues()(5) > 1e-6 * svd.singularValues()(0);
+  // OpenCV's compiled SVD: Eigen's JacobiSVD template costs about a minute of compilation per
+  // translation unit under the sanitizers.
+  cv::Mat normalized_cv(static_cast<int>(normalized.rows()), 6, CV_64F);
+  for (long row = 0; row < normalized.rows(); ++row) {
+    for (int c = 0; c < 6; ++c) normalized_cv.at<double>(static_cast<int>(row), c) = normalized(row, c);
+  }
+  cv::Mat singular_values;
+  cv::SVD::compute(normalized_cv, singular_values, cv::SVD::NO_UV);  // descending order
+  determined = determined && singular_values.at<double>(5) > 1e-6 * singular_values.at<double>(0);
   const Eigen::FullPivLU<Eigen::Matrix<double, 6, 6>> lu(jtj);
   if (!determined || lu.rank() < 6) {
     result.converged = false;
