@@ -9,16 +9,7 @@ make_site site 1.0
 # --- mosaicloc polls the PLC (client role), word order high word first.
 PORT=$(free_port)
 run_config "$SCRATCH/run.yaml" "$PORT"
-START=$(start_in 2.0)
-$PYTHON "$PLC_DIR/pymodbus_plc.py" --dataset "$SCRATCH/site-run" --port "$PORT" --start-unix "$START" \
-  --request-period-ms 200 --out "$SCRATCH/plc.json" 2>"$SCRATCH/plc.err" &
-PLC=$!
-wait_port "$PORT"
-expect_exit 0 timeout 60 "$MOSAICLOC" --json run --config "$SCRATCH/run.yaml" --start-unix "$START" \
-  --record "$SCRATCH/rec"
-cp "$SCRATCH/out" "$SCRATCH/run.jsonl"
-wait $PLC || fail "the pymodbus PLC failed: $(tail -3 "$SCRATCH/plc.err")"
-tail -1 "$SCRATCH/run.jsonl"
+run_with_plc "$SCRATCH/run.yaml" "$SCRATCH/site-run" "$PORT" --record "$SCRATCH/rec"
 json_check "$SCRATCH/run.jsonl" 'd["fix_rate"] >= 0.95' 'd["lock_losses"] == 0' 'd["requests"] >= 10' \
   'd["answered"] == d["requests"]' 'd["plc_read_errors"] == 0' 'd["plc_write_errors"] == 0' \
   'd["stopped"] == "the camera source ended"'

@@ -109,3 +109,22 @@ assert len(errors) >= 0.95 * len(played), len(errors)
 assert rms <= bound and max(errors) <= 0.5, (rms, max(errors))
 PY
 }
+
+# run_with_plc CONFIG DATASET PORT [RUN_ARGS...]: `mosaicloc run --config CONFIG` against a
+# pymodbus PLC serving DATASET's encoder counts on PORT, both started at the same instant
+# 2 s from now. The run's JSON lines end up in $SCRATCH/run.jsonl (its last line printed),
+# the PLC's report in $SCRATCH/plc.json.
+run_with_plc() {
+  local config=$1 dataset=$2 port=$3
+  shift 3
+  local start
+  start=$(start_in 2.0)
+  $PYTHON "$PLC_DIR/pymodbus_plc.py" --dataset "$dataset" --port "$port" --start-unix "$start" \
+    --request-period-ms 200 --out "$SCRATCH/plc.json" 2>"$SCRATCH/plc.err" &
+  local plc=$!
+  wait_port "$port"
+  expect_exit 0 timeout 60 "$MOSAICLOC" --json run --config "$config" --start-unix "$start" "$@"
+  cp "$SCRATCH/out" "$SCRATCH/run.jsonl"
+  wait $plc || fail "the pymodbus PLC failed: $(tail -3 "$SCRATCH/plc.err")"
+  tail -1 "$SCRATCH/run.jsonl"
+}

@@ -36,16 +36,7 @@ camera:
   ground: $SCRATCH/ground.yaml
 plc: {port: $PORT, response_timeout_ms: 30, heartbeat_timeout_ms: 300}
 YAML
-START=$(start_in 2.0)
-$PYTHON "$PLC_DIR/pymodbus_plc.py" --dataset "$SCRATCH/run-raw" --port "$PORT" --start-unix "$START" \
-  --request-period-ms 200 --out "$SCRATCH/plc.json" 2>"$SCRATCH/plc.err" &
-PLC=$!
-wait_port "$PORT"
-expect_exit 0 timeout 60 "$MOSAICLOC" --json run --config "$SCRATCH/run.yaml" --start-unix "$START" \
-  --record "$SCRATCH/rec"
-cp "$SCRATCH/out" "$SCRATCH/run.jsonl"
-wait $PLC || fail "the pymodbus PLC failed: $(tail -3 "$SCRATCH/plc.err")"
-tail -1 "$SCRATCH/run.jsonl"
+run_with_plc "$SCRATCH/run.yaml" "$SCRATCH/run-raw" "$PORT" --record "$SCRATCH/rec"
 json_check "$SCRATCH/run.jsonl" 'd["fix_rate"] >= 0.95' 'd["lock_losses"] == 0' 'd["answered"] == d["requests"]' \
   'd["requests"] >= 5'
 # What it recorded is the rectified, ideal image. The fixes hold the lock as from an ideal
