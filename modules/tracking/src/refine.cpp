@@ -380,10 +380,11 @@ cv::Mat RenderWindow(const ReferenceRaster& reference, const Affine& frame_to_ra
       const Eigen::Vector2d row_start = a * Eigen::Vector2d(origin.x, origin.y + y) + b;
       for (int x = 0; x < size.width; ++x) {
         const double rx = row_start.x() + a(0, 0) * x, ry = row_start.y() + a(1, 0) * x;
-        const double fx0 = std::floor(rx), fy0 = std::floor(ry);
-        const std::uint8_t* p = pixels + static_cast<std::size_t>(fy0) * stride + static_cast<std::size_t>(fx0);
+        // rx, ry >= 0: truncation is the floor (std::floor is a library call without SSE4.1).
+        const auto ix = static_cast<std::size_t>(rx), iy = static_cast<std::size_t>(ry);
+        const std::uint8_t* p = pixels + iy * stride + ix;
         const std::uint8_t* q = p + stride;
-        const double fx = rx - fx0, fy = ry - fy0;
+        const double fx = rx - static_cast<double>(ix), fy = ry - static_cast<double>(iy);
         const double v = (1.0 - fy) * ((1.0 - fx) * p[0] + fx * p[1]) + fy * ((1.0 - fx) * q[0] + fx * q[1]);
         o[x] = static_cast<std::uint8_t>(v + 0.5);
       }
