@@ -128,7 +128,7 @@ void BM_TilePngDecode(benchmark::State& state) {
   Fixture& fixture = Shared();
   std::vector<cv::Mat> tiles;
   cv::Mat texture = fixture.whole;
-  if (const char* file = std::getenv("MOSAICLOC_BENCH_TEXTURE")) texture = cv::imread(file, cv::IMREAD_GRAYSCALE);
+  if (const char* file = std::getenv("MOSAICLOC_BENCH_TEXTURE"); file && *file) texture = cv::imread(file, cv::IMREAD_GRAYSCALE);
   if (texture.empty()) {
     state.SkipWithError("MOSAICLOC_BENCH_TEXTURE is not a readable image");
     return;
