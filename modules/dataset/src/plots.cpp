@@ -26,7 +26,6 @@ constexpr int kFont = cv::FONT_HERSHEY_SIMPLEX;
 // Fractional bits of the fixed-point coordinates given to cv::line and cv::circle.
 constexpr int kShift = 4;
 constexpr double kShiftScale = 1 << kShift;
-constexpr double kDegPerRad = 180.0 / std::numbers::pi;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 const cv::Scalar kWhite(255, 255, 255);
@@ -351,7 +350,7 @@ cv::Mat ErrorPlot(const Evaluation& evaluation, const std::string& title, bool p
   std::vector<double> errors;
   errors.reserve(samples.size());
   for (const ErrorSample& sample : samples) {
-    errors.push_back(position ? sample.position_error_mm : sample.heading_error_rad * kDegPerRad);
+    errors.push_back(position ? sample.position_error_mm : sample.heading_error_rad * 180.0 / std::numbers::pi);
   }
   constexpr int kXTicks = 10;
   constexpr int kYTicks = 8;

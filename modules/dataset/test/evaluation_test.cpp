@@ -17,7 +17,6 @@
 namespace mosaicloc::dataset {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 constexpr std::int64_t kNsPerS = 1'000'000'000;
 
 core::Timestamp At(double t_s) { return core::Timestamp::FromSeconds(t_s); }
@@ -31,8 +30,8 @@ constexpr double kLapS = 40.0;
 constexpr int kSamplesPerLap = 400;
 
 core::Pose2 CirclePose(double t_s) {
-  const double angle = 2.0 * kPi * t_s / kLapS;
-  return core::Pose2(kRadiusMm * std::cos(angle), kRadiusMm * std::sin(angle), angle + kPi / 2);
+  const double angle = 2.0 * std::numbers::pi * t_s / kLapS;
+  return core::Pose2(kRadiusMm * std::cos(angle), kRadiusMm * std::sin(angle), angle + std::numbers::pi / 2);
 }
 
 Trajectory Circle(int laps) {
@@ -102,11 +101,11 @@ TEST(Evaluate, ConstantOffsetOfThreeMillimetres) {
   EXPECT_FALSE(metrics.fixes || metrics.fix_rate || metrics.lock_losses || metrics.processing_fps ||
                metrics.latency_p50_ms || metrics.latency_p99_ms || metrics.overlap_speed_limit_mps);
   // Ground-truth chord speed: 2 R sin(pi / N) per 0.1 s.
-  const double chord_mm = 2.0 * kRadiusMm * std::sin(kPi / kSamplesPerLap);
+  const double chord_mm = 2.0 * kRadiusMm * std::sin(std::numbers::pi / kSamplesPerLap);
   EXPECT_NEAR(*metrics.max_speed_mps, chord_mm / 0.1 / 1000.0, 1e-9);
   // From the first estimate (t = 0.05 s) to the last (39.85 s): two half-step chords around the
   // 397 chords between the ground-truth samples at 0.1 s ... 39.8 s.
-  const double half_chord_mm = 2.0 * kRadiusMm * std::sin(kPi / (2 * kSamplesPerLap));
+  const double half_chord_mm = 2.0 * kRadiusMm * std::sin(std::numbers::pi / (2 * kSamplesPerLap));
   EXPECT_NEAR(*metrics.path_length_m, (397 * chord_mm + 2 * half_chord_mm) / 1000.0, 1e-9);
 }
 
@@ -116,16 +115,16 @@ TEST(Evaluate, HeadingOffset) {
       Perturbed(groundtruth,
                 [](double, const core::Pose2& pose) { return Shifted(pose, 0, 0, -0.02); }),
       groundtruth, {});
-  EXPECT_NEAR(*evaluation.metrics.heading_rms_deg, 0.02 * 180.0 / kPi, 1e-9);
-  EXPECT_NEAR(*evaluation.metrics.heading_max_deg, 0.02 * 180.0 / kPi, 1e-9);
+  EXPECT_NEAR(*evaluation.metrics.heading_rms_deg, 0.02 * 180.0 / std::numbers::pi, 1e-9);
+  EXPECT_NEAR(*evaluation.metrics.heading_max_deg, 0.02 * 180.0 / std::numbers::pi, 1e-9);
   EXPECT_NEAR(evaluation.samples.front().heading_error_rad, -0.02, 1e-12);
   EXPECT_NEAR(*evaluation.metrics.position_max_mm, 0.0, 1e-9);
 }
 
 TEST(Evaluate, HeadingErrorIsWrappedAcrossPi) {
-  const Trajectory groundtruth = {{At(0.0), core::Pose2(0, 0, kPi - 0.01)},
-                                  {At(0.1), core::Pose2(0, 0, kPi - 0.01)}};
-  const Trajectory estimate = {{At(0.0), core::Pose2(0, 0, -kPi + 0.01)}};
+  const Trajectory groundtruth = {{At(0.0), core::Pose2(0, 0, std::numbers::pi - 0.01)},
+                                  {At(0.1), core::Pose2(0, 0, std::numbers::pi - 0.01)}};
+  const Trajectory estimate = {{At(0.0), core::Pose2(0, 0, -std::numbers::pi + 0.01)}};
   const Evaluation evaluation = Evaluate(estimate, groundtruth, {});
   EXPECT_NEAR(evaluation.samples[0].heading_error_rad, 0.02, 1e-12);
 }
@@ -257,7 +256,7 @@ TEST(Repeatability, StoppingAtAPlaceIsOneVisit) {
     groundtruth.push_back({At(t_s += 0.01), core::Pose2(i * 5.0, 0, 0)});
   for (int i = 0; i < 50; ++i) groundtruth.push_back({At(t_s += 0.01), core::Pose2(500.0, 0, 0)});
   for (int i = 99; i >= 0; --i)
-    groundtruth.push_back({At(t_s += 0.01), core::Pose2(i * 5.0, 0, kPi)});
+    groundtruth.push_back({At(t_s += 0.01), core::Pose2(i * 5.0, 0, std::numbers::pi)});
   // Error +1 mm in y going out, -1 mm coming back, 5 mm while stopped.
   Trajectory estimate;
   for (std::size_t i = 0; i < groundtruth.size(); ++i) {

@@ -16,7 +16,6 @@ namespace mosaicloc::dataset {
 namespace {
 
 using std::chrono::milliseconds;
-constexpr double kPi = std::numbers::pi;
 
 // The message of the core::Error (invalid input) that `read` throws, or "" if it throws none.
 template <typename F>
@@ -70,7 +69,7 @@ TEST(Tum, RoundTripIsExactToTheNanosecondAndMicrometre) {
   test::ScratchDir dir;
   std::mt19937 random(42);
   std::uniform_real_distribution<double> position_mm(-50'000.0, 50'000.0);
-  std::uniform_real_distribution<double> yaw_rad(-kPi, kPi);
+  std::uniform_real_distribution<double> yaw_rad(-std::numbers::pi, std::numbers::pi);
   std::uniform_int_distribution<std::int64_t> step_ns(1, 50'000'000);
   Trajectory written;
   std::int64_t ns = 1'700'000'000'123'456'789;
@@ -79,7 +78,7 @@ TEST(Tum, RoundTripIsExactToTheNanosecondAndMicrometre) {
     written.push_back({core::Timestamp::FromNanoseconds(ns),
                        core::Pose2(position_mm(random), position_mm(random), yaw_rad(random))});
   }
-  written.push_back({core::Timestamp::FromNanoseconds(ns + 1), core::Pose2(0.0, -0.0, kPi)});
+  written.push_back({core::Timestamp::FromNanoseconds(ns + 1), core::Pose2(0.0, -0.0, std::numbers::pi)});
   const auto file = dir / "trajectory.tum";
   WriteTum(file, written);
   const Trajectory read = ReadTum(file);
@@ -115,12 +114,12 @@ TEST(Tum, ReadsCommentsBlankLinesTabsCrlfAndShortQuaternions) {
   EXPECT_EQ(trajectory[0].time.nanoseconds(), 1'305'031'098'665'900'000);
   EXPECT_NEAR(trajectory[0].world_from_vehicle.x_mm(), 1356.3, 1e-9);
   EXPECT_NEAR(trajectory[0].world_from_vehicle.y_mm(), 630.5, 1e-9);
-  EXPECT_NEAR(trajectory[0].world_from_vehicle.yaw_rad(), kPi / 2, 1e-9);
+  EXPECT_NEAR(trajectory[0].world_from_vehicle.yaw_rad(), std::numbers::pi / 2, 1e-9);
   EXPECT_EQ(trajectory[1].time.nanoseconds(), 1'305'031'098'700'000'000);
   EXPECT_NEAR(trajectory[1].world_from_vehicle.x_mm(), -2000.0, 1e-9);
   EXPECT_NEAR(trajectory[1].world_from_vehicle.y_mm(), 3.0, 1e-9);
   // q = (0, 0, -1, 0) is a rotation by -pi = pi about z.
-  EXPECT_NEAR(std::abs(trajectory[1].world_from_vehicle.yaw_rad()), kPi, 1e-12);
+  EXPECT_NEAR(std::abs(trajectory[1].world_from_vehicle.yaw_rad()), std::numbers::pi, 1e-12);
 }
 
 struct BadLine {
