@@ -44,7 +44,9 @@ RasterPatch MapRenderer::Region(int level, std::int64_t col0, std::int64_t row0,
         patch.image(to).setTo(cv::Scalar(kUnmapped));
         continue;
       }
-      all_full = all_full && tile->fully_mapped;
+      // A tile is flagged fully mapped as a whole; the block may lie in the mapped part of one
+      // that is not.
+      all_full = all_full && (tile->fully_mapped || cv::countNonZero(tile->pixels(from)) == from.area());
       tile->pixels(from).copyTo(patch.image(to));
     }
   }

@@ -75,8 +75,7 @@ RefinedMatch RefineDirect(const cv::Mat& frame, const cv::Rect& rect, const Refe
   // bilinear interpolation is a poor model of the image between samples and would bias the
   // sub-pixel estimate. The mask shrinks by the kernel radius so no unknown pixel leaks in.
   cv::Mat raster_mask = region.mask;
-  // The store says "all mapped" per tile; a block inside a partly mapped tile may still be.
-  const bool all_known = region.all_mapped || cv::countNonZero(region.mask) == static_cast<int>(region.mask.total());
+  const bool all_known = region.all_mapped;
   const cv::Rect around = cv::Rect(inner.x - 1 - blur_radius, inner.y - 1 - blur_radius,
                                    inner.width + 2 + 2 * blur_radius, inner.height + 2 + 2 * blur_radius) &
                           cv::Rect(0, 0, frame.cols, frame.rows);
@@ -364,7 +363,7 @@ cv::Mat RenderWindow(const ReferenceRaster& reference, const Affine& frame_to_ra
   // Every sample inside the block and every block pixel known (the usual case, away from the
   // map's edge): the same arithmetic as Sample without its per-pixel checks. The sample
   // positions are an affine image of the window, so they lie within the hull of its corners.
-  bool inside = region.all_mapped || cv::countNonZero(region.mask) == static_cast<int>(region.mask.total());
+  bool inside = region.all_mapped;
   for (const int x : {0, size.width - 1}) {
     for (const int y : {0, size.height - 1}) {
       const Eigen::Vector2d r = a * Eigen::Vector2d(origin.x + x, origin.y + y) + b;
