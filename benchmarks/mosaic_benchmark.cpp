@@ -120,19 +120,12 @@ void BM_ColdTileLoadAndDecode(benchmark::State& state) {
 }
 BENCHMARK(BM_ColdTileLoadAndDecode)->Unit(benchmark::kMicrosecond);
 
-// Decoding one 256 px tile's PNG as encoded at zlib level range(0) with strategy range(1)
-// (-1: none given; OpenCV's own choice with SUB filters, or libpng's filters with a level),
-// on the benchmark's procedural floor, or on the image named by MOSAICLOC_BENCH_TEXTURE
-// (8-bit grey, cut into tiles). Counters: stored bytes per tile and encode time per tile.
-void BM_TilePngDecode(benchmark::State& state) {
-  Fixture& fixture = Shared();
-  std::vector<cv::Mat> tiles;
-  cv::Mat texture = fixture.whole;
+// The 16 tiles the PNG benchmarks decode: 256 px squares of the benchmark's procedural
+// floor, or of the image named by MOSAICLOC_BENCH_TEXTURE (8-bit grey).
+std::vector<cv::Mat> DecodeBenchmarkTiles() {
+  cv::Mat texture = Shared().whole;
   if (const char* file = std::getenv("MOSAICLOC_BENCH_TEXTURE"); file && *file) texture = cv::imread(file, cv::IMREAD_GRAYSCALE);
-  if (texture.empty()) {
-    state.SkipWithError("MOSAICLOC_BENCH_TEXTURE is not a readable image");
-    return;
-  }
+  std::vector<cv::Mat> tiles;
   for (int r = 0; r + 256 <= texture.rows && tiles.size() < 16; r += 256) {
     for (int c = 0; c + 256 <= texture.cols && tiles.size() < 16; c += 256) {
       cv::Mat tile;
@@ -140,18 +133,47 @@ void BM_TilePngDecode(benchmark::State& state) {
       tiles.push_back(tile);
     }
   }
-  std::vector<int> params;
-  if (state.range(0) >= 0) params = {cv::IMWRITE_PNG_COMPRESSION, static_cast<int>(state.range(0))};
-  if (state.range(1) >= 0) params.insert(params.end(), {cv::IMWRITE_PNG_STRATEGY, static_cast<int>(state.range(1))});
+  return tiles;
+}
+
+// Decoding one 256 px tile's PNG as the store encodes it at zlib level range(0), with the
+// store's decoder (libpng directly). Counters: stored bytes and encode time per tile.
+void BM_TilePngDecode(benchmark::State& state) {
+  const std::vector<cv::Mat> tiles = DecodeBenchmarkTiles();
+  if (tiles.empty()) {
+    state.SkipWithError("MOSAICLOC_BENCH_TEXTURE is not a readable image of at least 256 x 256 px");
+    return;
+  }
   std::vector<std::vector<unsigned char>> encoded(tiles.size());
   const auto start = std::chrono::steady_clock::now();
   std::size_t bytes = 0;
   for (std::size_t i = 0; i < tiles.size(); ++i) {
-    cv::imencode(".png", tiles[i], encoded[i], params);
+    encoded[i] = mosaic::TileStore::Encode(tiles[i], static_cast<int>(state.range(0)));
     bytes += encoded[i].size();
   }
   const double encode_us =
       std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count() / tiles.size();
+  cv::Mat pixels(256, 256, CV_8UC1);
+  std::size_t i = 0;
+  for (auto _ : state) {
+    const std::string problem = mosaic::TileStore::Decode(encoded[i++ % encoded.size()], 256, pixels);
+    if (!problem.empty()) state.SkipWithError(problem.c_str());
+    benchmark::DoNotOptimize(pixels.data);
+  }
+  state.counters["bytes_per_tile"] = static_cast<double>(bytes) / static_cast<double>(tiles.size());
+  state.counters["encode_us"] = encode_us;
+}
+BENCHMARK(BM_TilePngDecode)->ArgName("level")->Arg(0)->Arg(1)->Arg(3)->Arg(6)->Arg(9)->Unit(benchmark::kMicrosecond);
+
+// The peer: OpenCV's imdecode of the same PNG bytes into a reused buffer.
+void BM_TilePngDecodeOpenCv(benchmark::State& state) {
+  const std::vector<cv::Mat> tiles = DecodeBenchmarkTiles();
+  if (tiles.empty()) {
+    state.SkipWithError("MOSAICLOC_BENCH_TEXTURE is not a readable image of at least 256 x 256 px");
+    return;
+  }
+  std::vector<std::vector<unsigned char>> encoded;
+  for (const auto& tile : tiles) encoded.push_back(mosaic::TileStore::Encode(tile, static_cast<int>(state.range(0))));
   cv::Mat buffer(256, 256, CV_8UC1);
   std::size_t i = 0;
   for (auto _ : state) {
@@ -159,24 +181,8 @@ void BM_TilePngDecode(benchmark::State& state) {
     cv::imdecode(encoded[i++ % encoded.size()], cv::IMREAD_UNCHANGED, &pixels);
     benchmark::DoNotOptimize(pixels.data);
   }
-  state.counters["bytes_per_tile"] = static_cast<double>(bytes) / static_cast<double>(tiles.size());
-  state.counters["encode_us"] = encode_us;
 }
-BENCHMARK(BM_TilePngDecode)
-    ->ArgNames({"level", "strategy"})
-    ->Args({0, -1})
-    ->Args({1, -1})
-    ->Args({3, -1})
-    ->Args({6, -1})
-    ->Args({9, -1})
-    ->Args({3, cv::IMWRITE_PNG_STRATEGY_FILTERED})
-    ->Args({3, cv::IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY})
-    ->Args({3, cv::IMWRITE_PNG_STRATEGY_RLE})
-    ->Args({3, cv::IMWRITE_PNG_STRATEGY_FIXED})
-    ->Args({-1, -1})
-    ->Args({-1, cv::IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY})
-    ->Args({-1, cv::IMWRITE_PNG_STRATEGY_FIXED})
-    ->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_TilePngDecodeOpenCv)->ArgName("level")->Arg(0)->Arg(3)->Unit(benchmark::kMicrosecond);
 
 void BM_PaintFrame640x480(benchmark::State& state) {
   Fixture& fixture = Shared();

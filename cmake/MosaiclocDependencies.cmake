@@ -33,6 +33,7 @@ mosaicloc_require_package(OpenCV libopencv-dev 4.5 COMPONENTS core imgproc imgco
 mosaicloc_require_package(Ceres libceres-dev 2.1)
 mosaicloc_require_pkgconfig(sqlite3 libsqlite3-dev MOSAICLOC_SQLITE3)
 mosaicloc_require_package(ZLIB zlib1g-dev)
+mosaicloc_require_package(PNG libpng-dev)
 mosaicloc_require_pkgconfig(libmodbus libmodbus-dev MOSAICLOC_MODBUS)
 mosaicloc_require_pkgconfig(libv4l2 libv4l-dev MOSAICLOC_V4L2)
 if(MOSAICLOC_BUILD_TESTS)

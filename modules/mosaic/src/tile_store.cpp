@@ -5,9 +5,8 @@
 #include <charconv>
 #include <map>
 
-#include <opencv2/imgcodecs.hpp>
-
 #include "mosaicloc/core/error.hpp"
+#include "png_codec.hpp"
 #include "sqlite_util.hpp"
 
 namespace mosaicloc::mosaic {
@@ -128,11 +127,11 @@ void TileStore::SetPngCompression(int level) {
 }
 
 std::vector<unsigned char> TileStore::Encode(const cv::Mat& pixels, int png_compression) {
-  std::vector<unsigned char> png;
-  if (!cv::imencode(".png", pixels, png, {cv::IMWRITE_PNG_COMPRESSION, png_compression})) {
-    core::ThrowRuntime("cannot encode a map tile as PNG");
-  }
-  return png;
+  return internal::EncodeGreyPng(pixels, png_compression);
+}
+
+std::string TileStore::Decode(const std::vector<unsigned char>& png, int tile_size_px, cv::Mat& pixels) {
+  return internal::DecodeGreyPng(png.data(), png.size(), tile_size_px, pixels);
 }
 
 std::uint32_t TileStore::Crc32(const std::vector<unsigned char>& data) {
@@ -167,11 +166,7 @@ TileRead TileStore::Read(const TileKey& key, cv::Mat buffer) const {
   };
   if (static_cast<std::int64_t>(Crc32(data)) != stored_crc) return corrupt("CRC32 mismatch (the tile data is damaged)");
   cv::Mat pixels = buffer;
-  cv::imdecode(data, cv::IMREAD_UNCHANGED, &pixels);
-  if (pixels.empty()) return corrupt("not a decodable PNG");
-  if (pixels.type() != CV_8UC1 || pixels.rows != grid_.tile_size_px || pixels.cols != grid_.tile_size_px) {
-    return corrupt("is not an 8-bit grey " + std::to_string(grid_.tile_size_px) + " px square");
-  }
+  if (const std::string problem = Decode(data, grid_.tile_size_px, pixels); !problem.empty()) return corrupt(problem);
   result.status = TileStatus::kOk;
   result.pixels = pixels;
   return result;

@@ -152,6 +152,78 @@ TEST(TileStore, TilesOfEveryPngLevelReadBackExactly) {
   EXPECT_LE(BlobBytes(dir / "p.mosaic", TileKey{0, 9, 0}), BlobBytes(dir / "p.mosaic", TileKey{0, 3, 0}));
 }
 
+// Replaces one tile's stored bytes with `png`, with a matching CRC32, as another writer
+// (or a bug) would leave them.
+void StoreRawTile(const fs::path& file, const TileKey& key, const std::vector<unsigned char>& png) {
+  static const char* const kHex = "0123456789ABCDEF";
+  std::string hex;
+  for (const unsigned char byte : png) hex += {kHex[byte >> 4], kHex[byte & 15]};
+  SqlOn(file, "INSERT OR REPLACE INTO tiles VALUES (" + std::to_string(key.level) + ", " + std::to_string(key.col) + ", " +
+                  std::to_string(key.row) + ", X'" + hex + "', " + std::to_string(TileStore::Crc32(png)) + ")");
+}
+
+TEST(TileStore, PngsWrittenByOpenCvDecodeAlike) {
+  // Maps written before the store encoded with libpng itself hold OpenCV's PNGs (row
+  // filters chosen by OpenCV): they decode to the same pixels.
+  cv::Mat texture = SourceTexture(64);
+  for (const int level : {0, 3, 9}) {
+    std::vector<unsigned char> png;
+    ASSERT_TRUE(cv::imencode(".png", texture, png, {cv::IMWRITE_PNG_COMPRESSION, level}));
+    cv::Mat pixels;
+    EXPECT_EQ(TileStore::Decode(png, 64, pixels), "");
+    EXPECT_EQ(cv::norm(pixels, texture, cv::NORM_INF), 0.0) << "level " << level;
+    // And OpenCV reads what the store writes.
+    EXPECT_EQ(cv::norm(cv::imdecode(TileStore::Encode(texture, level), cv::IMREAD_UNCHANGED), texture, cv::NORM_INF), 0.0);
+  }
+}
+
+TEST(TileStore, UndecodableAndMisshapenTilesAreNamed) {
+  test::ScratchDir dir;
+  MapGrid grid;
+  grid.tile_size_px = 64;
+  const fs::path file = dir / "u.mosaic";
+  const cv::Mat texture = SourceTexture(64);
+  TileStore::Create(file, grid)->Write({{TileKey{0, 0, 0}, texture}});
+  const std::vector<unsigned char> good = TileStore::Encode(texture);
+  StoreRawTile(file, TileKey{0, 1, 0}, std::vector<unsigned char>(good.begin(), good.begin() + 2000));
+  StoreRawTile(file, TileKey{0, 2, 0}, {'n', 'o', 't', ' ', 'a', ' ', 'p', 'n', 'g'});
+  std::vector<unsigned char> deep, wide, colour;
+  cv::Mat deep_pixels;
+  texture.convertTo(deep_pixels, CV_16U, 256.0);
+  ASSERT_TRUE(cv::imencode(".png", deep_pixels, deep));
+  ASSERT_TRUE(cv::imencode(".png", SourceTexture(96)(cv::Rect(0, 0, 96, 64)), wide));
+  cv::Mat colour_pixels;
+  cv::cvtColor(texture, colour_pixels, cv::COLOR_GRAY2BGR);
+  ASSERT_TRUE(cv::imencode(".png", colour_pixels, colour));
+  StoreRawTile(file, TileKey{0, 3, 0}, deep);
+  StoreRawTile(file, TileKey{0, 4, 0}, wide);
+  StoreRawTile(file, TileKey{0, 5, 0}, colour);
+  std::vector<unsigned char> damaged = good;  // the stored CRC matches, the PNG's own CRCs do not
+  damaged[40] ^= 0x55;
+  damaged[41] ^= 0x55;
+  StoreRawTile(file, TileKey{0, 6, 0}, damaged);
+
+  const auto store = TileStore::Open(file, false);
+  EXPECT_EQ(store->Read(TileKey{0, 0, 0}).status, TileStatus::kOk);
+  const std::vector<std::pair<int, std::string>> expected = {
+      {1, "tile level 0 col 1 row 0: not a decodable PNG: the data ends early"},
+      {2, "tile level 0 col 2 row 0: not a decodable PNG: no PNG signature"},
+      {3, "tile level 0 col 3 row 0: is a 64 x 64 PNG of 16-bit samples"},
+      {4, "tile level 0 col 4 row 0: is a 96 x 64 PNG of 8-bit samples, colour type 0, not an 8-bit grey 64 px square"},
+      {5, "tile level 0 col 5 row 0: is a 64 x 64 PNG of 8-bit samples, colour type 2"}};
+  for (const auto& [col, problem] : expected) {
+    const TileRead read = store->Read(TileKey{0, col, 0});
+    EXPECT_EQ(read.status, TileStatus::kCorrupt) << col;
+    EXPECT_THAT(read.problem, HasSubstr(problem));
+    EXPECT_TRUE(read.pixels.empty()) << col;
+  }
+  // Damage the outer CRC does not see decodes to wrong pixels or fails, never crashes.
+  const TileRead damaged_read = store->Read(TileKey{0, 6, 0});
+  if (damaged_read.status == TileStatus::kOk) {
+    EXPECT_GT(cv::norm(damaged_read.pixels, texture, cv::NORM_INF), 0.0);
+  }
+}
+
 TEST(TileStore, BadMetadataIsNamed) {
   test::ScratchDir dir;
   TileStore::Create(dir / "m.mosaic", MapGrid{});

@@ -78,6 +78,9 @@ class TileStore {
 
   /// PNG-encodes a tile at a zlib level (0-9), as stored. Thread-safe.
   static std::vector<unsigned char> Encode(const cv::Mat& pixels, int png_compression = kDefaultTilePngCompression);
+  /// Decodes a tile's PNG into `pixels` (reusing its memory when it fits): empty on success,
+  /// else what is wrong with it. Checks format and size, not the CRC32.
+  static std::string Decode(const std::vector<unsigned char>& png, int tile_size_px, cv::Mat& pixels);
   static std::uint32_t Crc32(const std::vector<unsigned char>& data);
 
  private:
