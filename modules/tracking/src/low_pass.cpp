@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -9,9 +10,12 @@
 #include <opencv2/imgproc.hpp>
 
 #include "mosaicloc/core/error.hpp"
+#include "simd.hpp"
 
 namespace mosaicloc::tracking::detail {
 namespace {
+
+std::atomic<bool> avx2_allowed{true};
 
 constexpr int kMaxRadius = 15;  // sigma <= 5 px (the options' limit)
 
@@ -20,7 +24,8 @@ constexpr int kMaxRadius = 15;  // sigma <= 5 px (the options' limit)
 // half the multiplications. With R fixed at compile time the tap loop unrolls and the loop
 // over x vectorizes.
 template <int R>
-void FilterRow(const float* __restrict p, const std::array<float, R + 1>& k, float* __restrict out, int n) {
+MOSAICLOC_ALWAYS_INLINE void FilterRow(const float* __restrict p, const std::array<float, R + 1>& k,
+                                       float* __restrict out, int n) {
   for (int x = 0; x < n; ++x) {
     float s = k[R] * p[x + R];
     for (int i = 0; i < R; ++i) s += k[i] * (p[x + i] + p[x + 2 * R - i]);
@@ -29,8 +34,8 @@ void FilterRow(const float* __restrict p, const std::array<float, R + 1>& k, flo
 }
 
 template <int R>
-void FilterColumns(const std::array<const float*, 2 * R + 1>& rows, const std::array<float, R + 1>& k,
-                   float* __restrict out, int n) {
+MOSAICLOC_ALWAYS_INLINE void FilterColumns(const std::array<const float*, 2 * R + 1>& rows,
+                                           const std::array<float, R + 1>& k, float* __restrict out, int n) {
   for (int x = 0; x < n; ++x) {
     float s = k[R] * rows[R][x];
     for (int i = 0; i < R; ++i) s += k[i] * (rows[i][x] + rows[2 * R - i][x]);
@@ -38,8 +43,67 @@ void FilterColumns(const std::array<const float*, 2 * R + 1>& rows, const std::a
   }
 }
 
+// Per-thread buffers: the tracker filters several windows a frame.
+struct Buffers {
+  std::vector<float> padded, horizontal, line;
+};
+
+// Output pixel (x, y) of `dst` is the filtered src pixel (rect.x + x, rect.y + y); src's own
+// edges are replicated. Only the src rows and columns within R of `rect` are read.
 template <int R>
-void Filter(const cv::Mat& src, cv::Mat& dst, double sigma_px) {
+MOSAICLOC_ALWAYS_INLINE void FilterBody(const cv::Mat& src, const cv::Rect& rect, cv::Mat& dst,
+                                        const std::array<float, R + 1>& k, Buffers& b) {
+  const int cols = rect.width;
+  const int first = std::max(rect.y - R, 0), last = std::min(rect.y + rect.height - 1 + R, src.rows - 1);
+  b.padded.resize(static_cast<std::size_t>(cols + 2 * R));
+  b.horizontal.resize(static_cast<std::size_t>(cols) * static_cast<std::size_t>(last - first + 1));
+  b.line.resize(static_cast<std::size_t>(cols));
+  // Padded row i is src column rect.x - R + i, clamped to the image.
+  const int left = std::clamp(R - rect.x, 0, cols + 2 * R);
+  const int right = std::clamp(src.cols - (rect.x - R), left, cols + 2 * R);
+  const int shift = rect.x - R;
+  for (int y = first; y <= last; ++y) {
+    const std::uint8_t* s = src.ptr<std::uint8_t>(y);
+    float* p = b.padded.data();
+    for (int i = 0; i < left; ++i) p[i] = s[0];
+    for (int i = left; i < right; ++i) p[i] = s[i + shift];
+    for (int i = right; i < cols + 2 * R; ++i) p[i] = s[src.cols - 1];
+    FilterRow<R>(p, k, b.horizontal.data() + static_cast<std::size_t>(y - first) * cols, cols);
+  }
+  for (int y = 0; y < rect.height; ++y) {
+    std::array<const float*, 2 * R + 1> taps{};
+    for (int i = 0; i <= 2 * R; ++i) {
+      const int from = std::clamp(rect.y + y - R + i, first, last);
+      taps[static_cast<std::size_t>(i)] = b.horizontal.data() + static_cast<std::size_t>(from - first) * cols;
+    }
+    if (dst.depth() == CV_32F) {
+      FilterColumns<R>(taps, k, dst.ptr<float>(y), cols);
+      continue;
+    }
+    FilterColumns<R>(taps, k, b.line.data(), cols);
+    std::uint8_t* out = dst.ptr<std::uint8_t>(y);
+    const float* v = b.line.data();
+    // The kernel is positive and sums to 1, so v is in [0, 255] up to float rounding.
+    for (int x = 0; x < cols; ++x) out[x] = static_cast<std::uint8_t>(std::min(v[x] + 0.5F, 255.0F));
+  }
+}
+
+template <int R>
+void FilterBaseline(const cv::Mat& src, const cv::Rect& rect, cv::Mat& dst, const std::array<float, R + 1>& k,
+                    Buffers& b) {
+  FilterBody<R>(src, rect, dst, k, b);
+}
+
+#ifdef MOSAICLOC_TRACKING_AVX2
+template <int R>
+MOSAICLOC_TARGET_AVX2 void FilterAvx2(const cv::Mat& src, const cv::Rect& rect, cv::Mat& dst,
+                                      const std::array<float, R + 1>& k, Buffers& b) {
+  FilterBody<R>(src, rect, dst, k, b);
+}
+#endif
+
+template <int R>
+void Filter(const cv::Mat& src, const cv::Rect& rect, cv::Mat& dst, double sigma_px) {
   // The kernel of the last sigma, per thread: the tracker filters with one or two sigmas.
   thread_local double kernel_sigma = -1.0;
   thread_local std::array<float, R + 1> k{};
@@ -48,67 +112,61 @@ void Filter(const cv::Mat& src, cv::Mat& dst, double sigma_px) {
     for (int i = 0; i <= R; ++i) k[static_cast<std::size_t>(i)] = static_cast<float>(kernel.at<double>(i));
     kernel_sigma = sigma_px;
   }
-  const int cols = src.cols, rows = src.rows;
-  // Per-thread buffers: the tracker filters several windows a frame.
-  thread_local std::vector<float> padded, horizontal, line;
-  padded.resize(static_cast<std::size_t>(cols + 2 * R));
-  horizontal.resize(static_cast<std::size_t>(cols) * rows);
-  line.resize(static_cast<std::size_t>(cols));
-  for (int y = 0; y < rows; ++y) {
-    const std::uint8_t* s = src.ptr<std::uint8_t>(y);
-    float* p = padded.data();
-    for (int i = 0; i < R; ++i) {
-      p[i] = s[0];
-      p[R + cols + i] = s[cols - 1];
-    }
-    for (int x = 0; x < cols; ++x) p[R + x] = s[x];
-    FilterRow<R>(p, k, horizontal.data() + static_cast<std::size_t>(y) * cols, cols);
+  thread_local Buffers buffers;
+#ifdef MOSAICLOC_TRACKING_AVX2
+  if (UseAvx2()) {
+    FilterAvx2<R>(src, rect, dst, k, buffers);
+    return;
   }
-  for (int y = 0; y < rows; ++y) {
-    std::array<const float*, 2 * R + 1> taps{};
-    for (int i = 0; i <= 2 * R; ++i) {
-      const int from = std::clamp(y - R + i, 0, rows - 1);
-      taps[static_cast<std::size_t>(i)] = horizontal.data() + static_cast<std::size_t>(from) * cols;
-    }
-    if (dst.depth() == CV_32F) {
-      FilterColumns<R>(taps, k, dst.ptr<float>(y), cols);
-      continue;
-    }
-    FilterColumns<R>(taps, k, line.data(), cols);
-    std::uint8_t* out = dst.ptr<std::uint8_t>(y);
-    const float* v = line.data();
-    // The kernel is positive and sums to 1, so v is in [0, 255] up to float rounding.
-    for (int x = 0; x < cols; ++x) out[x] = static_cast<std::uint8_t>(std::min(v[x] + 0.5F, 255.0F));
-  }
+#endif
+  FilterBaseline<R>(src, rect, dst, k, buffers);
 }
 
 template <int R>
-void Dispatch(const cv::Mat& src, cv::Mat& dst, double sigma_px, int radius) {
+void Dispatch(const cv::Mat& src, const cv::Rect& rect, cv::Mat& dst, double sigma_px, int radius) {
   if constexpr (R <= kMaxRadius) {
     if (radius == R) {
-      Filter<R>(src, dst, sigma_px);
+      Filter<R>(src, rect, dst, sigma_px);
     } else {
-      Dispatch<R + 1>(src, dst, sigma_px, radius);
+      Dispatch<R + 1>(src, rect, dst, sigma_px, radius);
     }
   }
 }
 
 }  // namespace
 
+bool UseAvx2() {
+#ifdef MOSAICLOC_TRACKING_AVX2
+  static const bool have = __builtin_cpu_supports("avx2");
+  return have && avx2_allowed.load(std::memory_order_relaxed);
+#else
+  return false;
+#endif
+}
+
+void SetAvx2Allowed(bool allowed) { avx2_allowed.store(allowed, std::memory_order_relaxed); }
+
 int LowPassRadius(double sigma_px) { return sigma_px > 0.0 ? static_cast<int>(std::ceil(3.0 * sigma_px)) : 0; }
 
 void GaussianLowPass(const cv::Mat& src, cv::Mat& dst, double sigma_px, int depth) {
+  GaussianLowPassRect(src, cv::Rect(0, 0, src.cols, src.rows), dst, sigma_px, depth);
+}
+
+void GaussianLowPassRect(const cv::Mat& src, const cv::Rect& rect, cv::Mat& dst, double sigma_px, int depth) {
   if (src.empty() || src.type() != CV_8UC1) core::ThrowInvalidInput("low-pass: expected a non-empty 8-bit grey image");
   if (depth != CV_8U && depth != CV_32F) core::ThrowInvalidInput("low-pass: the result is 8-bit or float");
+  if (rect.width <= 0 || rect.height <= 0 || (rect & cv::Rect(0, 0, src.cols, src.rows)) != rect) {
+    core::ThrowInvalidInput("low-pass: the rectangle is not inside the image");
+  }
   const int radius = LowPassRadius(sigma_px);
   if (radius > kMaxRadius) core::ThrowInvalidInput("low-pass: sigma must be <= 5 px");
   if (dst.data == src.data) dst.release();
-  dst.create(src.size(), CV_MAKETYPE(depth, 1));
+  dst.create(rect.size(), CV_MAKETYPE(depth, 1));
   if (radius == 0) {
-    src.convertTo(dst, depth);
+    src(rect).convertTo(dst, depth);
     return;
   }
-  Dispatch<1>(src, dst, sigma_px, radius);
+  Dispatch<1>(src, rect, dst, sigma_px, radius);
 }
 
 cv::Mat ScratchImage(cv::Mat& store, cv::Size size, int type) {

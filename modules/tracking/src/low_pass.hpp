@@ -17,6 +17,13 @@ int LowPassRadius(double sigma_px);
 /// share pixels with `src`. Throws core::Error (invalid input) on another type or depth.
 void GaussianLowPass(const cv::Mat& src, cv::Mat& dst, double sigma_px, int depth);
 
+/// The same filter of the whole of `src` (its edges replicated) evaluated on `rect` only:
+/// `dst` (rect's size) holds the filtered pixels rect.x + x, rect.y + y, equal to the same
+/// pixels of GaussianLowPass(src). Reads the pixels within the kernel radius of `rect`.
+/// Throws core::Error (invalid input) as GaussianLowPass does, or when `rect` is empty or not
+/// inside `src`.
+void GaussianLowPassRect(const cv::Mat& src, const cv::Rect& rect, cv::Mat& dst, double sigma_px, int depth);
+
 /// A `size` image of `type` carved from `store`, which grows (and only grows) to hold it: a
 /// per-thread `store` gives a working image that is not allocated again frame after frame.
 /// The pixels are uninitialised; the result is valid until `store` is next used.

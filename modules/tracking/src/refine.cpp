@@ -10,16 +10,25 @@
 
 #include "low_pass.hpp"
 #include "mosaicloc/mosaic/tile_store.hpp"
+#include "simd.hpp"
 #include "visp_refine.hpp"
+
+#ifdef MOSAICLOC_TRACKING_AVX2
+#include <immintrin.h>
+#endif
 
 namespace mosaicloc::tracking {
 namespace {
 
 using Affine = Eigen::Matrix<double, 2, 3>;
 
-// The raster block that holds every point frame_to_raster maps `rect` to, plus `margin` px.
-mosaic::RasterPatch FetchRegion(const ReferenceRaster& reference, const Affine& frame_to_raster, const cv::Rect& rect,
-                                int margin) {
+// The raster block holding every point frame_to_raster maps `rect` to: columns
+// [col0, col1] and rows [row0, row1].
+struct RasterBounds {
+  std::int64_t col0 = 0, row0 = 0, col1 = 0, row1 = 0;
+};
+
+RasterBounds BoundsOf(const Affine& frame_to_raster, const cv::Rect& rect) {
   double min_x = 1e300, min_y = 1e300, max_x = -1e300, max_y = -1e300;
   for (const int x : {rect.x, rect.x + rect.width - 1}) {
     for (const int y : {rect.y, rect.y + rect.height - 1}) {
@@ -30,11 +39,20 @@ mosaic::RasterPatch FetchRegion(const ReferenceRaster& reference, const Affine& 
       max_y = std::max(max_y, r.y());
     }
   }
-  const auto col0 = static_cast<std::int64_t>(std::floor(min_x)) - margin;
-  const auto row0 = static_cast<std::int64_t>(std::floor(min_y)) - margin;
-  const auto col1 = static_cast<std::int64_t>(std::ceil(max_x)) + margin;
-  const auto row1 = static_cast<std::int64_t>(std::ceil(max_y)) + margin;
-  return reference.Region(col0, row0, static_cast<int>(col1 - col0 + 1), static_cast<int>(row1 - row0 + 1));
+  return {static_cast<std::int64_t>(std::floor(min_x)), static_cast<std::int64_t>(std::floor(min_y)),
+          static_cast<std::int64_t>(std::ceil(max_x)), static_cast<std::int64_t>(std::ceil(max_y))};
+}
+
+// The bounds plus `margin` px on every side.
+mosaic::RasterPatch FetchRegion(const ReferenceRaster& reference, const RasterBounds& bounds, int margin) {
+  return reference.Region(bounds.col0 - margin, bounds.row0 - margin,
+                          static_cast<int>(bounds.col1 - bounds.col0 + 1 + 2 * margin),
+                          static_cast<int>(bounds.row1 - bounds.row0 + 1 + 2 * margin));
+}
+
+mosaic::RasterPatch FetchRegion(const ReferenceRaster& reference, const Affine& frame_to_raster, const cv::Rect& rect,
+                                int margin) {
+  return FetchRegion(reference, BoundsOf(frame_to_raster, rect), margin);
 }
 
 // Bilinear sample of an image of T at (x, y); false when a source pixel is outside or unknown.
@@ -63,63 +81,217 @@ inline bool Sample(const cv::Mat& image, const cv::Mat& mask, bool all_known, do
 // the Jacobian and the 2x2 Gauss-Newton matrix come from the template once (Baker and
 // Matthews, "Lucas-Kanade 20 years on", 2004, section 3.2), and each iteration costs one
 // bilinear sample per pixel. The normalisation makes the cost blind to gain and offset.
+// Running sums of one Gauss-Newton iteration over the samples v_k = M(x_k + t):
+// sum v, sum v^2, sum Jx v, sum Jy v, sum v T.
+struct SampleSums {
+  double sm = 0.0, smm = 0.0, sjxm = 0.0, sjym = 0.0, smt = 0.0;
+};
+
+// The samples of the template's points (x_k, y_k) + t, bilinear in double precision from the
+// float raster `pixels` (row stride `stride`, point (x, y) at pixel (x - offset_x, y -
+// offset_y)), every one of them known to be inside. Sums in the order of k.
+void SumSamples(const double* base_x, const double* base_y, const double* jac_x, const double* jac_y,
+                const double* templ, std::size_t n, double tx, double ty, const float* pixels, std::ptrdiff_t stride,
+                int offset_x, int offset_y, SampleSums* sums) {
+  SampleSums s = *sums;
+  for (std::size_t k = 0; k < n; ++k) {
+    const double x = base_x[k] + tx, y = base_y[k] + ty;
+    const int ix = static_cast<int>(x), iy = static_cast<int>(y);  // x, y > 0 by the margin
+    const float* p0 = pixels + static_cast<std::ptrdiff_t>(iy - offset_y) * stride + (ix - offset_x);
+    const float* p1 = p0 + stride;
+    const double fx = x - ix, fy = y - iy;
+    const double top = p0[0] + fx * (p0[1] - p0[0]);
+    const double bottom = p1[0] + fx * (p1[1] - p1[0]);
+    const double v = top + fy * (bottom - top);
+    s.sm += v;
+    s.smm += v * v;
+    s.sjxm += jac_x[k] * v;
+    s.sjym += jac_y[k] * v;
+    s.smt += v * templ[k];
+  }
+  *sums = s;
+}
+
+#ifdef MOSAICLOC_TRACKING_AVX2
+// SumSamples four samples at a time: the same operations on each sample, and the lanes added
+// to the sums one after the other, so the result is bit-identical.
+MOSAICLOC_TARGET_AVX2 void SumSamplesAvx2(const double* base_x, const double* base_y, const double* jac_x,
+                                          const double* jac_y, const double* templ, std::size_t n, double tx,
+                                          double ty, const float* pixels, std::ptrdiff_t stride, int offset_x,
+                                          int offset_y, SampleSums* sums) {
+  SampleSums s = *sums;
+  const __m256d vtx = _mm256_set1_pd(tx), vty = _mm256_set1_pd(ty);
+  const __m128i vstride = _mm_set1_epi32(static_cast<int>(stride));
+  const __m128i shift = _mm_set1_epi32(static_cast<int>(offset_y * stride + offset_x));
+  std::size_t k = 0;
+  for (; k + 4 <= n; k += 4) {
+    const __m256d x = _mm256_add_pd(_mm256_loadu_pd(base_x + k), vtx);
+    const __m256d y = _mm256_add_pd(_mm256_loadu_pd(base_y + k), vty);
+    const __m128i ix = _mm256_cvttpd_epi32(x), iy = _mm256_cvttpd_epi32(y);
+    const __m256d fx = _mm256_sub_pd(x, _mm256_cvtepi32_pd(ix));
+    const __m256d fy = _mm256_sub_pd(y, _mm256_cvtepi32_pd(iy));
+    alignas(16) int at[4];
+    _mm_store_si128(reinterpret_cast<__m128i*>(at),
+                    _mm_sub_epi32(_mm_add_epi32(_mm_mullo_epi32(iy, vstride), ix), shift));
+    // (p00, p01) of samples 0 and 1, 2 and 3; the same one row down.
+    __m128 top01 = _mm_loadl_pi(_mm_setzero_ps(), reinterpret_cast<const __m64*>(pixels + at[0]));
+    top01 = _mm_loadh_pi(top01, reinterpret_cast<const __m64*>(pixels + at[1]));
+    __m128 top23 = _mm_loadl_pi(_mm_setzero_ps(), reinterpret_cast<const __m64*>(pixels + at[2]));
+    top23 = _mm_loadh_pi(top23, reinterpret_cast<const __m64*>(pixels + at[3]));
+    __m128 bottom01 = _mm_loadl_pi(_mm_setzero_ps(), reinterpret_cast<const __m64*>(pixels + at[0] + stride));
+    bottom01 = _mm_loadh_pi(bottom01, reinterpret_cast<const __m64*>(pixels + at[1] + stride));
+    __m128 bottom23 = _mm_loadl_pi(_mm_setzero_ps(), reinterpret_cast<const __m64*>(pixels + at[2] + stride));
+    bottom23 = _mm_loadh_pi(bottom23, reinterpret_cast<const __m64*>(pixels + at[3] + stride));
+    const __m128 p00 = _mm_shuffle_ps(top01, top23, _MM_SHUFFLE(2, 0, 2, 0));
+    const __m128 p01 = _mm_shuffle_ps(top01, top23, _MM_SHUFFLE(3, 1, 3, 1));
+    const __m128 p10 = _mm_shuffle_ps(bottom01, bottom23, _MM_SHUFFLE(2, 0, 2, 0));
+    const __m128 p11 = _mm_shuffle_ps(bottom01, bottom23, _MM_SHUFFLE(3, 1, 3, 1));
+    const __m256d top = _mm256_add_pd(_mm256_cvtps_pd(p00), _mm256_mul_pd(fx, _mm256_cvtps_pd(_mm_sub_ps(p01, p00))));
+    const __m256d bottom =
+        _mm256_add_pd(_mm256_cvtps_pd(p10), _mm256_mul_pd(fx, _mm256_cvtps_pd(_mm_sub_ps(p11, p10))));
+    const __m256d v = _mm256_add_pd(top, _mm256_mul_pd(fy, _mm256_sub_pd(bottom, top)));
+    alignas(32) double lanes[5][4];
+    _mm256_store_pd(lanes[0], v);
+    _mm256_store_pd(lanes[1], _mm256_mul_pd(v, v));
+    _mm256_store_pd(lanes[2], _mm256_mul_pd(_mm256_loadu_pd(jac_x + k), v));
+    _mm256_store_pd(lanes[3], _mm256_mul_pd(_mm256_loadu_pd(jac_y + k), v));
+    _mm256_store_pd(lanes[4], _mm256_mul_pd(v, _mm256_loadu_pd(templ + k)));
+    for (int i = 0; i < 4; ++i) {
+      s.sm += lanes[0][i];
+      s.smm += lanes[1][i];
+      s.sjxm += lanes[2][i];
+      s.sjym += lanes[3][i];
+      s.smt += lanes[4][i];
+    }
+  }
+  *sums = s;
+  SumSamples(base_x + k, base_y + k, jac_x + k, jac_y + k, templ + k, n - k, tx, ty, pixels, stride, offset_x,
+             offset_y, sums);
+}
+#endif
+
+// The low-passed reference around one template. Sample positions are raster coordinates
+// relative to `origin` (the corner of the largest block the refinement may need); the block
+// actually fetched may be smaller and starts `offset` px further in.
+struct FilteredRaster {
+  mosaic::RasterPatch region;
+  cv::Mat raster;  // CV_32F, the size of region.image
+  cv::Mat mask;    // region.mask eroded by the kernel radius (when not all mapped)
+  int offset_x = 0, offset_y = 0;
+  // Positions whose bilinear samples read only filtered pixels that do not depend on where
+  // the block ends: lo <= x < hi.
+  double lo_x = 0.0, lo_y = 0.0, hi_x = 0.0, hi_y = 0.0;
+  bool whole = false;  // the largest block, filtered to its edges (every position may be tried)
+};
+
+// Fetches and filters the block `margin` px around `bounds`; the largest is `full_margin`.
+// Filtered pixels at least the kernel radius R inside the block equal those of any larger
+// block, so a smaller block gives the same samples wherever it is valid; only the largest is
+// filtered to its edges (replicated), as every sample it may be asked for must be defined.
+void LoadRaster(const ReferenceRaster& reference, const RasterBounds& bounds, int margin, int full_margin,
+                double sigma_px, FilteredRaster* out) {
+  const int radius = detail::LowPassRadius(sigma_px);
+  out->region = FetchRegion(reference, bounds, margin);
+  out->offset_x = out->offset_y = full_margin - margin;
+  out->whole = margin == full_margin;
+  const cv::Mat& image = out->region.image;
+  // Per-thread buffer: several templates are refined every frame.
+  thread_local cv::Mat raster_store;
+  out->raster = detail::ScratchImage(raster_store, image.size(), CV_32FC1);
+  if (out->whole) {
+    detail::GaussianLowPass(image, out->raster, sigma_px, CV_32F);
+  } else {
+    const cv::Rect interior(radius, radius, image.cols - 2 * radius, image.rows - 2 * radius);
+    cv::Mat target = out->raster(interior);
+    detail::GaussianLowPassRect(image, interior, target, sigma_px, CV_32F);
+  }
+  out->lo_x = out->offset_x + radius;
+  out->lo_y = out->offset_y + radius;
+  out->hi_x = out->offset_x + image.cols - 1 - radius;
+  out->hi_y = out->offset_y + image.rows - 1 - radius;
+  out->mask = out->region.mask;
+  if (radius > 0 && !out->region.all_mapped) {
+    const cv::Size k(2 * radius + 1, 2 * radius + 1);
+    cv::erode(out->region.mask, out->mask, cv::getStructuringElement(cv::MORPH_RECT, k));
+  }
+}
+
+// Inverse-compositional Gauss-Newton on the translation t of the template in the raster,
+// with ZNCC normalisation of both sides:
+//   min_t sum_k ( N[M](A x_k + b + t) - N[T](x_k) )^2,   N[f] = (f - mean f) / std f,
+// where M is the raster, T the frame, x_k the template's pixels and [A | b] the current
+// frame -> raster map. At the optimum M(A x + b + t) ~ T(x), so grad M ~ grad T A^-1:
+// the Jacobian and the 2x2 Gauss-Newton matrix come from the template once (Baker and
+// Matthews, "Lucas-Kanade 20 years on", 2004, section 3.2), and each iteration costs one
+// bilinear sample per pixel. The normalisation makes the cost blind to gain and offset.
 RefinedMatch RefineDirect(const cv::Mat& frame, const cv::Rect& rect, const ReferenceRaster& reference,
                           const Affine& frame_to_raster, const RefineOptions& options) {
   RefinedMatch match;
   const cv::Rect inner = rect & cv::Rect(1, 1, frame.cols - 2, frame.rows - 2);
   const int blur_radius = detail::LowPassRadius(options.prefilter_sigma_px);
-  const int margin = static_cast<int>(std::ceil(options.max_shift_px)) + 2 + blur_radius;
-  const mosaic::RasterPatch region = FetchRegion(reference, frame_to_raster, inner, margin);
+  // The block every sample of a shift up to max_shift_px falls in; a refinement that stays
+  // within a few pixels of its start (nearly all) needs only the smaller one.
+  const int full_margin = static_cast<int>(std::ceil(options.max_shift_px)) + 2 + blur_radius;
+  constexpr int kSlackPx = 2;
+  const int margin = std::min(full_margin, blur_radius + 1 + kSlackPx);
+  const RasterBounds bounds = BoundsOf(frame_to_raster, inner);
 
   // Both sides low-pass filtered alike: real floors carry detail up to the pixel scale, where
   // bilinear interpolation is a poor model of the image between samples and would bias the
   // sub-pixel estimate. The mask shrinks by the kernel radius so no unknown pixel leaks in.
-  cv::Mat raster_mask = region.mask;
-  const bool all_known = region.all_mapped;
-  const cv::Rect around = cv::Rect(inner.x - 1 - blur_radius, inner.y - 1 - blur_radius,
-                                   inner.width + 2 + 2 * blur_radius, inner.height + 2 + 2 * blur_radius) &
-                          cv::Rect(0, 0, frame.cols, frame.rows);
-  // Per-thread buffers: several templates are refined every frame.
-  thread_local cv::Mat templ_store, raster_store;
-  cv::Mat templ_source = detail::ScratchImage(templ_store, around.size(), CV_32FC1);
-  cv::Mat raster = detail::ScratchImage(raster_store, region.image.size(), CV_32FC1);
-  detail::GaussianLowPass(frame(around), templ_source, options.prefilter_sigma_px, CV_32F);
-  detail::GaussianLowPass(region.image, raster, options.prefilter_sigma_px, CV_32F);
-  if (blur_radius > 0 && !all_known) {
-    const cv::Size k(2 * blur_radius + 1, 2 * blur_radius + 1);
-    cv::erode(region.mask, raster_mask, cv::getStructuringElement(cv::MORPH_RECT, k));
-  }
+  // The template's gradient needs the filtered frame on `inner` and one pixel around it.
+  const cv::Rect gradient_rect(inner.x - 1, inner.y - 1, inner.width + 2, inner.height + 2);
+  // Per-thread buffer: several templates are refined every frame.
+  thread_local cv::Mat templ_store;
+  cv::Mat templ_source = detail::ScratchImage(templ_store, gradient_rect.size(), CV_32FC1);
+  detail::GaussianLowPassRect(frame, gradient_rect, templ_source, options.prefilter_sigma_px, CV_32F);
+  FilteredRaster filtered;
+  LoadRaster(reference, bounds, margin, full_margin, options.prefilter_sigma_px, &filtered);
 
   const Eigen::Matrix2d a = frame_to_raster.leftCols<2>();
   const Eigen::Matrix2d a_inv = a.inverse();
-  const Eigen::Vector2d b = frame_to_raster.col(2) - Eigen::Vector2d(static_cast<double>(region.col0),
-                                                                      static_cast<double>(region.row0));
+  const Eigen::Vector2d b = frame_to_raster.col(2) - Eigen::Vector2d(static_cast<double>(bounds.col0 - full_margin),
+                                                                      static_cast<double>(bounds.row0 - full_margin));
   const int step = options.sampling;
-  std::vector<double> base_x, base_y, templ, jac_x, jac_y;
+  // Per-thread buffers, only ever grown.
+  thread_local std::vector<double> base_x, base_y, templ, jac_x, jac_y;
   const std::size_t capacity = static_cast<std::size_t>((inner.width / step + 1) * (inner.height / step + 1));
-  for (auto* v : {&base_x, &base_y, &templ, &jac_x, &jac_y}) v->reserve(capacity);
+  for (auto* v : {&base_x, &base_y, &templ, &jac_x, &jac_y}) {
+    if (v->size() < capacity) v->resize(capacity);
+  }
   double sum = 0.0, sum_sq = 0.0;
+  double min_x = 1e300, min_y = 1e300, max_x = -1e300, max_y = -1e300;
+  std::size_t n = 0;
   for (int y = inner.y; y < inner.y + inner.height; y += step) {
-    const float* row = templ_source.ptr<float>(y - around.y) - around.x;
-    const float* up = templ_source.ptr<float>(y - 1 - around.y) - around.x;
-    const float* down = templ_source.ptr<float>(y + 1 - around.y) - around.x;
-    for (int x = inner.x; x < inner.x + inner.width; x += step) {
+    const float* row = templ_source.ptr<float>(y - gradient_rect.y) - gradient_rect.x;
+    const float* up = templ_source.ptr<float>(y - 1 - gradient_rect.y) - gradient_rect.x;
+    const float* down = templ_source.ptr<float>(y + 1 - gradient_rect.y) - gradient_rect.x;
+    for (int x = inner.x; x < inner.x + inner.width; x += step, ++n) {
       const double gx = 0.5 * (row[x + 1] - row[x - 1]);
       const double gy = 0.5 * (down[x] - up[x]);
       const Eigen::Vector2d r = a * Eigen::Vector2d(x, y) + b;
-      base_x.push_back(r.x());
-      base_y.push_back(r.y());
-      templ.push_back(row[x]);
-      jac_x.push_back(gx * a_inv(0, 0) + gy * a_inv(1, 0));
-      jac_y.push_back(gx * a_inv(0, 1) + gy * a_inv(1, 1));
+      base_x[n] = r.x();
+      base_y[n] = r.y();
+      min_x = std::min(min_x, r.x());
+      min_y = std::min(min_y, r.y());
+      max_x = std::max(max_x, r.x());
+      max_y = std::max(max_y, r.y());
+      templ[n] = row[x];
+      jac_x[n] = gx * a_inv(0, 0) + gy * a_inv(1, 0);
+      jac_y[n] = gx * a_inv(0, 1) + gy * a_inv(1, 1);
       sum += row[x];
       sum_sq += static_cast<double>(row[x]) * row[x];
     }
   }
-  const std::size_t n = templ.size();
   const double mean_t = sum / static_cast<double>(n);
   const double std_t = std::sqrt(std::max(sum_sq / static_cast<double>(n) - mean_t * mean_t, 1e-12));
+  // With the template normalised (sum T = 0, sum T^2 = n) and e_k = (M_k - mu) / sigma - T_k:
+  //   sum_k J_k e_k = (sum_k J_k M_k - mu sum_k J_k) / sigma - sum_k J_k T_k,
+  //   sum_k e_k^2  = 2 n - 2 sum_k M_k T_k / sigma,
+  // so one pass of five running sums per iteration does it, with no per-pixel storage.
+  // Off-map samples (only near the map's edge) take the general path with their own sums.
   Eigen::Matrix2d hessian = Eigen::Matrix2d::Zero();
+  double sum_jx = 0.0, sum_jy = 0.0, sum_jxt = 0.0, sum_jyt = 0.0;
   for (std::size_t k = 0; k < n; ++k) {
     templ[k] = (templ[k] - mean_t) / std_t;
     jac_x[k] /= std_t;
@@ -127,6 +299,10 @@ RefinedMatch RefineDirect(const cv::Mat& frame, const cv::Rect& rect, const Refe
     hessian(0, 0) += jac_x[k] * jac_x[k];
     hessian(0, 1) += jac_x[k] * jac_y[k];
     hessian(1, 1) += jac_y[k] * jac_y[k];
+    sum_jx += jac_x[k];
+    sum_jy += jac_y[k];
+    sum_jxt += jac_x[k] * templ[k];
+    sum_jyt += jac_y[k] * templ[k];
   }
   hessian(1, 0) = hessian(0, 1);
   if (!(hessian.determinant() > 1e-12)) {
@@ -134,66 +310,78 @@ RefinedMatch RefineDirect(const cv::Mat& frame, const cv::Rect& rect, const Refe
     match.detail = "no texture: the template has no gradient";
     return match;
   }
-
-  // With the template normalised (sum T = 0, sum T^2 = n) and e_k = (M_k - mu) / sigma - T_k:
-  //   sum_k J_k e_k = (sum_k J_k M_k - mu sum_k J_k) / sigma - sum_k J_k T_k,
-  //   sum_k e_k^2  = 2 n - 2 sum_k M_k T_k / sigma,
-  // so one pass of five running sums per iteration does it, with no per-pixel storage.
-  // Off-map samples (only near the map's edge) take the general path with their own sums.
-  double sum_jx = 0.0, sum_jy = 0.0, sum_jxt = 0.0, sum_jyt = 0.0;
-  for (std::size_t k = 0; k < n; ++k) {
-    sum_jx += jac_x[k];
-    sum_jy += jac_y[k];
-    sum_jxt += jac_x[k] * templ[k];
-    sum_jyt += jac_y[k] * templ[k];
-  }
-  const float* pixels = raster.ptr<float>(0);
-  const std::size_t stride = raster.step1();
-  const int max_col = raster.cols - 2, max_row = raster.rows - 2;
   Eigen::Vector2d t = Eigen::Vector2d::Zero();
   double sum_e2 = 0.0;
   std::size_t used = 0;
   bool converged = false;
   for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
     match.iterations = iteration + 1;
+    // All samples of this iteration within the filtered block, or the largest block.
+    const bool within = min_x + t.x() >= filtered.lo_x && min_y + t.y() >= filtered.lo_y &&
+                        max_x + t.x() < filtered.hi_x && max_y + t.y() < filtered.hi_y;
+    if (!within && !filtered.whole) {
+      LoadRaster(reference, bounds, full_margin, full_margin, options.prefilter_sigma_px, &filtered);
+    }
+    const float* pixels = filtered.raster.ptr<float>(0);
+    const std::size_t stride = filtered.raster.step1();
+    const int max_col = filtered.raster.cols - 2, max_row = filtered.raster.rows - 2;
+    const int offset_x = filtered.offset_x, offset_y = filtered.offset_y;
+    const bool all_known = filtered.region.all_mapped;
     double sm = 0.0, smm = 0.0, sjxm = 0.0, sjym = 0.0, smt = 0.0;
     double pjx = sum_jx, pjy = sum_jy, pjxt = sum_jxt, pjyt = sum_jyt, stt = static_cast<double>(n), st = 0.0;
     Eigen::Matrix2d h = hessian;
     used = 0;
-    for (std::size_t k = 0; k < n; ++k) {
-      const double x = base_x[k] + t.x(), y = base_y[k] + t.y();
-      const int ix = static_cast<int>(x), iy = static_cast<int>(y);  // x, y > 0 by the margin
-      bool ok = ix >= 0 && iy >= 0 && ix <= max_col && iy <= max_row;
-      if (ok && !all_known) {
-        const std::uint8_t* m0 = raster_mask.ptr<std::uint8_t>(iy) + ix;
-        const std::uint8_t* m1 = raster_mask.ptr<std::uint8_t>(iy + 1) + ix;
-        ok = (m0[0] & m0[1] & m1[0] & m1[1]) != 0;
+    if (within && all_known) {
+      // Every sample inside and known: no per-sample test.
+      SampleSums sums;
+      auto* sum_samples = &SumSamples;
+#ifdef MOSAICLOC_TRACKING_AVX2
+      if (detail::UseAvx2()) sum_samples = &SumSamplesAvx2;
+#endif
+      sum_samples(base_x.data(), base_y.data(), jac_x.data(), jac_y.data(), templ.data(), n, t.x(), t.y(), pixels,
+          static_cast<std::ptrdiff_t>(stride), offset_x, offset_y, &sums);
+      sm = sums.sm;
+      smm = sums.smm;
+      sjxm = sums.sjxm;
+      sjym = sums.sjym;
+      smt = sums.smt;
+      used = n;
+    } else {
+      for (std::size_t k = 0; k < n; ++k) {
+        const double x = base_x[k] + t.x(), y = base_y[k] + t.y();
+        const int ix = static_cast<int>(x) - offset_x, iy = static_cast<int>(y) - offset_y;
+        bool ok = ix >= 0 && iy >= 0 && ix <= max_col && iy <= max_row;
+        if (ok && !all_known) {
+          const std::uint8_t* m0 = filtered.mask.ptr<std::uint8_t>(iy) + ix;
+          const std::uint8_t* m1 = filtered.mask.ptr<std::uint8_t>(iy + 1) + ix;
+          ok = (m0[0] & m0[1] & m1[0] & m1[1]) != 0;
+        }
+        if (!ok) {
+          // Take this sample out of the precomputed sums.
+          pjx -= jac_x[k];
+          pjy -= jac_y[k];
+          pjxt -= jac_x[k] * templ[k];
+          pjyt -= jac_y[k] * templ[k];
+          stt -= templ[k] * templ[k];
+          st -= templ[k];
+          h(0, 0) -= jac_x[k] * jac_x[k];
+          h(0, 1) -= jac_x[k] * jac_y[k];
+          h(1, 1) -= jac_y[k] * jac_y[k];
+          continue;
+        }
+        const float* p0 = pixels + static_cast<std::size_t>(iy) * stride + ix;
+        const float* p1 = p0 + stride;
+        const double fx = x - (ix + offset_x), fy = y - (iy + offset_y);
+        const double top = p0[0] + fx * (p0[1] - p0[0]);
+        const double bottom = p1[0] + fx * (p1[1] - p1[0]);
+        const double v = top + fy * (bottom - top);
+        sm += v;
+        smm += v * v;
+        sjxm += jac_x[k] * v;
+        sjym += jac_y[k] * v;
+        smt += v * templ[k];
+        ++used;
       }
-      if (!ok) {
-        // Take this sample out of the precomputed sums.
-        pjx -= jac_x[k];
-        pjy -= jac_y[k];
-        pjxt -= jac_x[k] * templ[k];
-        pjyt -= jac_y[k] * templ[k];
-        stt -= templ[k] * templ[k];
-        st -= templ[k];
-        h(0, 0) -= jac_x[k] * jac_x[k];
-        h(0, 1) -= jac_x[k] * jac_y[k];
-        h(1, 1) -= jac_y[k] * jac_y[k];
-        continue;
-      }
-      const float* p0 = pixels + static_cast<std::size_t>(iy) * stride + ix;
-      const float* p1 = p0 + stride;
-      const double fx = x - ix, fy = y - iy;
-      const double top = p0[0] + fx * (p0[1] - p0[0]);
-      const double bottom = p1[0] + fx * (p1[1] - p1[0]);
-      const double v = top + fy * (bottom - top);
-      sm += v;
-      smm += v * v;
-      sjxm += jac_x[k] * v;
-      sjym += jac_y[k] * v;
-      smt += v * templ[k];
-      ++used;
     }
     if (static_cast<double>(used) < options.min_mapped_fraction * static_cast<double>(n)) {
       match.failure = RefineFailure::kOffMap;

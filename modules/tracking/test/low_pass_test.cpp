@@ -6,6 +6,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "../src/low_pass.hpp"
+#include "../src/simd.hpp"
 #include "mosaicloc/core/error.hpp"
 
 namespace mosaicloc::tracking {
@@ -85,6 +86,48 @@ TEST(LowPass, ConstantStaysConstantAndAViewIsFilteredAsItsPixels) {
   detail::GaussianLowPass(view, from_view, 1.0, CV_32F);
   detail::GaussianLowPass(view.clone(), from_copy, 1.0, CV_32F);
   EXPECT_EQ(cv::norm(from_view, from_copy, cv::NORM_INF), 0.0);
+}
+
+// The rectangle variant is the whole-image filter evaluated on part of it: the same pixels,
+// bit for bit, with the image's own edges replicated and its inside read across the
+// rectangle's edges.
+TEST(LowPass, RectangleIsThePartOfTheWholeFilteredImage) {
+  const cv::Mat image = RandomImage(90, 70, 21);
+  for (const double sigma : {0.6, 1.0, 2.5}) {
+    for (const int depth : {CV_32F, CV_8U}) {
+      cv::Mat whole;
+      detail::GaussianLowPass(image, whole, sigma, depth);
+      for (const cv::Rect rect : {cv::Rect(0, 0, 90, 70), cv::Rect(10, 12, 40, 30), cv::Rect(0, 5, 7, 60),
+                                  cv::Rect(83, 63, 7, 7), cv::Rect(45, 0, 1, 1), cv::Rect(2, 66, 88, 4)}) {
+        cv::Mat part;
+        detail::GaussianLowPassRect(image, rect, part, sigma, depth);
+        ASSERT_EQ(part.size(), rect.size());
+        EXPECT_EQ(cv::norm(part, whole(rect), cv::NORM_INF), 0.0)
+            << "sigma " << sigma << " rect " << rect.x << "," << rect.y << " " << rect.width << "x" << rect.height;
+      }
+    }
+  }
+  cv::Mat out;
+  EXPECT_THROW(detail::GaussianLowPassRect(image, cv::Rect(80, 0, 20, 10), out, 1.0, CV_32F), core::Error);
+  EXPECT_THROW(detail::GaussianLowPassRect(image, cv::Rect(0, 0, 0, 10), out, 1.0, CV_32F), core::Error);
+}
+
+// The AVX2 build of the filter (when the processor has it) and the baseline build agree bit
+// for bit: the same operations, more lanes at a time.
+TEST(LowPass, VectorBuildsAgreeExactly) {
+  for (const double sigma : {0.5, 1.0, 3.0}) {
+    for (const cv::Size size : {cv::Size(5, 9), cv::Size(48, 48), cv::Size(123, 117)}) {
+      const cv::Mat image = RandomImage(size.width, size.height, 300 + size.width);
+      for (const int depth : {CV_32F, CV_8U}) {
+        cv::Mat fast, plain;
+        detail::GaussianLowPass(image, fast, sigma, depth);
+        detail::SetAvx2Allowed(false);
+        detail::GaussianLowPass(image, plain, sigma, depth);
+        detail::SetAvx2Allowed(true);
+        EXPECT_EQ(cv::norm(fast, plain, cv::NORM_INF), 0.0) << "sigma " << sigma;
+      }
+    }
+  }
 }
 
 TEST(LowPass, SigmaZeroConvertsAndBadInputThrows) {
