@@ -121,7 +121,7 @@ void Drive(const std::filesystem::path& file, double drive_km, double speed_mps,
   const auto frames = static_cast<std::int64_t>(drive_km * 1000.0 / speed_mps * 10.0 * frame_rate_hz);
   std::vector<double> render_ms;
   render_ms.reserve(static_cast<std::size_t>(frames));
-  std::int64_t waited = 0, tiles_waited = 0;
+  std::int64_t waited = 0, tiles_waited = 0, waited_turning = 0, frames_turning = 0;
   if (prefetcher) {
     // A vehicle is switched on before it drives: the tiles around the start are loaded
     // while it stands, so the first render does not count as a wait.
@@ -147,8 +147,11 @@ void Drive(const std::filesystem::path& file, double drive_km, double speed_mps,
     const auto start = Clock::now();
     const mosaic::RenderedView view = renderer.RenderView(pose, 640, 480, 0.25, 0);
     render_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - start).count());
+    const bool turning = std::abs(yaw_rate) > 0.05;
+    frames_turning += turning ? 1 : 0;
     if (view.tiles_loaded > 0) {
       ++waited;
+      waited_turning += turning ? 1 : 0;
       tiles_waited += view.tiles_loaded;
     }
     if (i % 1000 == 0) {
@@ -165,9 +168,10 @@ void Drive(const std::filesystem::path& file, double drive_km, double speed_mps,
   std::printf("drove %.2f km (serpentine, %d rows of %.1f m, cruise %.1f m/s), %lld frames at %.0f Hz (paced %.1fx real time),"
               " prefetch %s\n", driven_m / 1000.0, route.serpentine_rows, route.serpentine_length_m, speed_mps,
               static_cast<long long>(rendered), frame_rate_hz, time_scale, prefetch ? "on" : "off");
-  std::printf("renders that waited for a tile: %lld of %lld (%.3f %%), %lld tiles\n", static_cast<long long>(waited),
-              static_cast<long long>(rendered), 100.0 * static_cast<double>(waited) / static_cast<double>(rendered),
-              static_cast<long long>(tiles_waited));
+  std::printf("renders that waited for a tile: %lld of %lld (%.3f %%), %lld tiles; %lld of them of the %lld frames in turns\n",
+              static_cast<long long>(waited), static_cast<long long>(rendered),
+              100.0 * static_cast<double>(waited) / static_cast<double>(rendered), static_cast<long long>(tiles_waited),
+              static_cast<long long>(waited_turning), static_cast<long long>(frames_turning));
   std::printf("render 640x480: p50 %.3f ms, p99 %.3f ms, max %.3f ms\n", render_ms[render_ms.size() / 2],
               render_ms[render_ms.size() * 99 / 100], render_ms.back());
   std::printf("cache: budget %zu MiB, %zu tiles, %.1f MiB, %lld loads (mean %.2f ms, max %.2f ms), %lld evictions\n",

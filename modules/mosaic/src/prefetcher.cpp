@@ -95,10 +95,12 @@ void TilePrefetcher::Prefetch(const Prediction& prediction) {
       }
     }
     {
-      // A newer prediction waits until this horizon is covered: restarting at every frame
-      // would keep the prefetcher on the tiles the tracker is already loading itself.
+      // A newer prediction replaces this one at once. Its first positions are the tiles
+      // just loaded, found in a few microseconds each, so restarting loses little; working
+      // on to the end of a stale horizon does lose: at the start of a turn the straight
+      // path's last second of tiles would be loaded before the turn's.
       const std::lock_guard lock(mutex_);
-      if (stop_) return;
+      if (stop_ || pending_) return;
     }
   }
 }
