@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <vector>
 
 #include <Eigen/LU>
@@ -508,6 +509,82 @@ RefinedMatch RefineVisp(const cv::Mat& frame, const cv::Rect& rect, const Refere
   return match;
 }
 
+// The inside of RenderWindow: every sample's four pixels in the block and known. Pixel (x, y)
+// of `out` shows block point a (origin + (x, y)) + b, bilinear in double precision.
+void RenderRows(const std::uint8_t* pixels, std::size_t stride, const Eigen::Matrix2d& a, const Eigen::Vector2d& b,
+                const cv::Point& origin, const cv::Size& size, cv::Mat* out) {
+  for (int y = 0; y < size.height; ++y) {
+    auto* o = out->ptr<std::uint8_t>(y);
+    const Eigen::Vector2d row_start = a * Eigen::Vector2d(origin.x, origin.y + y) + b;
+    for (int x = 0; x < size.width; ++x) {
+      const double rx = row_start.x() + a(0, 0) * x, ry = row_start.y() + a(1, 0) * x;
+      // rx, ry >= 0: truncation is the floor (std::floor is a library call without SSE4.1).
+      const auto ix = static_cast<std::size_t>(rx), iy = static_cast<std::size_t>(ry);
+      const std::uint8_t* p = pixels + iy * stride + ix;
+      const std::uint8_t* q = p + stride;
+      const double fx = rx - static_cast<double>(ix), fy = ry - static_cast<double>(iy);
+      const double v = (1.0 - fy) * ((1.0 - fx) * p[0] + fx * p[1]) + fy * ((1.0 - fx) * q[0] + fx * q[1]);
+      o[x] = static_cast<std::uint8_t>(v + 0.5);
+    }
+  }
+}
+
+#ifdef MOSAICLOC_TRACKING_AVX2
+// RenderRows four pixels at a time, the same operations on each.
+MOSAICLOC_TARGET_AVX2 void RenderRowsAvx2(const std::uint8_t* pixels, std::size_t stride, const Eigen::Matrix2d& a,
+                                          const Eigen::Vector2d& b, const cv::Point& origin, const cv::Size& size,
+                                          cv::Mat* out) {
+  const __m256d ax = _mm256_set1_pd(a(0, 0)), ay = _mm256_set1_pd(a(1, 0));
+  const __m256d one = _mm256_set1_pd(1.0), half = _mm256_set1_pd(0.5);
+  const __m128i vstride = _mm_set1_epi32(static_cast<int>(stride));
+  const __m128i low_byte = _mm_set1_epi32(0xFF);
+  for (int y = 0; y < size.height; ++y) {
+    auto* o = out->ptr<std::uint8_t>(y);
+    const Eigen::Vector2d row_start = a * Eigen::Vector2d(origin.x, origin.y + y) + b;
+    const __m256d sx = _mm256_set1_pd(row_start.x()), sy = _mm256_set1_pd(row_start.y());
+    int x = 0;
+    for (; x + 4 <= size.width; x += 4) {
+      const __m256d xs = _mm256_setr_pd(x, x + 1, x + 2, x + 3);
+      const __m256d rx = _mm256_add_pd(sx, _mm256_mul_pd(ax, xs));
+      const __m256d ry = _mm256_add_pd(sy, _mm256_mul_pd(ay, xs));
+      const __m128i ix = _mm256_cvttpd_epi32(rx), iy = _mm256_cvttpd_epi32(ry);
+      const __m256d fx = _mm256_sub_pd(rx, _mm256_cvtepi32_pd(ix));
+      const __m256d fy = _mm256_sub_pd(ry, _mm256_cvtepi32_pd(iy));
+      alignas(16) int at[4];
+      _mm_store_si128(reinterpret_cast<__m128i*>(at), _mm_add_epi32(_mm_mullo_epi32(iy, vstride), ix));
+      std::uint16_t top[4], bottom[4];
+      for (int i = 0; i < 4; ++i) {
+        std::memcpy(&top[i], pixels + at[i], 2);
+        std::memcpy(&bottom[i], pixels + at[i] + stride, 2);
+      }
+      const __m128i t = _mm_setr_epi32(top[0], top[1], top[2], top[3]);
+      const __m128i u = _mm_setr_epi32(bottom[0], bottom[1], bottom[2], bottom[3]);
+      const __m256d p0 = _mm256_cvtepi32_pd(_mm_and_si128(t, low_byte));
+      const __m256d p1 = _mm256_cvtepi32_pd(_mm_srli_epi32(t, 8));
+      const __m256d q0 = _mm256_cvtepi32_pd(_mm_and_si128(u, low_byte));
+      const __m256d q1 = _mm256_cvtepi32_pd(_mm_srli_epi32(u, 8));
+      const __m256d gx = _mm256_sub_pd(one, fx), gy = _mm256_sub_pd(one, fy);
+      const __m256d upper = _mm256_add_pd(_mm256_mul_pd(gx, p0), _mm256_mul_pd(fx, p1));
+      const __m256d lower = _mm256_add_pd(_mm256_mul_pd(gx, q0), _mm256_mul_pd(fx, q1));
+      const __m256d v = _mm256_add_pd(_mm256_mul_pd(gy, upper), _mm256_mul_pd(fy, lower));
+      const __m128i value = _mm256_cvttpd_epi32(_mm256_add_pd(v, half));
+      const __m128i bytes = _mm_packus_epi16(_mm_packs_epi32(value, value), _mm_setzero_si128());
+      const int four = _mm_cvtsi128_si32(bytes);
+      std::memcpy(o + x, &four, 4);
+    }
+    for (; x < size.width; ++x) {
+      const double rx = row_start.x() + a(0, 0) * x, ry = row_start.y() + a(1, 0) * x;
+      const auto ix = static_cast<std::size_t>(rx), iy = static_cast<std::size_t>(ry);
+      const std::uint8_t* p = pixels + iy * stride + ix;
+      const std::uint8_t* q = p + stride;
+      const double fx = rx - static_cast<double>(ix), fy = ry - static_cast<double>(iy);
+      const double v = (1.0 - fy) * ((1.0 - fx) * p[0] + fx * p[1]) + fy * ((1.0 - fx) * q[0] + fx * q[1]);
+      o[x] = static_cast<std::uint8_t>(v + 0.5);
+    }
+  }
+}
+#endif
+
 }  // namespace
 
 bool RefineOptions::Check(std::string* why) const {
@@ -562,20 +639,11 @@ cv::Mat RenderWindow(const ReferenceRaster& reference, const Affine& frame_to_ra
   if (inside) {
     const std::uint8_t* pixels = region.image.ptr<std::uint8_t>(0);
     const std::size_t stride = region.image.step[0];
-    for (int y = 0; y < size.height; ++y) {
-      auto* o = out.ptr<std::uint8_t>(y);
-      const Eigen::Vector2d row_start = a * Eigen::Vector2d(origin.x, origin.y + y) + b;
-      for (int x = 0; x < size.width; ++x) {
-        const double rx = row_start.x() + a(0, 0) * x, ry = row_start.y() + a(1, 0) * x;
-        // rx, ry >= 0: truncation is the floor (std::floor is a library call without SSE4.1).
-        const auto ix = static_cast<std::size_t>(rx), iy = static_cast<std::size_t>(ry);
-        const std::uint8_t* p = pixels + iy * stride + ix;
-        const std::uint8_t* q = p + stride;
-        const double fx = rx - static_cast<double>(ix), fy = ry - static_cast<double>(iy);
-        const double v = (1.0 - fy) * ((1.0 - fx) * p[0] + fx * p[1]) + fy * ((1.0 - fx) * q[0] + fx * q[1]);
-        o[x] = static_cast<std::uint8_t>(v + 0.5);
-      }
-    }
+    auto* render_rows = &RenderRows;
+#ifdef MOSAICLOC_TRACKING_AVX2
+    if (detail::UseAvx2()) render_rows = &RenderRowsAvx2;
+#endif
+    render_rows(pixels, stride, a, b, origin, size, &out);
     if (mask != nullptr) mask->setTo(cv::Scalar(255));
     return out;
   }

@@ -11,6 +11,11 @@
 
 #include "low_pass.hpp"
 #include "mosaicloc/core/error.hpp"
+#include "simd.hpp"
+
+#ifdef MOSAICLOC_TRACKING_AVX2
+#include <immintrin.h>
+#endif
 
 namespace mosaicloc::tracking {
 namespace {
@@ -33,61 +38,137 @@ struct ScoreMap {
 constexpr int kMaxDirectScores = 40 * 40;
 constexpr int kMaxDirectTemplatePixels = 32768;
 
+// sum_{r, c} t[r][c] w[r + dy][c + dx] for every offset (dx, dy) of an rw x rh score map:
+// `t` and `w` are 16-bit rows of `stride_t` and `stride_w` values, padded with zeros to whole
+// groups of kGroup. Integer arithmetic: every build gives the same sums.
+constexpr int kGroup = 16;
+
+void CorrelateRows(const std::int16_t* t, int stride_t, int th, const std::int16_t* w, int stride_w, int rw, int rh,
+                   std::int32_t* out) {
+  constexpr int kLanes = cv::v_int16x8::nlanes;
+  for (int dy = 0; dy < rh; ++dy) {
+    for (int dx = 0; dx < rw; ++dx) {
+      cv::v_int32x4 acc = cv::v_setzero_s32();
+      for (int r = 0; r < th; ++r) {
+        const std::int16_t* tr = t + static_cast<std::size_t>(r) * stride_t;
+        const std::int16_t* wr = w + static_cast<std::size_t>(r + dy) * stride_w + dx;
+        for (int c = 0; c < stride_t; c += kLanes) acc += cv::v_dotprod(cv::v_load(tr + c), cv::v_load(wr + c));
+      }
+      out[static_cast<std::size_t>(dy) * rw + dx] = cv::v_reduce_sum(acc);
+    }
+  }
+}
+
+#ifdef MOSAICLOC_TRACKING_AVX2
+MOSAICLOC_TARGET_AVX2 void CorrelateRowsAvx2(const std::int16_t* t, int stride_t, int th, const std::int16_t* w,
+                                             int stride_w, int rw, int rh, std::int32_t* out) {
+  for (int dy = 0; dy < rh; ++dy) {
+    for (int dx = 0; dx < rw; ++dx) {
+      __m256i acc = _mm256_setzero_si256();
+      for (int r = 0; r < th; ++r) {
+        const std::int16_t* tr = t + static_cast<std::size_t>(r) * stride_t;
+        const std::int16_t* wr = w + static_cast<std::size_t>(r + dy) * stride_w + dx;
+        for (int c = 0; c < stride_t; c += kGroup) {
+          const __m256i a = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(tr + c));
+          const __m256i b = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(wr + c));
+          acc = _mm256_add_epi32(acc, _mm256_madd_epi16(a, b));
+        }
+      }
+      const __m128i half = _mm_add_epi32(_mm256_castsi256_si128(acc), _mm256_extracti128_si256(acc, 1));
+      const __m128i pairs = _mm_add_epi32(half, _mm_shuffle_epi32(half, _MM_SHUFFLE(1, 0, 3, 2)));
+      const __m128i total = _mm_add_epi32(pairs, _mm_shuffle_epi32(pairs, _MM_SHUFFLE(2, 3, 0, 1)));
+      out[static_cast<std::size_t>(dy) * rw + dx] = _mm_cvtsi128_si32(total);
+    }
+  }
+}
+#endif
+
 // TM_CCOEFF_NORMED by direct summation, for the small score maps of a search around a
 // prediction, where OpenCV's DFT-based correlation spends most of its time setting up. With
 // n template pixels, at each offset over the window patch W under the template T:
 //   zncc = (n sum TW - sum T sum W) / sqrt((n sum T^2 - (sum T)^2) (n sum W^2 - (sum W)^2)),
-// sum TW by 16-bit dot products, sum W and sum W^2 from integral images. A patch without
-// variance scores as OpenCV scores it (0, or +-1 within its rounding margin).
+// sum TW by 16-bit dot products, sum W and sum W^2 as exact integers from column sums. A
+// patch without variance scores as OpenCV scores it (0, or +-1 within its rounding margin).
 cv::Mat DirectZncc(const cv::Mat& templ, const cv::Mat& window) {
   const int tw = templ.cols, th = templ.rows;
   const int rw = window.cols - tw + 1, rh = window.rows - th + 1;
-  // Rows padded to whole SIMD vectors with zeros (they add nothing to the dot products).
-  constexpr int kLanes = cv::v_int16x8::nlanes;
-  const int padded = (tw + kLanes - 1) / kLanes * kLanes;
+  // Rows padded to whole vector groups with zeros (they add nothing to the dot products).
+  const int padded = (tw + kGroup - 1) / kGroup * kGroup;
   const int window_padded = window.cols + padded;
+  // Per-thread buffers, only ever grown; every value read is written below.
   thread_local std::vector<std::int16_t> t16, w16;
-  t16.assign(static_cast<std::size_t>(padded) * th, 0);
-  w16.assign(static_cast<std::size_t>(window_padded) * window.rows, 0);
+  thread_local std::vector<std::int32_t> dots;
+  thread_local std::vector<std::int64_t> column_sum, column_sq;
+  const auto grow = [](auto& v, std::size_t size) {
+    if (v.size() < size) v.resize(size);
+  };
+  grow(t16, static_cast<std::size_t>(padded) * th);
+  grow(w16, static_cast<std::size_t>(window_padded) * window.rows);
+  grow(dots, static_cast<std::size_t>(rw) * rh);
+  grow(column_sum, static_cast<std::size_t>(window.cols));
+  grow(column_sq, static_cast<std::size_t>(window.cols));
   double sum_t = 0.0, sum_tt = 0.0;
   for (int r = 0; r < th; ++r) {
     const std::uint8_t* row = templ.ptr<std::uint8_t>(r);
+    std::int16_t* out = &t16[static_cast<std::size_t>(r) * padded];
     for (int c = 0; c < tw; ++c) {
-      t16[static_cast<std::size_t>(r) * padded + c] = row[c];
+      out[c] = row[c];
       sum_t += row[c];
       sum_tt += static_cast<double>(row[c]) * row[c];
     }
+    std::fill(out + tw, out + padded, std::int16_t{0});
   }
   for (int r = 0; r < window.rows; ++r) {
     const std::uint8_t* row = window.ptr<std::uint8_t>(r);
     std::int16_t* out = &w16[static_cast<std::size_t>(r) * window_padded];
     for (int c = 0; c < window.cols; ++c) out[c] = row[c];
+    std::fill(out + window.cols, out + window_padded, std::int16_t{0});
   }
-  // sum TW at an offset: one vector accumulator over the whole template, reduced once.
-  const auto dot = [&](int dx, int dy) {
-    cv::v_int32x4 acc = cv::v_setzero_s32();
-    for (int r = 0; r < th; ++r) {
-      const std::int16_t* t = &t16[static_cast<std::size_t>(r) * padded];
-      const std::int16_t* w = &w16[static_cast<std::size_t>(r + dy) * window_padded + dx];
-      for (int c = 0; c < padded; c += kLanes) acc += cv::v_dotprod(cv::v_load(t + c), cv::v_load(w + c));
-    }
-    return cv::v_reduce_sum(acc);
-  };
-  cv::Mat sum, sq_sum;
-  cv::integral(window, sum, sq_sum, CV_32S, CV_64F);
+#ifdef MOSAICLOC_TRACKING_AVX2
+  if (detail::UseAvx2()) {
+    CorrelateRowsAvx2(t16.data(), padded, th, w16.data(), window_padded, rw, rh, dots.data());
+  } else
+#endif
+  {
+    CorrelateRows(t16.data(), padded, th, w16.data(), window_padded, rw, rh, dots.data());
+  }
   const double n = static_cast<double>(tw) * th;
   const double t_norm = std::sqrt(std::max(n * sum_tt - sum_t * sum_t, 0.0));
   cv::Mat scores(rh, rw, CV_32F);
+  // Column sums over the th window rows under the template, moved down a row at a time.
+  std::fill(column_sum.begin(), column_sum.begin() + window.cols, 0);
+  std::fill(column_sq.begin(), column_sq.begin() + window.cols, 0);
+  for (int r = 0; r < th; ++r) {
+    const std::uint8_t* row = window.ptr<std::uint8_t>(r);
+    for (int c = 0; c < window.cols; ++c) {
+      column_sum[c] += row[c];
+      column_sq[c] += row[c] * row[c];
+    }
+  }
   for (int y = 0; y < rh; ++y) {
-    const std::int32_t* s0 = sum.ptr<std::int32_t>(y);
-    const std::int32_t* s1 = sum.ptr<std::int32_t>(y + th);
-    const double* q0 = sq_sum.ptr<double>(y);
-    const double* q1 = sq_sum.ptr<double>(y + th);
+    if (y > 0) {
+      const std::uint8_t* leaving = window.ptr<std::uint8_t>(y - 1);
+      const std::uint8_t* entering = window.ptr<std::uint8_t>(y + th - 1);
+      for (int c = 0; c < window.cols; ++c) {
+        column_sum[c] += entering[c] - leaving[c];
+        column_sq[c] += entering[c] * entering[c] - leaving[c] * leaving[c];
+      }
+    }
+    std::int64_t box_sum = 0, box_sq = 0;
+    for (int c = 0; c < tw; ++c) {
+      box_sum += column_sum[c];
+      box_sq += column_sq[c];
+    }
     float* out = scores.ptr<float>(y);
     for (int x = 0; x < rw; ++x) {
-      const double sum_w = static_cast<double>(s1[x + tw] - s1[x] - s0[x + tw] + s0[x]);
-      const double sum_ww = q1[x + tw] - q1[x] - q0[x + tw] + q0[x];
-      const double numerator = n * dot(x, y) - sum_t * sum_w;
+      if (x > 0) {
+        box_sum += column_sum[x + tw - 1] - column_sum[x - 1];
+        box_sq += column_sq[x + tw - 1] - column_sq[x - 1];
+      }
+      const double sum_w = static_cast<double>(box_sum);
+      const double sum_ww = static_cast<double>(box_sq);
+      const double dot = static_cast<double>(dots[static_cast<std::size_t>(y) * rw + x]);
+      const double numerator = n * dot - sum_t * sum_w;
       const double denominator = std::sqrt(std::max(n * sum_ww - sum_w * sum_w, 0.0)) * t_norm;
       double score = 0.0;
       if (std::abs(numerator) < denominator) {

@@ -113,6 +113,85 @@ TEST(Templates, SpreadPicksTexturedWindowsInDistinctCells) {
   EXPECT_NE(spots[0].rect.y, spots[1].rect.y);
 }
 
+// The ranking as OpenCV computes it (2x2 area average, Sobel with scale 1/8, products
+// area-averaged into 8 px cells, box filter over a template), to check SelectTemplates' exact
+// integer version against: the same template in every cell.
+std::vector<cv::Rect> OpenCvRanking(const cv::Mat& frame, const TemplateOptions& options, cv::Size grid) {
+  cv::Mat half, quarter, gx, gy, product, sxx, sxy, syy, mxx, mxy, myy;
+  cv::resize(frame, half, cv::Size(frame.cols / 2, frame.rows / 2), 0, 0, cv::INTER_AREA);
+  cv::resize(half, quarter, cv::Size(half.cols / 2, half.rows / 2), 0, 0, cv::INTER_AREA);
+  cv::Sobel(quarter, gx, CV_32F, 1, 0, 3, 0.125);
+  cv::Sobel(quarter, gy, CV_32F, 0, 1, 3, 0.125);
+  const cv::Size cells(quarter.cols / 2, quarter.rows / 2);
+  cv::multiply(gx, gx, product);
+  cv::resize(product, sxx, cells, 0, 0, cv::INTER_AREA);
+  cv::multiply(gx, gy, product);
+  cv::resize(product, sxy, cells, 0, 0, cv::INTER_AREA);
+  cv::multiply(gy, gy, product);
+  cv::resize(product, syy, cells, 0, 0, cv::INTER_AREA);
+  const int s = options.size_px & ~1, b = (options.border_px + 1) & ~1, k = std::max(1, s / 8);
+  cv::boxFilter(sxx, mxx, -1, cv::Size(k, k), cv::Point(0, 0), true, cv::BORDER_REPLICATE);
+  cv::boxFilter(sxy, mxy, -1, cv::Size(k, k), cv::Point(0, 0), true, cv::BORDER_REPLICATE);
+  cv::boxFilter(syy, myy, -1, cv::Size(k, k), cv::Point(0, 0), true, cv::BORDER_REPLICATE);
+  const int max_x = (frame.cols - b - s) & ~1, max_y = (frame.rows - b - s) & ~1;
+  std::vector<cv::Rect> rects;
+  for (int gr = 0; gr < grid.height; ++gr) {
+    for (int gc = 0; gc < grid.width; ++gc) {
+      if (gr * grid.width + gc >= options.count) break;
+      const int x_lo = std::clamp(gc * frame.cols / grid.width - s / 2, b, max_x);
+      const int x_hi = std::clamp((gc + 1) * frame.cols / grid.width - s / 2, b, max_x);
+      const int y_lo = std::clamp(gr * frame.rows / grid.height - s / 2, b, max_y);
+      const int y_hi = std::clamp((gr + 1) * frame.rows / grid.height - s / 2, b, max_y);
+      double best = -1.0;
+      cv::Point best_at(x_lo & ~1, y_lo & ~1);
+      for (int y = y_lo; y <= y_hi; y += 8) {
+        for (int x = x_lo; x <= x_hi; x += 8) {
+          const int sx = std::min(x / 8, cells.width - 1), sy = std::min(y / 8, cells.height - 1);
+          const double a = mxx.at<float>(sy, sx), m = mxy.at<float>(sy, sx), c = myy.at<float>(sy, sx);
+          const double e = 0.5 * (a + c) - std::sqrt(0.25 * (a - c) * (a - c) + m * m);
+          if (e > best) {
+            best = e;
+            best_at = {x & ~1, y & ~1};
+          }
+        }
+      }
+      rects.emplace_back(best_at.x, best_at.y, s, s);
+    }
+  }
+  return rects;
+}
+
+TEST(Templates, RankingEqualsOpenCvsAndTextureItsStrength) {
+  cv::Mat noise(480, 640, CV_8UC1);
+  cv::RNG(17).fill(noise, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(noise, noise, cv::Size(0, 0), 2.0);
+  std::vector<cv::Mat> frames = {noise};
+  if (const std::optional<cv::Mat> texture = Asphalt()) {
+    const Scene scene(*texture);
+    for (const double yaw_deg : {0.0, 17.0, 45.0}) frames.push_back(scene.Frame(Pose2(3.0, -2.0, yaw_deg * kDeg), 2.0));
+  }
+  for (const int count : {4, 8, 6}) {
+    TemplateOptions options;
+    options.count = count;
+    options.min_texture = 0.0;
+    const std::vector<std::pair<int, int>> grids = {{2, 2}, {4, 2}, {3, 2}};
+    const cv::Size grid(grids[count == 4 ? 0 : count == 8 ? 1 : 2].first, grids[count == 4 ? 0 : count == 8 ? 1 : 2].second);
+    for (const cv::Mat& frame : frames) {
+      const std::vector<TemplateSpot> spots = SelectTemplates(frame, options);
+      const std::vector<cv::Rect> expected = OpenCvRanking(frame, options, grid);
+      ASSERT_EQ(spots.size(), expected.size()) << count;
+      cv::Mat half;
+      cv::resize(frame, half, cv::Size(frame.cols / 2, frame.rows / 2), 0, 0, cv::INTER_AREA);
+      for (std::size_t i = 0; i < spots.size(); ++i) {
+        EXPECT_EQ(spots[i].rect, expected[i]) << "count " << count << " template " << i;
+        const cv::Rect& r = spots[i].rect;
+        const double strength = TextureStrength(half(cv::Rect(r.x / 2, r.y / 2, r.width / 2, r.height / 2)));
+        EXPECT_NEAR(spots[i].texture, strength, 1e-5 * strength);
+      }
+    }
+  }
+}
+
 TEST(Templates, TiledCoversTheFrame) {
   cv::Mat frame(480, 640, CV_8UC1);
   cv::RNG(4).fill(frame, cv::RNG::UNIFORM, 0, 256);
@@ -229,6 +308,27 @@ TEST(ZnccSearch, DirectSearchEqualsOpenCv) {
   EXPECT_EQ(cv::norm(expected, cv::NORM_INF), 0.0);
 }
 
+// The AVX2 build of the direct correlation (when the processor has it) finds the same peak,
+// second peak and sub-pixel place as the baseline build, bit for bit.
+TEST(ZnccSearch, DirectVectorBuildsAgreeExactly) {
+  cv::Mat image(200, 200, CV_8UC1);
+  cv::RNG(5).fill(image, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(image, image, cv::Size(0, 0), 1.5);
+  for (const cv::Size size : {cv::Size(48, 48), cv::Size(37, 29), cv::Size(20, 64)}) {
+    const cv::Mat templ = image(cv::Rect(70, 60, size.width, size.height)).clone();
+    const cv::Mat window = image(cv::Rect(61, 52, size.width + 14, size.height + 18));
+    const SearchPeak fast = SearchZncc(templ, window, SearchOptions{});
+    detail::SetAvx2Allowed(false);
+    const SearchPeak plain = SearchZncc(templ, window, SearchOptions{});
+    detail::SetAvx2Allowed(true);
+    EXPECT_EQ(fast.found, plain.found);
+    EXPECT_EQ(fast.offset_px, plain.offset_px);
+    EXPECT_EQ(fast.peak, plain.peak);
+    EXPECT_EQ(fast.second, plain.second);
+    EXPECT_EQ(fast.sharpness, plain.sharpness);
+  }
+}
+
 TEST(ZnccSearch, LeavesItsInputsUntouched) {
   cv::Mat window(120, 120, CV_8UC1);
   cv::RNG(15).fill(window, cv::RNG::UNIFORM, 0, 256);
@@ -283,6 +383,24 @@ TEST(Reference, RenderWindowAtIdentityIsTheImage) {
   const cv::Mat window = RenderWindow(reference, identity, cv::Point(10, 20), cv::Size(50, 40), &mask);
   EXPECT_EQ(cv::norm(window, image(cv::Rect(10, 20, 50, 40)), cv::NORM_INF), 0.0);
   EXPECT_EQ(cv::countNonZero(mask), 50 * 40);
+}
+
+// The AVX2 build of the unchecked path (when the processor has it) renders the same pixels
+// as the baseline build, at widths that are and are not whole groups of four.
+TEST(Reference, RenderWindowVectorBuildsAgreeExactly) {
+  cv::Mat image(200, 220, CV_8UC1);
+  cv::RNG(13).fill(image, cv::RNG::UNIFORM, 0, 256);
+  const ImageReference reference(image, Pose2::Identity(), 1.0);
+  Affine frame_to_raster;
+  const double c = std::cos(0.7), s = std::sin(0.7);
+  frame_to_raster << 0.5 * c, -0.5 * s, 90.3, 0.5 * s, 0.5 * c, 30.7;
+  for (const cv::Size size : {cv::Size(60, 60), cv::Size(57, 33)}) {
+    const cv::Mat fast = RenderWindow(reference, frame_to_raster, cv::Point(5, 5), size);
+    detail::SetAvx2Allowed(false);
+    const cv::Mat plain = RenderWindow(reference, frame_to_raster, cv::Point(5, 5), size);
+    detail::SetAvx2Allowed(true);
+    EXPECT_EQ(cv::norm(fast, plain, cv::NORM_INF), 0.0);
+  }
 }
 
 // Inside the reference (the unchecked path) and across its edge (the checked one) the window
