@@ -11,6 +11,7 @@
 
 #include "low_pass.hpp"
 #include "mosaicloc/mosaic/tile_store.hpp"
+#include "render_window.hpp"
 #include "simd.hpp"
 #include "visp_refine.hpp"
 
@@ -618,13 +619,24 @@ const char* ToString(RefineFailure failure) {
 
 cv::Mat RenderWindow(const ReferenceRaster& reference, const Affine& frame_to_raster, const cv::Point& origin,
                      const cv::Size& size, cv::Mat* mask) {
+  bool all_known = false;
+  cv::Mat out = detail::RenderWindowKnown(reference, frame_to_raster, origin, size, mask, &all_known);
+  if (all_known && mask != nullptr) {
+    mask->create(size, CV_8UC1);
+    mask->setTo(cv::Scalar(255));
+  }
+  return out;
+}
+
+cv::Mat detail::RenderWindowKnown(const ReferenceRaster& reference, const Affine& frame_to_raster,
+                                  const cv::Point& origin, const cv::Size& size, cv::Mat* mask, bool* all_known) {
+  *all_known = false;
   const cv::Rect rect(origin, size);
   const mosaic::RasterPatch region = FetchRegion(reference, frame_to_raster, rect, 2);
   const Eigen::Matrix2d a = frame_to_raster.leftCols<2>();
   const Eigen::Vector2d b = frame_to_raster.col(2) - Eigen::Vector2d(static_cast<double>(region.col0),
                                                                       static_cast<double>(region.row0));
   cv::Mat out(size, CV_8UC1);
-  if (mask != nullptr) mask->create(size, CV_8UC1);
   // Every sample inside the block and every block pixel known (the usual case, away from the
   // map's edge): the same arithmetic as Sample without its per-pixel checks. The sample
   // positions are an affine image of the window, so they lie within the hull of its corners.
@@ -644,9 +656,10 @@ cv::Mat RenderWindow(const ReferenceRaster& reference, const Affine& frame_to_ra
     if (detail::UseAvx2()) render_rows = &RenderRowsAvx2;
 #endif
     render_rows(pixels, stride, a, b, origin, size, &out);
-    if (mask != nullptr) mask->setTo(cv::Scalar(255));
+    *all_known = true;
     return out;
   }
+  if (mask != nullptr) mask->create(size, CV_8UC1);
   for (int y = 0; y < size.height; ++y) {
     auto* o = out.ptr<std::uint8_t>(y);
     std::uint8_t* m = mask != nullptr ? mask->ptr<std::uint8_t>(y) : nullptr;

@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "mosaicloc/core/error.hpp"
+#include "render_window.hpp"
 
 namespace mosaicloc::tracking {
 namespace {
@@ -143,21 +144,25 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
       const int search_range = (range + scale - 1) / scale + 1;
       const cv::Point origin(rect.x - search_range, rect.y - search_range);
       cv::Mat mask;
-      cv::Mat window = RenderWindow(search_reference, prior_to_raster, origin,
-                                    cv::Size(rect.width + 2 * search_range, rect.height + 2 * search_range), &mask);
-      const int known = cv::countNonZero(mask);
-      // The template's predicted footprint must be mapped as the refinement will demand.
-      const cv::Mat footprint = mask(cv::Rect(search_range, search_range, rect.width, rect.height));
-      const double footprint_mapped =
-          static_cast<double>(cv::countNonZero(footprint)) / static_cast<double>(footprint.total());
-      if (static_cast<double>(known) < options_.min_window_mapped * static_cast<double>(mask.total()) ||
-          footprint_mapped < options_.refine.min_mapped_fraction) {
-        report.rejected = "off map";
-        ++off_map;
-        result.templates.push_back(std::move(report));
-        continue;
+      bool all_known = false;
+      cv::Mat window = detail::RenderWindowKnown(
+          search_reference, prior_to_raster, origin,
+          cv::Size(rect.width + 2 * search_range, rect.height + 2 * search_range), &mask, &all_known);
+      if (!all_known) {
+        const int known = cv::countNonZero(mask);
+        // The template's predicted footprint must be mapped as the refinement will demand.
+        const cv::Mat footprint = mask(cv::Rect(search_range, search_range, rect.width, rect.height));
+        const double footprint_mapped =
+            static_cast<double>(cv::countNonZero(footprint)) / static_cast<double>(footprint.total());
+        if (static_cast<double>(known) < options_.min_window_mapped * static_cast<double>(mask.total()) ||
+            footprint_mapped < options_.refine.min_mapped_fraction) {
+          report.rejected = "off map";
+          ++off_map;
+          result.templates.push_back(std::move(report));
+          continue;
+        }
+        if (known < static_cast<int>(mask.total())) window.setTo(cv::mean(window, mask), ~mask);
       }
-      if (known < static_cast<int>(mask.total())) window.setTo(cv::mean(window, mask), ~mask);
       report.coarse = SearchZncc(search_frame(rect), window, options_.search);
       if (!report.coarse.found || report.coarse.peak < options_.min_peak) {
         report.rejected = "no match";
