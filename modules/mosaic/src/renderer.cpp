@@ -100,26 +100,31 @@ RenderedView MapRenderer::RenderView(const core::Pose2& world_from_camera, int w
       linear * Eigen::Vector2d(0.0, 0.0) + offset - origin, linear * Eigen::Vector2d(width_px - 1.0, 0.0) + offset - origin,
       linear * Eigen::Vector2d(width_px - 1.0, height_px - 1.0) + offset - origin,
       linear * Eigen::Vector2d(0.0, height_px - 1.0) + offset - origin};
+  // Each edge as x = x_at_low + (y - y_low) slope between y_low and y_high; its crossing of
+  // a band limit needs no division.
+  struct Edge {
+    double y_low, y_high, x_at_low, slope;
+  };
+  std::array<Edge, 4> edges;
+  for (std::size_t i = 0; i < 4; ++i) {
+    Eigen::Vector2d a = corners[i], b = corners[(i + 1) % 4];
+    if (a.y() > b.y()) std::swap(a, b);
+    edges[i] = {a.y(), b.y(), a.x(), b.y() > a.y() ? (b.x() - a.x()) / (b.y() - a.y()) : 0.0};
+  }
   const auto span = [&](int r) {
     // x extent of the parallelogram within the band [r - e, r + 1 + e]: its vertices in the
     // band and its edges' crossings of the band's limits. e covers rounding to 1/32 px.
     constexpr double kMargin = 0.1;
     const double band_low = r - kMargin, band_high = r + 1.0 + kMargin;
     double low = 1e300, high = -1e300;
-    for (std::size_t i = 0; i < 4; ++i) {
-      const Eigen::Vector2d& a = corners[i];
-      const Eigen::Vector2d& b = corners[(i + 1) % 4];
-      if (a.y() >= band_low && a.y() <= band_high) {
-        low = std::min(low, a.x());
-        high = std::max(high, a.x());
-      }
-      for (const double limit : {band_low, band_high}) {
-        if ((a.y() - limit) * (b.y() - limit) < 0.0) {
-          const double x = a.x() + (b.x() - a.x()) * (limit - a.y()) / (b.y() - a.y());
-          low = std::min(low, x);
-          high = std::max(high, x);
-        }
-      }
+    for (const Edge& edge : edges) {
+      // The edge's part inside the band, clipped; x is linear along it.
+      const double y_from = std::max(edge.y_low, band_low), y_to = std::min(edge.y_high, band_high);
+      if (y_from > y_to) continue;
+      const double x_from = edge.x_at_low + (y_from - edge.y_low) * edge.slope;
+      const double x_to = edge.x_at_low + (y_to - edge.y_low) * edge.slope;
+      low = std::min(low, std::min(x_from, x_to));
+      high = std::max(high, std::max(x_from, x_to));
     }
     if (low > high) return std::pair<int, int>(0, 0);
     // Samples at x read pair columns floor(x) and floor(x) + 1.
@@ -161,6 +166,7 @@ RenderedView MapRenderer::RenderView(const core::Pose2& world_from_camera, int w
     pairs_capacity = pairs_bytes;
   }
   if (zeros.size() < static_cast<std::size_t>(t)) zeros.assign(static_cast<std::size_t>(t), 0);
+  constexpr int kPrefetchRows = 8;
   for (int r = 0; r + 1 < rows; ++r) {
     const auto [begin, end] = span(r);
     const std::int64_t top_row = row0 + r, bottom_row = top_row + 1;
@@ -174,7 +180,15 @@ RenderedView MapRenderer::RenderView(const core::Pose2& world_from_camera, int w
         if (tile.status != TileStatus::kOk) return zeros.data();
         return tile.pixels.ptr<std::uint8_t>(static_cast<int>(level_row - tile_row * t)) + (col - tc * t);
       };
-      internal::InterleaveRows(row_of(top_tile, top_row), row_of(bottom_tile, bottom_row), count,
+      const std::uint8_t* bottom = row_of(bottom_tile, bottom_row);
+      // The tile row a few pair rows on, so it is in the cache when this loop gets there.
+      const std::int64_t ahead = bottom_row + kPrefetchRows;
+      if (ahead < (bottom_tile + 1) * t && bottom != zeros.data()) {
+        const std::uint8_t* later = bottom + kPrefetchRows * t;
+        for (int k = 0; k < count; k += 64) __builtin_prefetch(later + k);
+        __builtin_prefetch(later + count - 1);
+      }
+      internal::InterleaveRows(row_of(top_tile, top_row), bottom, count,
                                pairs.get() + static_cast<std::size_t>(r) * stride + 2 * static_cast<std::size_t>(c));
       c += count;
     }
