@@ -11,13 +11,30 @@ namespace {
 
 using Parameters = Eigen::Matrix<double, 6, 1>;  // x_mm, y_mm, yaw_rad, r_l, r_r, b
 
-core::Pose2 VehicleMotion(const DriveStep& step, const Parameters& p) {
-  const double d_l = p(3) * step.left_wheel_rad, d_r = p(4) * step.right_wheel_rad;
+core::Pose2 Arc(double left_wheel_rad, double right_wheel_rad, const Parameters& p) {
+  const double d_l = p(3) * left_wheel_rad, d_r = p(4) * right_wheel_rad;
   const double d = 0.5 * (d_l + d_r), theta = (d_r - d_l) / p(5);
   // sin(theta)/theta and (1 - cos(theta))/theta, by series near zero.
   const double a = std::abs(theta) < 1e-6 ? 1.0 - theta * theta / 6.0 : std::sin(theta) / theta;
   const double b = std::abs(theta) < 1e-6 ? 0.5 * theta : (1.0 - std::cos(theta)) / theta;
   return {d * a, d * b, theta};
+}
+
+core::Pose2 VehicleMotion(const DriveStep& step, const Parameters& p) {
+  if (step.arcs.empty()) return Arc(step.left_wheel_rad, step.right_wheel_rad, p);
+  core::Pose2 motion;
+  for (const WheelTurn& turn : step.arcs) motion = motion * Arc(turn.left_wheel_rad, turn.right_wheel_rad, p);
+  return motion;
+}
+
+WheelTurn Total(const DriveStep& step) {
+  if (step.arcs.empty()) return {step.left_wheel_rad, step.right_wheel_rad};
+  WheelTurn total;
+  for (const WheelTurn& turn : step.arcs) {
+    total.left_wheel_rad += turn.left_wheel_rad;
+    total.right_wheel_rad += turn.right_wheel_rad;
+  }
+  return total;
 }
 
 Eigen::VectorXd Residuals(const std::vector<DriveStep>& steps, const Parameters& p,
@@ -55,8 +72,9 @@ Eigen::MatrixXd Jacobian(const std::vector<DriveStep>& steps, const Parameters& 
 double InitialYaw(const std::vector<DriveStep>& steps, double fallback) {
   Eigen::Vector2d sum = Eigen::Vector2d::Zero();
   for (const DriveStep& step : steps) {
-    const double forward = step.left_wheel_rad + step.right_wheel_rad;
-    if (forward > 0.0 && std::abs(step.right_wheel_rad - step.left_wheel_rad) < 0.02 * forward) {
+    const WheelTurn total = Total(step);
+    const double forward = total.left_wheel_rad + total.right_wheel_rad;
+    if (forward > 0.0 && std::abs(total.right_wheel_rad - total.left_wheel_rad) < 0.02 * forward) {
       sum += step.previous_from_current_camera.translation_mm();
     }
   }
@@ -73,6 +91,10 @@ bool VehicleCalibrationOptions::Check(std::string* why) const {
   }
   if (!(registration_sigma_mm > 0.0 && registration_sigma_rad > 0.0)) {
     *why = "vehicle calibration registration sigmas must be positive";
+    return false;
+  }
+  if (independent_steps < 0) {
+    *why = "vehicle calibration independent_steps must be >= 0";
     return false;
   }
   if (max_iterations < 1) {
@@ -161,7 +183,10 @@ VehicleCalibrationResult CalibrateVehicle(const std::vector<DriveStep>& steps,
     result.message = "the drive does not determine every parameter: it needs a straight run and a turn in place";
   } else {
     const long dof = std::max<long>(1, r.size() - 6);
-    const double variance = cost / static_cast<double>(dof);
+    double variance = cost / static_cast<double>(dof);
+    if (options.independent_steps > 0 && options.independent_steps < result.steps) {
+      variance *= static_cast<double>(result.steps) / static_cast<double>(options.independent_steps);
+    }
     result.sigma = (lu.inverse().diagonal() * variance).cwiseSqrt();
   }
   result.vehicle_from_camera = core::Pose2(p(0), p(1), std::remainder(p(2), 2.0 * M_PI));

@@ -1,9 +1,11 @@
 #include "mosaicloc/camera/vehicle_calibration.hpp"
+#include "mosaicloc/camera/flat_field.hpp"
 
 #include <cmath>
 #include <random>
 
 #include <gtest/gtest.h>
+#include <opencv2/core.hpp>
 
 namespace mosaicloc::camera {
 namespace {
@@ -60,6 +62,62 @@ TEST(CalibrateVehicle, AStraightRunAloneIsReportedAsNotDetermining) {
   const VehicleCalibrationResult result = CalibrateVehicle(steps, {});
   EXPECT_FALSE(result.converged);
   EXPECT_NE(result.message.find("turn in place"), std::string::npos) << result.message;
+}
+
+TEST(CalibrateVehicle, LongerBaselinesComposeTheArcsOfTheirIntervals) {
+  const core::Pose2 truth(212.5, -14.0, 0.035);
+  const WheelGeometry wheels{75.4, 74.7, 507.0};
+  const auto single = Drive(truth, wheels, 0.0, 0.0, 5);
+  // Every step also registered over three intervals, the straight run into the turn
+  // included: the composed arcs must predict those motions exactly.
+  std::vector<DriveStep> steps = single;
+  for (std::size_t i = 0; i + 3 <= single.size(); ++i) {
+    DriveStep step;
+    for (std::size_t j = i; j < i + 3; ++j) {
+      step.arcs.push_back({single[j].left_wheel_rad, single[j].right_wheel_rad});
+      step.previous_from_current_camera = step.previous_from_current_camera * single[j].previous_from_current_camera;
+    }
+    steps.push_back(step);
+  }
+  const VehicleCalibrationResult result = CalibrateVehicle(steps, {});
+  ASSERT_TRUE(result.converged) << result.message;
+  EXPECT_NEAR(result.vehicle_from_camera.x_mm(), truth.x_mm(), 1e-4);
+  EXPECT_NEAR(result.vehicle_from_camera.y_mm(), truth.y_mm(), 1e-4);
+  EXPECT_NEAR(result.vehicle_from_camera.yaw_rad(), truth.yaw_rad(), 1e-8);
+  EXPECT_NEAR(result.wheels.track_width_mm, wheels.track_width_mm, 1e-4);
+  EXPECT_LT(result.rms_translation_mm, 1e-6);
+}
+
+TEST(FlatField, RecoversVignettingUnderAMovingTexture) {
+  const cv::Size size(160, 120);
+  cv::Mat truth(size, CV_32F);
+  for (int y = 0; y < size.height; ++y) {
+    for (int x = 0; x < size.width; ++x) {
+      const double u = (x - 79.5) / 79.5, v = (y - 59.5) / 59.5;
+      truth.at<float>(y, x) = static_cast<float>(1.0 - 0.1 * (u * u + v * v));
+    }
+  }
+  truth /= cv::mean(truth)[0];
+  FlatFieldEstimator flat(2);
+  cv::RNG rng(7);
+  for (int i = 0; i < 200; ++i) {
+    cv::Mat floor(size, CV_32F);
+    rng.fill(floor, cv::RNG::UNIFORM, 60.0, 200.0);  // a fresh patch of floor in every frame
+    cv::Mat frame;
+    cv::Mat(floor.mul(truth)).convertTo(frame, CV_8U);
+    flat.Add(frame);
+  }
+  const cv::Mat gain = flat.Gain();
+  double worst = 0.0;
+  cv::minMaxLoc(cv::abs(gain - truth), nullptr, &worst);
+  EXPECT_LT(worst, 0.01);
+  // Dividing it out leaves an even image.
+  cv::Mat shaded;
+  cv::Mat(cv::Mat(size, CV_32F, cv::Scalar(128.0)).mul(truth)).convertTo(shaded, CV_8U);
+  double lo = 0.0, hi = 0.0;
+  cv::minMaxLoc(DivideByGain(shaded, gain), &lo, &hi);
+  EXPECT_GE(lo, 126.0);
+  EXPECT_LE(hi, 130.0);
 }
 
 }  // namespace

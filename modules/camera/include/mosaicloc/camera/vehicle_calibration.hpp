@@ -16,13 +16,23 @@ struct WheelGeometry {
   double track_width_mm = 500.0;
 };
 
-/// One step of a calibration drive, between two consecutive frames: how far each wheel
-/// turned (from the encoder ticks) and how the camera moved (frame-to-frame registration of
-/// the ideal images).
+/// How far each wheel turned between two encoder samples, rad.
+struct WheelTurn {
+  double left_wheel_rad = 0.0;
+  double right_wheel_rad = 0.0;
+};
+
+/// One step of a calibration drive, between two frames: how far each wheel turned (from the
+/// encoder ticks) and how the camera moved (registration of the two ideal images).
 struct DriveStep {
   double left_wheel_rad = 0.0;
   double right_wheel_rad = 0.0;
   core::Pose2 previous_from_current_camera;  ///< camera floor frame C, mm and rad
+  /// For two frames further apart (a longer baseline): the wheel turns of each interval
+  /// between them, in order. The vehicle's motion is then the composition of their arcs, so
+  /// the path between the frames need not be one arc; left_wheel_rad and right_wheel_rad
+  /// are ignored.
+  std::vector<WheelTurn> arcs;
 };
 
 struct VehicleCalibrationOptions {
@@ -33,6 +43,9 @@ struct VehicleCalibrationOptions {
   double registration_sigma_mm = 0.02;
   double registration_sigma_rad = 1e-4;
   int max_iterations = 50;
+  /// How many of the steps are independent, when they are not (several baselines per frame
+  /// share its registration noise): the uncertainty is scaled to this many steps. 0 = all.
+  int independent_steps = 0;
   bool Check(std::string* why) const;
 };
 
