@@ -1,7 +1,9 @@
 #include "mosaicloc/sim/calibration_drive.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <vector>
 
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/dataset/trajectory.hpp"
@@ -15,12 +17,47 @@ std::string Number(double value) {
   return text;
 }
 
+// Distances covered after each frame by a vehicle that speeds up from rest to `cruise` per
+// frame over `ramp` frames, cruises and slows down to rest the same way, ending at `total`
+// (a trapezoidal speed profile; ramp 0 = constant speed from the start).
+std::vector<double> Profile(double total, double cruise, double ramp) {
+  std::vector<double> at;
+  if (ramp <= 0.0) {
+    const int n = static_cast<int>(std::lround(total / cruise));
+    for (int i = 1; i <= n; ++i) at.push_back(total * i / n);
+    return at;
+  }
+  // Continuous time in frames: ramp up over r, cruise for c, ramp down over r.
+  double r = ramp;
+  double c = total / cruise - r;
+  if (c < 0.0) {  // too short to reach the cruise speed: a triangle
+    r = std::sqrt(total / cruise * ramp);
+    c = 0.0;
+  }
+  const double v = total / (r + c);  // the top speed reached
+  const double duration = 2.0 * r + c;
+  const int n = std::max(1, static_cast<int>(std::ceil(duration)));
+  const auto x = [&](double t) {
+    if (t < r) return 0.5 * v * t * t / r;
+    if (t < r + c) return 0.5 * v * r + v * (t - r);
+    const double u = duration - t;
+    return total - 0.5 * v * u * u / r;
+  };
+  for (int i = 1; i <= n; ++i) at.push_back(x(duration * i / n));
+  at.back() = total;
+  return at;
+}
+
 }  // namespace
 
 bool CalibrationDriveOptions::Check(std::string* why) const {
   if (!floor.Check(why) || !camera.Check(why) || !imaging.Check(why)) return false;
   if (!(straight_mm > 0.0 && step_mm > 0.0 && step_mm < straight_mm)) {
     *why = "calibration drive needs 0 < step_mm < straight_mm";
+    return false;
+  }
+  if (!(ramp_frames >= 0.0 && ramp_frames <= 1000.0)) {
+    *why = "calibration drive needs 0 <= ramp_frames <= 1000";
     return false;
   }
   if (!(turn_rad > 0.0 && turn_step_rad > 0.0 && turn_step_rad < turn_rad)) {
@@ -63,14 +100,17 @@ CalibrationDriveSummary WriteCalibrationDrive(const CalibrationDriveOptions& opt
   core::Pose2 world_from_vehicle;
   dataset::Trajectory truth;
   const double ticks_per_rad = static_cast<double>(options.vehicle.ticks_per_revolution) / (2.0 * M_PI);
-  const int straight_frames = static_cast<int>(std::lround(options.straight_mm / options.step_mm));
-  const int turn_frames = static_cast<int>(std::lround(options.turn_rad / options.turn_step_rad));
+  const std::vector<double> straight_at = Profile(options.straight_mm, options.step_mm, options.ramp_frames);
+  const std::vector<double> turn_at = Profile(options.turn_rad, options.turn_step_rad, options.ramp_frames);
+  const int straight_frames = static_cast<int>(straight_at.size());
+  const int turn_frames = static_cast<int>(turn_at.size());
   const int frames = 1 + straight_frames + turn_frames;
   for (int i = 0; i < frames; ++i) {
     if (i > 0) {
       const bool straight = i <= straight_frames;
-      const double forward = straight ? options.step_mm : 0.0;
-      const double turn = straight ? 0.0 : options.turn_step_rad;
+      const auto step = [](const std::vector<double>& at, int j) { return at[j] - (j > 0 ? at[j - 1] : 0.0); };
+      const double forward = straight ? step(straight_at, i - 1) : 0.0;
+      const double turn = straight ? 0.0 : step(turn_at, i - 1 - straight_frames);
       const double half_track = 0.5 * options.vehicle.track_width_mm;
       left_rad += (forward - half_track * turn) / options.vehicle.left_wheel_radius_mm;
       right_rad += (forward + half_track * turn) / options.vehicle.right_wheel_radius_mm;

@@ -27,9 +27,13 @@ struct CalibrationDriveOptions {
   core::Pose2 nominal_vehicle_from_camera{200.0, 0.0, 0.0};
   dataset::VehicleInfo nominal_vehicle{75.0, 75.0, 500.0, 4096};
   double straight_mm = 400.0;
-  double step_mm = 10.0;            ///< straight-run advance per frame
+  double step_mm = 10.0;            ///< straight-run advance per frame, at cruising speed
   double turn_rad = 3.14159265358979;
-  double turn_step_rad = 0.03;      ///< turn per frame
+  double turn_step_rad = 0.03;      ///< turn per frame, at cruising speed
+  /// Frames over which the straight run and the turn each speed up from rest to cruising
+  /// speed and slow down to rest at the end (constant acceleration); 0 = the cruising speed
+  /// from the first frame to the last.
+  double ramp_frames = 0.0;
   double frame_rate_hz = 30.0;
   std::uint64_t seed = 1;
   bool Check(std::string* why) const;
