@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <array>
+#include <deque>
 #include <optional>
 #include <cmath>
 #include <cstdio>
@@ -17,6 +18,7 @@
 
 #include "commands.hpp"
 #include "mosaicloc/camera/board.hpp"
+#include "mosaicloc/camera/flat_field.hpp"
 #include "mosaicloc/camera/ground.hpp"
 #include "mosaicloc/camera/intrinsics.hpp"
 #include "mosaicloc/core/error.hpp"
@@ -430,27 +432,71 @@ void RunVehicle(const VehicleArgs& args, const GlobalOptions& global) {
   camera_options.height_px = info.camera.height_px;
   camera_options.mm_per_px = info.camera.mm_per_px;
   const camera::IdealCamera camera(camera_options);
-  const tracking::Tracker tracker(camera, tracking::TrackerOptions{});
+  // The tracker's matcher, set for accuracy rather than speed: the whole frame cut into
+  // templates (every part of the overlap used), and a wider low-pass, which keeps the
+  // sub-pixel estimate from locking onto the pixel grid (a bias that repeats with the same
+  // fractional shift and would not average out).
+  tracking::TrackerOptions tracker_options;
+  tracker_options.templates.mode = tracking::TemplateMode::kTiled;
+  tracker_options.templates.tile_cols = 6;
+  tracker_options.templates.tile_rows = 4;
+  tracker_options.refine.prefilter_sigma_px = 2.0;
+  const tracking::Tracker tracker(camera, tracker_options);
   camera::VehicleCalibrationOptions options;
   options.initial_wheels = {info.vehicle.left_wheel_radius_mm, info.vehicle.right_wheel_radius_mm,
                             info.vehicle.track_width_mm};
   options.initial_vehicle_from_camera = info.camera.vehicle_from_camera;
 
+  // The lens's vignetting stays on the pixels while the floor moves: estimated from the drive
+  // itself and divided out before registering.
+  cv::Mat gain;
+  {
+    camera::FlatFieldEstimator flat;
+    auto all = reader.Frames();
+    while (auto frame = all.Next()) flat.Add(frame->image);
+    gain = flat.Gain();
+  }
+
+  // Each frame is registered to the one before it (the chain that predicts the others) and
+  // to up to kBaselines earlier frames it still overlaps: the longer the baseline, the
+  // smaller a registration error is against the motion.
+  constexpr int kBaselines = 12;
+  constexpr double kMinOverlap = 0.2;
+  struct Kept {
+    cv::Mat image;
+    camera::WheelTurn turn;         // since the previous frame
+    core::Pose2 chain_from_camera;  // from the consecutive registrations
+  };
+  std::deque<Kept> window;
   std::vector<camera::DriveStep> steps;
-  int failed = 0, frames = 0;
-  cv::Mat previous;
+  int failed = 0, frames = 0, consecutive = 0;
   Eigen::Vector2d previous_ticks = Eigen::Vector2d::Zero();
   std::optional<core::Pose2> last_motion;
   auto stream = reader.Frames();
   ProgressBar progress("calibrate vehicle", global.quiet);
+  const double width_mm = camera.width_px() * camera.mm_per_px(), height_mm = camera.height_px() * camera.mm_per_px();
+  const auto overlap = [&](const core::Pose2& motion) {
+    // Share of the frame both images show, from the displacement of the corners.
+    double shift_x = 0.0, shift_y = 0.0;
+    for (const double x : {-0.5 * width_mm, 0.5 * width_mm}) {
+      for (const double y : {-0.5 * height_mm, 0.5 * height_mm}) {
+        const Eigen::Vector2d moved = motion * Eigen::Vector2d(x, y);
+        shift_x = std::max(shift_x, std::abs(moved.x() - x));
+        shift_y = std::max(shift_y, std::abs(moved.y() - y));
+      }
+    }
+    return std::max(0.0, 1.0 - shift_x / width_mm) * std::max(0.0, 1.0 - shift_y / height_mm);
+  };
   while (auto frame = stream.Next()) {
     ++frames;
     const auto ticks = ticks_at(frame->time);
     if (!ticks) continue;
-    if (!previous.empty()) {
+    Kept current{camera::DivideByGain(frame->image, gain), {}, core::Pose2()};
+    if (!window.empty()) {
       camera::DriveStep step;
       step.left_wheel_rad = ((*ticks)(0) - previous_ticks(0)) * rad_per_tick;
       step.right_wheel_rad = ((*ticks)(1) - previous_ticks(1)) * rad_per_tick;
+      current.turn = {step.left_wheel_rad, step.right_wheel_rad};
       // The prior: the last registered motion (the drive is smooth), or the nominal odometry.
       core::Pose2 prior = last_motion.value_or(core::Pose2());
       if (!last_motion) {
@@ -465,25 +511,54 @@ void RunVehicle(const VehicleArgs& args, const GlobalOptions& global) {
       const double sigma_mm = 3.0, sigma_rad = 0.01;
       const Eigen::Matrix3d covariance =
           Eigen::Vector3d(sigma_mm * sigma_mm, sigma_mm * sigma_mm, sigma_rad * sigma_rad).asDiagonal();
-      const tracking::TrackResult r = tracking::RegisterFrames(tracker, previous, frame->image, prior, covariance);
+      const tracking::TrackResult r =
+          tracking::RegisterFrames(tracker, window.back().image, current.image, prior, covariance);
       if (r.ok()) {
         step.previous_from_current_camera = r.world_from_camera;
         last_motion = r.world_from_camera;
         steps.push_back(step);
+        ++consecutive;
+        current.chain_from_camera = window.back().chain_from_camera * r.world_from_camera;
+        // The chain predicts the longer baselines to a fraction of a pixel.
+        const Eigen::Matrix3d chained = Eigen::Vector3d(0.25, 0.25, 1e-6).asDiagonal();
+        while (window.size() > 1 &&
+               overlap(window.front().chain_from_camera.Inverse() * current.chain_from_camera) < kMinOverlap) {
+          window.pop_front();
+        }
+        // Up to kBaselines of the earlier frames, evenly spread, the oldest first.
+        const int earlier = static_cast<int>(window.size()) - 1;
+        const int used = std::min(earlier, kBaselines);
+        for (int n = 0; n < used; ++n) {
+          const int index = static_cast<int>(std::lround(static_cast<double>(n) * earlier / used));
+          const Kept& from = window[static_cast<std::size_t>(index)];
+          const tracking::TrackResult far = tracking::RegisterFrames(
+              tracker, from.image, current.image, from.chain_from_camera.Inverse() * current.chain_from_camera, chained);
+          if (!far.ok()) continue;
+          camera::DriveStep long_step;
+          long_step.previous_from_current_camera = far.world_from_camera;
+          for (std::size_t i = static_cast<std::size_t>(index) + 1; i < window.size(); ++i) {
+            long_step.arcs.push_back(window[i].turn);
+          }
+          long_step.arcs.push_back(current.turn);
+          steps.push_back(long_step);
+        }
       } else {
         ++failed;
         last_motion.reset();
+        window.clear();
         core::Log().debug("frame {}: not registered to the previous one: {}", frame->time.nanoseconds(), r.reason);
       }
     }
-    previous = frame->image;
+    window.push_back(std::move(current));
     previous_ticks = *ticks;
   }
+  // The pairs of a frame share its noise: the uncertainty counts frames, not pairs.
+  options.independent_steps = consecutive;
   progress.Finish();
   const camera::VehicleCalibrationResult result = camera::CalibrateVehicle(steps, options);
   if (!result.converged) {
     core::ThrowInvalidInput(args.dataset.string() + ": vehicle calibration failed: " + result.message + " (" +
-                            std::to_string(steps.size()) + " steps registered, " + std::to_string(failed) +
+                            std::to_string(consecutive) + " consecutive frame pairs registered, " + std::to_string(failed) +
                             " not)");
   }
   const core::Pose2& x = result.vehicle_from_camera;
@@ -492,7 +567,8 @@ void RunVehicle(const VehicleArgs& args, const GlobalOptions& global) {
   if (!args.out.empty()) {
     std::string out;
     out += "# mosaicloc vehicle calibration (mosaicloc calibrate vehicle --dataset " + args.dataset.string() + ")\n";
-    out += "# from " + std::to_string(steps.size()) + " registered frame pairs; sigma_* are one-sigma uncertainties.\n";
+    out += "# from " + std::to_string(steps.size()) + " registered frame pairs (" + std::to_string(consecutive) +
+           " consecutive); sigma_* are one-sigma uncertainties.\n";
     out += "# Copy the values into run.yaml (camera.vehicle_from_camera, vehicle.*).\n";
     out += "format_version: 1\n";
     out += "vehicle_from_camera: {x_mm: " + Number(x.x_mm()) + ", y_mm: " + Number(x.y_mm()) +
@@ -525,7 +601,8 @@ void RunVehicle(const VehicleArgs& args, const GlobalOptions& global) {
                           "track width mm"};
   const double unit[6] = {1.0, 1.0, 180.0 / M_PI, 1.0, 1.0, 1.0};
   if (global.json) {
-    nlohmann::json out = {{"frames", frames}, {"steps", steps.size()}, {"not_registered", failed},
+    nlohmann::json out = {{"frames", frames}, {"steps", steps.size()}, {"consecutive_steps", consecutive},
+                          {"not_registered", failed},
                           {"iterations", result.iterations},
                           {"rms_translation_mm", result.rms_translation_mm},
                           {"rms_rotation_deg", result.rms_rotation_rad * 180.0 / M_PI}};
@@ -542,8 +619,8 @@ void RunVehicle(const VehicleArgs& args, const GlobalOptions& global) {
     std::printf("%s\n", out.dump(2).c_str());
     return;
   }
-  std::printf("%zu of %d frame pairs registered; residuals %.4f mm, %.5f deg per pair\n", steps.size(), frames - 1,
-              result.rms_translation_mm, result.rms_rotation_rad * 180.0 / M_PI);
+  std::printf("%d of %d consecutive frame pairs registered, %zu pairs in all; residuals %.4f mm, %.5f deg per pair\n",
+              consecutive, frames - 1, steps.size(), result.rms_translation_mm, result.rms_rotation_rad * 180.0 / M_PI);
   std::printf("  %-16s %14s %12s", "", "calibrated", "sigma");
   if (truth) std::printf(" %14s %12s", "truth", "error");
   std::printf("\n");
@@ -558,6 +635,8 @@ void RunVehicle(const VehicleArgs& args, const GlobalOptions& global) {
 struct DriveArgs {
   std::filesystem::path out;
   std::uint64_t seed = 1;
+  double mounting_yaw_deg = sim::CalibrationDriveOptions{}.vehicle_from_camera.yaw_rad() * 180.0 / M_PI;
+  double ramp_frames = 0.0;
   bool overwrite = false;
 };
 
@@ -565,6 +644,9 @@ void RunSimulateDrive(const DriveArgs& args, const GlobalOptions& global) {
   sim::CalibrationDriveOptions options;
   options.seed = args.seed;
   options.floor.seed = args.seed;
+  options.vehicle_from_camera = core::Pose2(options.vehicle_from_camera.x_mm(), options.vehicle_from_camera.y_mm(),
+                                            args.mounting_yaw_deg * M_PI / 180.0);
+  options.ramp_frames = args.ramp_frames;
   const sim::CalibrationDriveSummary summary = sim::WriteCalibrationDrive(options, args.out, args.overwrite);
   if (global.json) {
     std::printf("%s\n", nlohmann::json{{"dataset", args.out.string()}, {"frames", summary.frames}}.dump(2).c_str());
@@ -790,6 +872,13 @@ Action AddCalibrateCommand(CLI::App& app, const GlobalOptions& global) {
   CLI::App* drive = command->add_subcommand("simulate-drive", "A simulated calibration drive with known truth");
   drive->add_option("--out", drive_args->out, "Dataset directory to write")->required();
   drive->add_option("--seed", drive_args->seed, "Floor and noise seed")->capture_default_str();
+  drive->add_option("--mounting-yaw-deg", drive_args->mounting_yaw_deg, "The camera's true yaw on the vehicle, deg")
+      ->capture_default_str()
+      ->check(CLI::Range(-180.0, 180.0));
+  drive->add_option("--ramp-frames", drive_args->ramp_frames,
+                    "Frames over which the vehicle speeds up from rest and slows down again (0: constant speed)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1000.0));
   drive->add_flag("--overwrite", drive_args->overwrite, "Replace an existing dataset directory");
 
   auto raw_args = std::make_shared<RawArgs>();
