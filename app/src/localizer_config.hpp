@@ -16,6 +16,7 @@ namespace mosaicloc::app {
 struct LocalizerConfig {
   localizer::LocalizerOptions localizer;
   std::size_t cache_budget_mib = 256;
+  double prefetch_horizon_s = 1.0;  ///< how far ahead `run` loads the map's tiles (0: not at all)
   double start_sigma_mm = 1.0;     ///< uncertainty of the starting pose given to the filter
   double start_sigma_deg = 0.5;
   double required_overlap = 0.5;   ///< beta of the overlap speed limit

@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <csignal>
 #include <cstdio>
@@ -38,6 +39,7 @@
 #include "mosaicloc/io/plc_link.hpp"
 #include "mosaicloc/io/v4l2_camera.hpp"
 #include "mosaicloc/localizer/localizer.hpp"
+#include "mosaicloc/mosaic/prefetcher.hpp"
 #include "mosaicloc/mosaic/renderer.hpp"
 #include "mosaicloc/mosaic/tile_cache.hpp"
 #include "mosaicloc/mosaic/tile_store.hpp"
@@ -190,6 +192,13 @@ class LiveRun {
     cache_ = std::make_unique<mosaic::TileCache>(*store_, config.localizer.cache_budget_mib << 20);
     renderer_ = std::make_unique<mosaic::MapRenderer>(*cache_);
     reference_ = std::make_unique<tracking::MapReference>(*renderer_, 0);
+    if (config.localizer.prefetch_horizon_s > 0.0) {
+      // The camera's footprint and the tracker's search margin around it.
+      mosaic::PrefetchOptions prefetch;
+      prefetch.horizon_s = config.localizer.prefetch_horizon_s;
+      prefetch.view_radius_mm = 0.5 * std::hypot(camera.width_px, camera.height_px) * camera.mm_per_px + 30.0;
+      prefetcher_ = std::make_unique<mosaic::TilePrefetcher>(*cache_, prefetch);
+    }
     localizer::LocalizerOptions options = config.localizer.localizer;
     options.odometry.left_wheel_radius_mm = vehicle.left_wheel_radius_mm;
     options.odometry.right_wheel_radius_mm = vehicle.right_wheel_radius_mm;
@@ -435,8 +444,16 @@ class LiveRun {
   }
 
   void Publish(bool fixed, double quality) {
+    const estimation::MotionState motion = localizer_->Latest();
+    if (prefetcher_ && localizer_->initialized()) {
+      const core::Pose2 world_from_camera = motion.world_from_vehicle * camera_info_.vehicle_from_camera;
+      const double heading = motion.world_from_vehicle.yaw_rad();
+      prefetcher_->Predict(world_from_camera,
+                           motion.forward_speed_mm_per_s * Eigen::Vector2d(std::cos(heading), std::sin(heading)),
+                           motion.yaw_rate_rad_per_s);
+    }
     const std::lock_guard lock(published_mutex_);
-    published_.motion = localizer_->Latest();
+    published_.motion = motion;
     published_.lock = localizer_->lock().state();
     if (fixed) {
       published_.fixed_once = true;
@@ -605,6 +622,7 @@ class LiveRun {
   dataset::CameraInfo camera_info_;
   std::unique_ptr<mosaic::TileStore> store_;
   std::unique_ptr<mosaic::TileCache> cache_;
+  std::unique_ptr<mosaic::TilePrefetcher> prefetcher_;  // after cache_: stops before the cache goes
   std::unique_ptr<mosaic::MapRenderer> renderer_;
   std::unique_ptr<tracking::MapReference> reference_;
   std::unique_ptr<localizer::Localizer> localizer_;
