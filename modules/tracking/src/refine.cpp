@@ -510,6 +510,20 @@ RefinedMatch RefineVisp(const cv::Mat& frame, const cv::Rect& rect, const Refere
   return match;
 }
 
+// Pixel x of a RenderRows row starting at block point `row_start`, bilinear in double
+// precision; its four pixels lie in the block.
+MOSAICLOC_ALWAYS_INLINE std::uint8_t KnownSample(const std::uint8_t* pixels, std::size_t stride,
+                                                 const Eigen::Matrix2d& a, const Eigen::Vector2d& row_start, int x) {
+  const double rx = row_start.x() + a(0, 0) * x, ry = row_start.y() + a(1, 0) * x;
+  // rx, ry >= 0: truncation is the floor (std::floor is a library call without SSE4.1).
+  const auto ix = static_cast<std::size_t>(rx), iy = static_cast<std::size_t>(ry);
+  const std::uint8_t* p = pixels + iy * stride + ix;
+  const std::uint8_t* q = p + stride;
+  const double fx = rx - static_cast<double>(ix), fy = ry - static_cast<double>(iy);
+  const double v = (1.0 - fy) * ((1.0 - fx) * p[0] + fx * p[1]) + fy * ((1.0 - fx) * q[0] + fx * q[1]);
+  return static_cast<std::uint8_t>(v + 0.5);
+}
+
 // The inside of RenderWindow: every sample's four pixels in the block and known. Pixel (x, y)
 // of `out` shows block point a (origin + (x, y)) + b, bilinear in double precision.
 void RenderRows(const std::uint8_t* pixels, std::size_t stride, const Eigen::Matrix2d& a, const Eigen::Vector2d& b,
@@ -518,14 +532,7 @@ void RenderRows(const std::uint8_t* pixels, std::size_t stride, const Eigen::Mat
     auto* o = out->ptr<std::uint8_t>(y);
     const Eigen::Vector2d row_start = a * Eigen::Vector2d(origin.x, origin.y + y) + b;
     for (int x = 0; x < size.width; ++x) {
-      const double rx = row_start.x() + a(0, 0) * x, ry = row_start.y() + a(1, 0) * x;
-      // rx, ry >= 0: truncation is the floor (std::floor is a library call without SSE4.1).
-      const auto ix = static_cast<std::size_t>(rx), iy = static_cast<std::size_t>(ry);
-      const std::uint8_t* p = pixels + iy * stride + ix;
-      const std::uint8_t* q = p + stride;
-      const double fx = rx - static_cast<double>(ix), fy = ry - static_cast<double>(iy);
-      const double v = (1.0 - fy) * ((1.0 - fx) * p[0] + fx * p[1]) + fy * ((1.0 - fx) * q[0] + fx * q[1]);
-      o[x] = static_cast<std::uint8_t>(v + 0.5);
+      o[x] = KnownSample(pixels, stride, a, row_start, x);
     }
   }
 }
@@ -574,13 +581,7 @@ MOSAICLOC_TARGET_AVX2 void RenderRowsAvx2(const std::uint8_t* pixels, std::size_
       std::memcpy(o + x, &four, 4);
     }
     for (; x < size.width; ++x) {
-      const double rx = row_start.x() + a(0, 0) * x, ry = row_start.y() + a(1, 0) * x;
-      const auto ix = static_cast<std::size_t>(rx), iy = static_cast<std::size_t>(ry);
-      const std::uint8_t* p = pixels + iy * stride + ix;
-      const std::uint8_t* q = p + stride;
-      const double fx = rx - static_cast<double>(ix), fy = ry - static_cast<double>(iy);
-      const double v = (1.0 - fy) * ((1.0 - fx) * p[0] + fx * p[1]) + fy * ((1.0 - fx) * q[0] + fx * q[1]);
-      o[x] = static_cast<std::uint8_t>(v + 0.5);
+      o[x] = KnownSample(pixels, stride, a, row_start, x);
     }
   }
 }
