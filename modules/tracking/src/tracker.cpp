@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "mosaicloc/core/error.hpp"
+#include "area_halve.hpp"
 #include "render_window.hpp"
 
 namespace mosaicloc::tracking {
@@ -70,7 +71,7 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
                                               std::to_string(camera_.height_px()) + " image");
   }
   thread_local cv::Mat half;  // reused frame to frame: no page faults for a fresh buffer
-  cv::resize(frame, half, cv::Size(frame.cols / 2, frame.rows / 2), 0, 0, cv::INTER_AREA);
+  detail::HalveImage(frame, half);
   std::vector<TemplateSpot> spots = SelectTemplates(frame, half, options_.templates);
   if (spots.empty()) return fail(TrackFailure::kNoTexture, "no template of the frame has enough texture");
   const std::size_t wanted = spots.size();

@@ -7,6 +7,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "../src/area_halve.hpp"
 #include "../src/simd.hpp"
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/sim/resample.hpp"
@@ -190,6 +191,86 @@ TEST(Templates, RankingEqualsOpenCvsAndTextureItsStrength) {
       }
     }
   }
+}
+
+// A frame whose halves do not halve evenly takes OpenCV's own pipeline; it must rank alike.
+TEST(Templates, RankingOfAnUnevenFrameEqualsOpenCvs) {
+  cv::Mat frame(470, 628, CV_8UC1);
+  cv::RNG(23).fill(frame, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(frame, frame, cv::Size(0, 0), 1.5);
+  TemplateOptions options;
+  options.min_texture = 0.0;
+  const std::vector<TemplateSpot> spots = SelectTemplates(frame, options);
+  const std::vector<cv::Rect> expected = OpenCvRanking(frame, options, cv::Size(2, 2));
+  ASSERT_EQ(spots.size(), expected.size());
+  for (std::size_t i = 0; i < spots.size(); ++i) EXPECT_EQ(spots[i].rect, expected[i]) << "template " << i;
+}
+
+// TextureStrength as OpenCV's Sobel and dot products give it (they sum in float, so to a
+// relative 1e-6): inside an image (neighbours read beyond the region), at its edges
+// (reflected) and with odd sides.
+TEST(Templates, TextureStrengthEqualsOpenCvsOnRegionsAndWholeImages) {
+  cv::Mat image(101, 133, CV_8UC1);
+  cv::RNG(29).fill(image, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(image, image, cv::Size(0, 0), 1.2);
+  const auto opencv = [](const cv::Mat& region) {
+    cv::Mat gx, gy;
+    cv::Sobel(region, gx, CV_32F, 1, 0, 3, 0.125);
+    cv::Sobel(region, gy, CV_32F, 0, 1, 3, 0.125);
+    const double n = static_cast<double>(region.total());
+    const double a = gx.dot(gx) / n, b = gx.dot(gy) / n, c = gy.dot(gy) / n;
+    return 0.5 * (a + c) - std::sqrt(0.25 * (a - c) * (a - c) + b * b);
+  };
+  for (const cv::Rect& rect : {cv::Rect(10, 12, 48, 48), cv::Rect(0, 0, 37, 29), cv::Rect(96, 64, 37, 37),
+                               cv::Rect(1, 1, 131, 99), cv::Rect(0, 0, 133, 101), cv::Rect(50, 40, 1, 1)}) {
+    const cv::Mat region = image(rect);
+    const double expected = opencv(region);
+    EXPECT_NEAR(TextureStrength(region), expected, 1e-6 * std::abs(expected) + 1e-9)
+        << rect.x << "," << rect.y << " " << rect.width << "x" << rect.height;
+    // The same pixels as an image of their own: the edges are reflected, not read beyond.
+    EXPECT_NEAR(TextureStrength(region.clone()), opencv(region.clone()), 1e-6 * std::abs(expected) + 1e-9);
+  }
+  EXPECT_THROW(TextureStrength(cv::Mat()), core::Error);
+}
+
+TEST(Templates, VectorBuildsAgreeExactly) {
+  cv::Mat frame(480, 640, CV_8UC1);
+  cv::RNG(31).fill(frame, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(frame, frame, cv::Size(0, 0), 1.0);
+  for (const int count : {4, 9}) {
+    TemplateOptions options;
+    options.count = count;
+    options.min_texture = 0.0;
+    detail::SetAvx2Allowed(false);
+    const std::vector<TemplateSpot> plain = SelectTemplates(frame, options);
+    detail::SetAvx2Allowed(true);
+    const std::vector<TemplateSpot> vector = SelectTemplates(frame, options);
+    ASSERT_EQ(plain.size(), vector.size());
+    for (std::size_t i = 0; i < plain.size(); ++i) {
+      EXPECT_EQ(plain[i].rect, vector[i].rect);
+      EXPECT_EQ(plain[i].texture, vector[i].texture);
+    }
+  }
+}
+
+// The frame's 2x2 average is OpenCV's INTER_AREA halving, pixel for pixel, in both builds; odd
+// sides go to OpenCV itself.
+TEST(Templates, HalvingEqualsOpenCvsAreaResize) {
+  for (const cv::Size size : {cv::Size(640, 480), cv::Size(98, 34), cv::Size(66, 2), cv::Size(97, 35)}) {
+    cv::Mat image(size, CV_8UC1);
+    cv::RNG(37).fill(image, cv::RNG::UNIFORM, 0, 256);
+    cv::Mat expected, plain, vector;
+    cv::resize(image, expected, cv::Size(size.width / 2, size.height / 2), 0, 0, cv::INTER_AREA);
+    detail::SetAvx2Allowed(false);
+    detail::HalveImage(image, plain);
+    detail::SetAvx2Allowed(true);
+    detail::HalveImage(image(cv::Rect(0, 0, size.width, size.height)), vector);
+    ASSERT_EQ(plain.size(), expected.size());
+    EXPECT_EQ(cv::norm(plain, expected, cv::NORM_INF), 0.0) << size;
+    EXPECT_EQ(cv::norm(vector, expected, cv::NORM_INF), 0.0) << size;
+  }
+  cv::Mat out;
+  EXPECT_THROW(detail::HalveImage(cv::Mat(1, 1, CV_8UC1), out), core::Error);
 }
 
 TEST(Templates, TiledCoversTheFrame) {
