@@ -55,9 +55,13 @@ MOSAICLOC_ALWAYS_INLINE void FilterBody(const cv::Mat& src, const cv::Rect& rect
                                         const std::array<float, R + 1>& k, Buffers& b) {
   const int cols = rect.width;
   const int first = std::max(rect.y - R, 0), last = std::min(rect.y + rect.height - 1 + R, src.rows - 1);
-  b.padded.resize(static_cast<std::size_t>(cols + 2 * R));
-  b.horizontal.resize(static_cast<std::size_t>(cols) * static_cast<std::size_t>(last - first + 1));
-  b.line.resize(static_cast<std::size_t>(cols));
+  // Only ever grown: resizing down and up again zero-fills the regrown part on every call.
+  const auto grow = [](std::vector<float>& v, std::size_t size) {
+    if (v.size() < size) v.resize(size);
+  };
+  grow(b.padded, static_cast<std::size_t>(cols + 2 * R));
+  grow(b.horizontal, static_cast<std::size_t>(cols) * static_cast<std::size_t>(last - first + 1));
+  grow(b.line, static_cast<std::size_t>(cols));
   // Padded row i is src column rect.x - R + i, clamped to the image.
   const int left = std::clamp(R - rect.x, 0, cols + 2 * R);
   const int right = std::clamp(src.cols - (rect.x - R), left, cols + 2 * R);
