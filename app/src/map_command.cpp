@@ -132,7 +132,10 @@ void Build(const MapArgs& args, const GlobalOptions& global) {
   {
     auto store = mosaic::TileStore::Create(partial, grid);
     builder.Write(*store, [&](double fraction) { progress.Update(0.8 + 0.2 * fraction); });
-  }  // closing checkpoints the write-ahead log into the file
+    // The renamed file must hold the whole map: its log stays behind under the old name.
+    store->Checkpoint();
+  }
+  for (const char* suffix : {"-wal", "-shm"}) fs::remove(partial.string() + suffix, ec);
   fs::rename(partial, args.out, ec);
   if (ec) core::ThrowRuntime(args.out.string() + ": cannot move the new map into place (" + ec.message() + ")");
   checkpoint.reset();

@@ -25,7 +25,11 @@ std::string FormatDouble(double value) {
 TileStore::TileStore(std::filesystem::path file, sqlite3* db, MapGrid grid)
     : file_(std::move(file)), db_(db), grid_(grid) {}
 
-TileStore::~TileStore() { sqlite3_close(db_); }
+TileStore::~TileStore() {
+  // Readers first: the writable connection, closing last, checkpoints the WAL into the file.
+  idle_readers_.clear();
+  sqlite3_close(db_);
+}
 
 void TileStore::Execute(const std::string& sql) const {
   char* message = nullptr;
@@ -138,32 +142,75 @@ std::uint32_t TileStore::Crc32(const std::vector<unsigned char>& data) {
   return internal::Crc32(data.data(), data.size());
 }
 
+struct TileStore::Reader {
+  sqlite3* db = nullptr;
+  sqlite3_stmt* select = nullptr;
+};
+
+void TileStore::ReaderDeleter::operator()(Reader* reader) const {
+  sqlite3_finalize(reader->select);
+  sqlite3_close(reader->db);
+  delete reader;
+}
+
+TileStore::ReaderPtr TileStore::TakeReader(std::string* why) const {
+  {
+    const std::lock_guard lock(readers_mutex_);
+    if (!idle_readers_.empty()) {
+      ReaderPtr reader = std::move(idle_readers_.back());
+      idle_readers_.pop_back();
+      return reader;
+    }
+  }
+  // Used by one thread at a time (the pool hands it out), so SQLite's own mutex is not needed.
+  ReaderPtr reader(new Reader());
+  if (sqlite3_open_v2(file_.c_str(), &reader->db, SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX, nullptr) != SQLITE_OK ||
+      sqlite3_prepare_v2(reader->db, "SELECT data, crc32 FROM tiles WHERE level = ? AND col = ? AND row = ?", -1,
+                         &reader->select, nullptr) != SQLITE_OK) {
+    *why = reader->db ? sqlite3_errmsg(reader->db) : "out of memory";
+    return nullptr;
+  }
+  return reader;
+}
+
+void TileStore::GiveBack(ReaderPtr reader) const {
+  sqlite3_reset(reader->select);
+  sqlite3_clear_bindings(reader->select);
+  const std::lock_guard lock(readers_mutex_);
+  idle_readers_.push_back(std::move(reader));
+}
+
 TileRead TileStore::Read(const TileKey& key, cv::Mat buffer) const {
   TileRead result;
-  std::vector<unsigned char> data;
-  std::int64_t stored_crc = 0;
-  {
-    const std::lock_guard lock(mutex_);
-    const Statement statement(db_, "SELECT data, crc32 FROM tiles WHERE level = ? AND col = ? AND row = ?", file_);
-    sqlite3_bind_int(statement.get(), 1, key.level);
-    sqlite3_bind_int64(statement.get(), 2, key.col);
-    sqlite3_bind_int64(statement.get(), 3, key.row);
-    const int step = sqlite3_step(statement.get());
-    if (step == SQLITE_DONE) return result;  // absent: unmapped
-    if (step != SQLITE_ROW) {
-      result.status = TileStatus::kCorrupt;
-      result.problem = file_.string() + ": tile " + key.ToString() + ": cannot be read: " + sqlite3_errmsg(db_);
-      return result;
-    }
-    const auto* blob = static_cast<const unsigned char*>(sqlite3_column_blob(statement.get(), 0));
-    data.assign(blob, blob + sqlite3_column_bytes(statement.get(), 0));
-    stored_crc = sqlite3_column_int64(statement.get(), 1);
-  }
   const auto corrupt = [&](const std::string& reason) {
     result.status = TileStatus::kCorrupt;
     result.problem = file_.string() + ": tile " + key.ToString() + ": " + reason;
     return result;
   };
+  std::vector<unsigned char> data;
+  std::int64_t stored_crc = 0;
+  {
+    std::string why;
+    ReaderPtr reader = TakeReader(&why);
+    if (!reader) return corrupt("cannot be read: " + why);
+    sqlite3_stmt* select = reader->select;
+    sqlite3_bind_int(select, 1, key.level);
+    sqlite3_bind_int64(select, 2, key.col);
+    sqlite3_bind_int64(select, 3, key.row);
+    const int step = sqlite3_step(select);
+    if (step == SQLITE_DONE) {
+      GiveBack(std::move(reader));
+      return result;  // absent: unmapped
+    }
+    if (step != SQLITE_ROW) {
+      // The connection is dropped, not pooled: whatever went wrong stays with it.
+      return corrupt(std::string("cannot be read: ") + sqlite3_errmsg(reader->db));
+    }
+    const auto* blob = static_cast<const unsigned char*>(sqlite3_column_blob(select, 0));
+    data.assign(blob, blob + sqlite3_column_bytes(select, 0));
+    stored_crc = sqlite3_column_int64(select, 1);
+    GiveBack(std::move(reader));
+  }
   if (static_cast<std::int64_t>(Crc32(data)) != stored_crc) return corrupt("CRC32 mismatch (the tile data is damaged)");
   cv::Mat pixels = buffer;
   if (const std::string problem = Decode(data, grid_.tile_size_px, pixels); !problem.empty()) return corrupt(problem);
@@ -201,6 +248,21 @@ void TileStore::Write(const std::vector<TileWrite>& tiles) {
   } catch (...) {
     sqlite3_exec(db_, "ROLLBACK;", nullptr, nullptr, nullptr);
     throw;
+  }
+}
+
+void TileStore::Checkpoint() {
+  {
+    // This store's own idle readers hold no snapshot, but close them all the same: the
+    // file is about to be handed on.
+    const std::lock_guard lock(readers_mutex_);
+    idle_readers_.clear();
+  }
+  const std::lock_guard lock(mutex_);
+  int log_frames = -1, checkpointed = -1;
+  const int rc = sqlite3_wal_checkpoint_v2(db_, nullptr, SQLITE_CHECKPOINT_TRUNCATE, &log_frames, &checkpointed);
+  if (rc != SQLITE_OK) {
+    core::ThrowRuntime(file_.string() + ": cannot checkpoint the write-ahead log into the map: " + sqlite3_errmsg(db_));
   }
 }
 

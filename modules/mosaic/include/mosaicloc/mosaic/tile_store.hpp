@@ -47,7 +47,12 @@ struct TileWrite {
 /// The map file (design.md section 4): one SQLite database with a metadata table and a
 /// tiles table of lossless 8-bit PNGs with their CRC32. Written in WAL mode, every change in
 /// one transaction, so a crash or power cut leaves each tile either old or new.
-/// Thread-safe: one connection guarded by a mutex; PNG coding happens outside the lock.
+/// Thread-safe. Writes and queries go through one connection guarded by a mutex. Tile reads
+/// each take a read-only connection of their own from a pool (opened on first need, one per
+/// concurrent reader, each with its statement prepared once), so readers on several threads
+/// wait on the disk in parallel instead of queueing behind one slow read; WAL lets them read
+/// while a write is in progress, each seeing the last committed state. PNG coding happens
+/// outside every lock.
 class TileStore {
  public:
   /// Creates a new, empty map file; throws core::Error if it exists or cannot be created.
@@ -71,6 +76,11 @@ class TileStore {
   std::vector<TileKey> List(int level = -1) const;
   std::int64_t Count(int level = -1) const;
 
+  /// Copies every committed write from the write-ahead log into the map file itself and
+  /// empties the log, so that the file alone holds the map (before it is moved or copied).
+  /// Throws core::Error if a reader keeps it from completing.
+  void Checkpoint();
+
   /// zlib level (0-9) of the tiles Write encodes from now on; throws core::Error (invalid
   /// input) outside 0-9. Not thread-safe against a concurrent Write.
   void SetPngCompression(int level);
@@ -87,11 +97,22 @@ class TileStore {
   TileStore(std::filesystem::path file, sqlite3* db, MapGrid grid);
   void Execute(const std::string& sql) const;
 
+  struct Reader;
+  struct ReaderDeleter {
+    void operator()(Reader* reader) const;
+  };
+  using ReaderPtr = std::unique_ptr<Reader, ReaderDeleter>;
+  /// An idle read connection, or a new one; nullptr (with the reason) when none can be opened.
+  ReaderPtr TakeReader(std::string* why) const;
+  void GiveBack(ReaderPtr reader) const;
+
   std::filesystem::path file_;
   sqlite3* db_ = nullptr;
   MapGrid grid_;
   int png_compression_ = kDefaultTilePngCompression;
   mutable std::mutex mutex_;
+  mutable std::mutex readers_mutex_;
+  mutable std::vector<ReaderPtr> idle_readers_;
 };
 
 }  // namespace mosaicloc::mosaic
