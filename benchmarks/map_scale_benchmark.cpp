@@ -89,7 +89,7 @@ void Build(const std::filesystem::path& file, int tiles_per_side, int threads, i
 }
 
 void Drive(const std::filesystem::path& file, double drive_km, double speed_mps, double frame_rate_hz,
-           double time_scale, std::size_t budget_mib, bool prefetch) {
+           double time_scale, std::size_t budget_mib, bool prefetch, const mosaic::PrefetchOptions& options) {
   const auto store = mosaic::TileStore::Open(file, false);
   const double baseline_mib = ResidentMib().first;
   std::int64_t max_col = 0;
@@ -97,9 +97,6 @@ void Drive(const std::filesystem::path& file, double drive_km, double speed_mps,
   const double side_mm = static_cast<double>(max_col + 1) * 64.0;
   mosaic::TileCache cache(*store, budget_mib << 20);
   const mosaic::MapRenderer renderer(cache);
-  mosaic::PrefetchOptions options;
-  options.view_radius_mm = 150.0;  // half diagonal of the 160 x 120 mm view plus turn-entry margin
-  options.horizon_s = 1.0;
   std::optional<mosaic::TilePrefetcher> prefetcher;
   if (prefetch) prefetcher.emplace(cache, options);
 
@@ -153,6 +150,10 @@ void Drive(const std::filesystem::path& file, double drive_km, double speed_mps,
       ++waited;
       waited_turning += turning ? 1 : 0;
       tiles_waited += view.tiles_loaded;
+      if (waited <= 200) {
+        std::fprintf(stderr, "waited: frame %lld at %.3f km (lap time %.2f s), %.2f m/s, yaw rate %.2f rad/s, %d tiles\n",
+                     static_cast<long long>(i), driven_m / 1000.0, t, velocity.norm() / 1000.0, yaw_rate, view.tiles_loaded);
+      }
     }
     if (i % 1000 == 0) {
       peak_mib = std::max(peak_mib, ResidentMib().first);
@@ -165,9 +166,20 @@ void Drive(const std::filesystem::path& file, double drive_km, double speed_mps,
   std::sort(render_ms.begin(), render_ms.end());
   const auto stats = cache.stats();
   const auto [rss, hwm] = ResidentMib();
-  std::printf("drove %.2f km (serpentine, %d rows of %.1f m, cruise %.1f m/s), %lld frames at %.0f Hz (paced %.1fx real time),"
-              " prefetch %s\n", driven_m / 1000.0, route.serpentine_rows, route.serpentine_length_m, speed_mps,
-              static_cast<long long>(rendered), frame_rate_hz, time_scale, prefetch ? "on" : "off");
+  std::printf("drove %.2f km (serpentine, %d rows of %.1f m, cruise %.1f m/s), %lld frames at %.0f Hz (paced %.1fx real time)\n",
+              driven_m / 1000.0, route.serpentine_rows, route.serpentine_length_m, speed_mps,
+              static_cast<long long>(rendered), frame_rate_hz, time_scale);
+  if (prefetch) {
+    const std::string branches =
+        options.min_turn_radius_mm > 0
+            ? "to " + std::to_string(static_cast<int>(options.branch_mm)) + " mm for turns of radius " +
+                  std::to_string(static_cast<int>(options.min_turn_radius_mm)) + " mm"
+            : std::string("off");
+    std::printf("prefetch: %d loaders, horizon %.1f s, radius %.0f mm, branches %s\n", options.threads, options.horizon_s,
+                options.view_radius_mm, branches.c_str());
+  } else {
+    std::printf("prefetch: off\n");
+  }
   std::printf("renders that waited for a tile: %lld of %lld (%.3f %%), %lld tiles; %lld of them of the %lld frames in turns\n",
               static_cast<long long>(waited), static_cast<long long>(rendered),
               100.0 * static_cast<double>(waited) / static_cast<double>(rendered), static_cast<long long>(tiles_waited),
@@ -198,6 +210,10 @@ int main(int argc, char** argv) {
   double drive_km = 10.0, speed_mps = 3.0, frame_rate_hz = 30.0, time_scale = 10.0;
   std::size_t budget_mib = 256;
   bool no_prefetch = false;
+  mosaic::PrefetchOptions prefetch;
+  prefetch.view_radius_mm = 150.0;  // half diagonal of the 160 x 120 mm view plus turn-entry margin
+  prefetch.horizon_s = 1.0;
+  prefetch.min_turn_radius_mm = 500.0;  // the route's turns
   app.add_option("--map", map, "Map file; built when missing");
   app.add_option("--tiles-per-side", tiles_per_side, "Tiles per side of the square map built (248: 4.03 gigapixels)");
   app.add_option("--threads", threads, "Tile generation threads for the build");
@@ -208,8 +224,13 @@ int main(int argc, char** argv) {
   app.add_option("--time-scale", time_scale, "Run this many times faster than real time");
   app.add_option("--budget-mib", budget_mib, "Tile cache budget");
   app.add_flag("--no-prefetch", no_prefetch, "Drive without the prefetcher (the baseline)");
+  app.add_option("--prefetch-threads", prefetch.threads, "Prefetch loader threads");
+  app.add_option("--prefetch-horizon-s", prefetch.horizon_s, "Prefetch horizon along the predicted path");
+  app.add_option("--prefetch-turn-radius-mm", prefetch.min_turn_radius_mm,
+                 "Also prefetch the branches turning this tightly and straight (0: only the predicted path)");
+  app.add_option("--prefetch-branch-mm", prefetch.branch_mm, "How far along the branches");
   CLI11_PARSE(app, argc, argv);
   if (!std::filesystem::exists(map)) Build(map, tiles_per_side, threads, png_compression);
-  if (drive_km > 0) Drive(map, drive_km, speed_mps, frame_rate_hz, time_scale, budget_mib, !no_prefetch);
+  if (drive_km > 0) Drive(map, drive_km, speed_mps, frame_rate_hz, time_scale, budget_mib, !no_prefetch, prefetch);
   return 0;
 }

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <random>
+#include <unordered_set>
 #include <thread>
 
 #include <gmock/gmock.h>
@@ -292,6 +293,47 @@ TEST(TileCache, StaysUnderBudgetAndCounts) {
   EXPECT_EQ(stats.tiles, 10u);
   cache.Get(TileKey{0, 7, 7});
   EXPECT_EQ(cache.stats().hits, 1);
+}
+
+TEST(TileStore, ReadersSeeEachTileOldOrNewWhileItIsRewritten) {
+  // Readers use pooled connections of their own; each must see every committed write, and
+  // while a write is in progress the state before it, never a mixture.
+  test::ScratchDir dir;
+  MapGrid grid;
+  grid.tile_size_px = 64;
+  auto store = TileStore::Create(dir / "w.mosaic", grid);
+  const auto uniform = [](int value) { return cv::Mat(64, 64, CV_8UC1, cv::Scalar(value)); };
+  const auto write_all = [&](int value) {
+    std::vector<TileWrite> tiles;
+    for (int c = 0; c < 8; ++c) tiles.push_back({TileKey{0, c, 0}, uniform(value)});
+    store->Write(tiles);
+  };
+  write_all(1);
+  std::atomic<bool> done{false};
+  std::atomic<int> mixed{0}, reads{0};
+  std::vector<std::thread> readers;
+  for (int i = 0; i < 3; ++i) {
+    readers.emplace_back([&] {
+      while (!done) {
+        for (int c = 0; c < 8; ++c) {
+          const TileRead read = store->Read(TileKey{0, c, 0});
+          double lo = 0, hi = 0;
+          if (read.status == TileStatus::kOk) cv::minMaxLoc(read.pixels, &lo, &hi);
+          if (read.status != TileStatus::kOk || lo != hi) ++mixed;
+          ++reads;
+        }
+      }
+    });
+  }
+  for (int value = 2; value <= 40; ++value) {
+    write_all(value);
+    // Every read from now on, on any connection, sees this write.
+    for (int c = 0; c < 8; ++c) EXPECT_EQ(store->Read(TileKey{0, c, 0}).pixels.at<std::uint8_t>(5, 5), value);
+  }
+  done = true;
+  for (auto& reader : readers) reader.join();
+  EXPECT_EQ(mixed.load(), 0);
+  EXPECT_GT(reads.load(), 0);
 }
 
 TEST(TileCache, ConcurrentReadersAgree) {
@@ -589,6 +631,53 @@ TEST(TilePrefetcher, WarmsTheTilesAheadSoRendersDoNotWait) {
   TileCache cold(*store);
   const MapRenderer cold_renderer(cold);
   EXPECT_GT(cold_renderer.RenderView(core::Pose2(90.0, -128.0, 0.0), 160, 120, 0.25, 0).tiles_loaded, 0);
+}
+
+TEST(TilePrefetcher, PlansNearestFirstAndCoversTheTurnsItMayTake) {
+  test::ScratchDir dir;
+  MapGrid grid;
+  grid.tile_size_px = 64;  // 16 mm tiles
+  auto store = TileStore::Create(dir / "p.mosaic", grid);
+  TileCache cache(*store);
+  PrefetchOptions straight;
+  straight.view_radius_mm = 20.0;
+  straight.horizon_s = 1.0;
+  straight.threads = 1;
+  PrefetchOptions branching = straight;
+  branching.min_turn_radius_mm = 100.0;
+  branching.branch_mm = 150.0;
+  const TilePrefetcher::Prediction prediction{core::Pose2(0.0, 0.0, 0.0), {200.0, 0.0}, 0.0};
+  const std::vector<TileKey> plan = TilePrefetcher(cache, straight).Plan(prediction);
+  const std::vector<TileKey> wide = TilePrefetcher(cache, branching).Plan(prediction);
+  ASSERT_FALSE(plan.empty());
+  // No repeats, and the tiles come in order of the distance along the path.
+  std::unordered_set<TileKey, TileKeyHash> unique(plan.begin(), plan.end());
+  EXPECT_EQ(unique.size(), plan.size());
+  const auto tile_x_mm = [&](const TileKey& key) { return grid.RasterToWorld({(key.col + 0.5) * 64.0, 0.0}, 0).x(); };
+  // The discs 40 mm apart each add tiles up to radius + half a tile either side of them.
+  double furthest = -1e9;
+  for (const TileKey& key : plan) {
+    EXPECT_GE(tile_x_mm(key), furthest - 2 * (20.0 + 8.0) - 1e-9);
+    furthest = std::max(furthest, tile_x_mm(key));
+  }
+  EXPECT_LT(std::abs(tile_x_mm(plan.front())), 28.0);
+  EXPECT_GT(tile_x_mm(plan.back()), 190.0);  // 200 mm ahead, the horizon
+  // Straight ahead, every tile lies within the radius of the line y = 0.
+  const auto tile_y_mm = [&](const TileKey& key) { return grid.RasterToWorld({0.0, (key.row + 0.5) * 64.0}, 0).y(); };
+  for (const TileKey& key : plan) EXPECT_LT(std::abs(tile_y_mm(key)), 20.0 + 8.0 + 1e-9);
+  // With branches: everything of the straight plan, plus the tiles of 100 mm radius turns
+  // either way (a quarter circle reaches y = +-100 mm at x = 100 mm after 157 mm).
+  const std::unordered_set<TileKey, TileKeyHash> wide_set(wide.begin(), wide.end());
+  for (const TileKey& key : plan) EXPECT_EQ(wide_set.count(key), 1u);
+  double left = 0.0, right = 0.0;
+  for (const TileKey& key : wide) {
+    left = std::max(left, tile_y_mm(key));
+    right = std::min(right, tile_y_mm(key));
+  }
+  EXPECT_GT(left, 70.0);
+  EXPECT_LT(right, -70.0);
+  // The branches are taken only as far as branch_mm.
+  for (const TileKey& key : wide) EXPECT_LT(std::abs(tile_y_mm(key)), 150.0 * 150.0 / (2 * 100.0) + 28.0);
 }
 
 }  // namespace
