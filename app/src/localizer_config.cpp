@@ -102,6 +102,7 @@ void ReadLocalizerConfig(const YAML::Node& node, const std::string& file_name, L
   map.Optional("cache_budget_mib", &budget, IntegerInRange(16, 1 << 20));
   config->cache_budget_mib = static_cast<std::size_t>(budget);
   map.Optional("prefetch_horizon_s", &config->prefetch_horizon_s, InRange(0.0, 10.0));
+  map.Optional("prefetch_turn_radius_mm", &config->prefetch_turn_radius_mm, InRange(0.0, 1e6));
   map.Finish();
 
   root.Optional("required_overlap", &config->required_overlap, InRange(0.0, 0.95));

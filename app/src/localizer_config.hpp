@@ -17,6 +17,7 @@ struct LocalizerConfig {
   localizer::LocalizerOptions localizer;
   std::size_t cache_budget_mib = 256;
   double prefetch_horizon_s = 1.0;  ///< how far ahead `run` loads the map's tiles (0: not at all)
+  double prefetch_turn_radius_mm = 500.0;  ///< tightest turn whose branches `run` also loads (0: none)
   double start_sigma_mm = 1.0;     ///< uncertainty of the starting pose given to the filter
   double start_sigma_deg = 0.5;
   double required_overlap = 0.5;   ///< beta of the overlap speed limit

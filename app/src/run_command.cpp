@@ -197,6 +197,7 @@ class LiveRun {
       mosaic::PrefetchOptions prefetch;
       prefetch.horizon_s = config.localizer.prefetch_horizon_s;
       prefetch.view_radius_mm = 0.5 * std::hypot(camera.width_px, camera.height_px) * camera.mm_per_px + 30.0;
+      prefetch.min_turn_radius_mm = config.localizer.prefetch_turn_radius_mm;
       prefetcher_ = std::make_unique<mosaic::TilePrefetcher>(*cache_, prefetch);
     }
     localizer::LocalizerOptions options = config.localizer.localizer;
@@ -445,7 +446,12 @@ class LiveRun {
 
   void Publish(bool fixed, double quality) {
     const estimation::MotionState motion = localizer_->Latest();
-    if (prefetcher_ && localizer_->initialized()) {
+    // Each prediction replans the prefetch. Encoder batches come several times a frame, and
+    // a prediction every 30 ms is all the loaders need: from frames, or from odometry alone
+    // when frames stop.
+    const Clock::time_point now = Clock::now();
+    if (prefetcher_ && localizer_->initialized() && now - last_prediction_ >= std::chrono::milliseconds(30)) {
+      last_prediction_ = now;
       const core::Pose2 world_from_camera = motion.world_from_vehicle * camera_info_.vehicle_from_camera;
       const double heading = motion.world_from_vehicle.yaw_rad();
       prefetcher_->Predict(world_from_camera,
@@ -623,6 +629,7 @@ class LiveRun {
   std::unique_ptr<mosaic::TileStore> store_;
   std::unique_ptr<mosaic::TileCache> cache_;
   std::unique_ptr<mosaic::TilePrefetcher> prefetcher_;  // after cache_: stops before the cache goes
+  Clock::time_point last_prediction_{};  // of the prefetcher; Publish runs on the tracking thread
   std::unique_ptr<mosaic::MapRenderer> renderer_;
   std::unique_ptr<tracking::MapReference> reference_;
   std::unique_ptr<localizer::Localizer> localizer_;

@@ -56,6 +56,7 @@ TEST(LocalizerConfig, DefaultFileEqualsCompiledDefaults) {
   EXPECT_EQ(loaded.start_sigma_deg, compiled.start_sigma_deg);
   EXPECT_EQ(loaded.cache_budget_mib, compiled.cache_budget_mib);
   EXPECT_EQ(loaded.prefetch_horizon_s, compiled.prefetch_horizon_s);
+  EXPECT_EQ(loaded.prefetch_turn_radius_mm, compiled.prefetch_turn_radius_mm);
   EXPECT_EQ(loaded.required_overlap, compiled.required_overlap);
 }
 
