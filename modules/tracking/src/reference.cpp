@@ -48,8 +48,17 @@ std::unique_ptr<const ReferenceRaster> MapReference::Coarser() const {
   return std::make_unique<MapReference>(renderer_, level_ + 1);
 }
 
-mosaic::RasterPatch MapReference::Region(std::int64_t col0, std::int64_t row0, int cols, int rows) const {
-  return renderer_.Region(level_, col0, row0, cols, rows);
+mosaic::RasterPatch ReferenceRaster::Region(std::int64_t col0, std::int64_t row0, int cols, int rows) const {
+  mosaic::RasterPatch patch;
+  cv::Mat store;  // the patch's own pixels
+  Region(col0, row0, cols, rows, store, &patch);
+  if (patch.all_mapped) patch.mask = cv::Mat(rows, cols, CV_8UC1, cv::Scalar(255));
+  return patch;
+}
+
+void MapReference::Region(std::int64_t col0, std::int64_t row0, int cols, int rows, cv::Mat& store,
+                          mosaic::RasterPatch* patch) const {
+  renderer_.Region(level_, col0, row0, cols, rows, store, patch);
 }
 
 ImageReference::ImageReference(cv::Mat image, const core::Pose2& world_from_camera, double mm_per_px)
@@ -84,25 +93,37 @@ std::unique_ptr<const ReferenceRaster> ImageReference::Coarser() const {
   return std::unique_ptr<const ReferenceRaster>(new ImageReference(std::move(half), coarser));
 }
 
-mosaic::RasterPatch ImageReference::Region(std::int64_t col0, std::int64_t row0, int cols, int rows) const {
-  mosaic::RasterPatch patch;
-  patch.col0 = col0;
-  patch.row0 = row0;
-  patch.image = cv::Mat(rows, cols, CV_8UC1, cv::Scalar(mosaic::kUnmapped));
-  patch.mask = cv::Mat(rows, cols, CV_8UC1, cv::Scalar(0));
+void ImageReference::Region(std::int64_t col0, std::int64_t row0, int cols, int rows, cv::Mat& store,
+                            mosaic::RasterPatch* patch) const {
+  if (store.type() != CV_8UC1 || store.cols < cols || store.rows < rows) {
+    store.create(std::max(store.type() == CV_8UC1 ? store.rows : 0, rows),
+                 std::max(store.type() == CV_8UC1 ? store.cols : 0, cols), CV_8UC1);
+  }
+  patch->image = store(cv::Rect(0, 0, cols, rows));
+  patch->col0 = col0;
+  patch->row0 = row0;
+  patch->level = 0;
+  patch->tiles_loaded = 0;
+  patch->problems.clear();
   const std::int64_t x0 = std::max<std::int64_t>(col0, 0);
   const std::int64_t y0 = std::max<std::int64_t>(row0, 0);
   const std::int64_t x1 = std::min<std::int64_t>(col0 + cols, image_.cols);
   const std::int64_t y1 = std::min<std::int64_t>(row0 + rows, image_.rows);
+  patch->all_mapped = x0 == col0 && y0 == row0 && x1 == col0 + cols && y1 == row0 + rows;
+  if (!patch->all_mapped) {
+    patch->image.setTo(cv::Scalar(mosaic::kUnmapped));
+    patch->mask.create(rows, cols, CV_8UC1);
+    patch->mask.setTo(cv::Scalar(0));
+  } else {
+    patch->mask.release();
+  }
   if (x1 > x0 && y1 > y0) {
     const cv::Rect from(static_cast<int>(x0), static_cast<int>(y0), static_cast<int>(x1 - x0),
                         static_cast<int>(y1 - y0));
     const cv::Rect to(static_cast<int>(x0 - col0), static_cast<int>(y0 - row0), from.width, from.height);
-    image_(from).copyTo(patch.image(to));
-    patch.mask(to).setTo(cv::Scalar(255));
+    image_(from).copyTo(patch->image(to));
+    if (!patch->all_mapped) patch->mask(to).setTo(cv::Scalar(255));
   }
-  patch.all_mapped = x0 == col0 && y0 == row0 && x1 == col0 + cols && y1 == row0 + rows;
-  return patch;
 }
 
 }  // namespace mosaicloc::tracking

@@ -45,16 +45,11 @@ RasterBounds BoundsOf(const Affine& frame_to_raster, const cv::Rect& rect) {
           static_cast<std::int64_t>(std::ceil(max_x)), static_cast<std::int64_t>(std::ceil(max_y))};
 }
 
-// The bounds plus `margin` px on every side.
-mosaic::RasterPatch FetchRegion(const ReferenceRaster& reference, const RasterBounds& bounds, int margin) {
-  return reference.Region(bounds.col0 - margin, bounds.row0 - margin,
-                          static_cast<int>(bounds.col1 - bounds.col0 + 1 + 2 * margin),
-                          static_cast<int>(bounds.row1 - bounds.row0 + 1 + 2 * margin));
-}
-
-mosaic::RasterPatch FetchRegion(const ReferenceRaster& reference, const Affine& frame_to_raster, const cv::Rect& rect,
-                                int margin) {
-  return FetchRegion(reference, BoundsOf(frame_to_raster, rect), margin);
+// The bounds plus `margin` px on every side, into `store` (see ReferenceRaster::Region).
+void FetchRegion(const ReferenceRaster& reference, const RasterBounds& bounds, int margin, cv::Mat& store,
+                 mosaic::RasterPatch* patch) {
+  reference.Region(bounds.col0 - margin, bounds.row0 - margin, static_cast<int>(bounds.col1 - bounds.col0 + 1 + 2 * margin),
+                   static_cast<int>(bounds.row1 - bounds.row0 + 1 + 2 * margin), store, patch);
 }
 
 // Bilinear sample of an image of T at (x, y); false when a source pixel is outside or unknown.
@@ -193,7 +188,9 @@ struct FilteredRaster {
 void LoadRaster(const ReferenceRaster& reference, const RasterBounds& bounds, int margin, int full_margin,
                 double sigma_px, FilteredRaster* out) {
   const int radius = detail::LowPassRadius(sigma_px);
-  out->region = FetchRegion(reference, bounds, margin);
+  // Per-thread pixels: several templates are refined every frame.
+  thread_local cv::Mat region_store;
+  FetchRegion(reference, bounds, margin, region_store, &out->region);
   out->offset_x = out->offset_y = full_margin - margin;
   out->whole = margin == full_margin;
   const cv::Mat& image = out->region.image;
@@ -633,7 +630,10 @@ cv::Mat detail::RenderWindowKnown(const ReferenceRaster& reference, const Affine
                                   const cv::Point& origin, const cv::Size& size, cv::Mat* mask, bool* all_known) {
   *all_known = false;
   const cv::Rect rect(origin, size);
-  const mosaic::RasterPatch region = FetchRegion(reference, frame_to_raster, rect, 2);
+  // Per-thread pixels: several windows are rendered every frame.
+  thread_local cv::Mat region_store;
+  thread_local mosaic::RasterPatch region;
+  FetchRegion(reference, BoundsOf(frame_to_raster, rect), 2, region_store, &region);
   const Eigen::Matrix2d a = frame_to_raster.leftCols<2>();
   const Eigen::Vector2d b = frame_to_raster.col(2) - Eigen::Vector2d(static_cast<double>(region.col0),
                                                                       static_cast<double>(region.row0));

@@ -49,6 +49,12 @@ class MapRenderer {
                           int level) const;
   /// The pixels [col0, col0 + cols) x [row0, row0 + rows) of a level, as stored.
   RasterPatch Region(int level, std::int64_t col0, std::int64_t row0, int cols, int rows) const;
+  /// The same into caller-owned pixels, for readers that fetch blocks every frame:
+  /// `patch->image` becomes a cols x rows view of `store`, which grows (and only grows) to hold
+  /// it, and `patch->mask` is left empty when every pixel is mapped (`patch->all_mapped`), else
+  /// 255 where mapped. The view is overwritten by the next call with the same store.
+  void Region(int level, std::int64_t col0, std::int64_t row0, int cols, int rows, cv::Mat& store,
+              RasterPatch* patch) const;
   /// The width x height block of `level` pixels centred (to the nearest pixel) on a world point.
   RasterPatch PatchAround(const Eigen::Vector2d& centre_world_mm, int width_px, int height_px, int level) const;
 

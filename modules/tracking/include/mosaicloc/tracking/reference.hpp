@@ -31,7 +31,12 @@ class ReferenceRaster {
   /// The 2x3 affine map raster (col, row) -> world mm.
   virtual Eigen::Matrix<double, 2, 3> RasterToWorld() const = 0;
   /// Pixels [col0, col0 + cols) x [row0, row0 + rows) with a mask of known pixels.
-  virtual mosaic::RasterPatch Region(std::int64_t col0, std::int64_t row0, int cols, int rows) const = 0;
+  mosaic::RasterPatch Region(std::int64_t col0, std::int64_t row0, int cols, int rows) const;
+  /// The same into caller-owned pixels, for the tracker's blocks of every frame: the image a
+  /// cols x rows view of `store` (grown as needed and overwritten by the next call with it),
+  /// the mask left empty when every pixel is known (all_mapped), else 255 where known.
+  virtual void Region(std::int64_t col0, std::int64_t row0, int cols, int rows, cv::Mat& store,
+                      mosaic::RasterPatch* patch) const = 0;
   /// The same floor at half the resolution (2x2 area averages: pixel i covers pixels 2i and
   /// 2i + 1 of this raster), or nullptr when there is none. The coarse search runs there.
   virtual std::unique_ptr<const ReferenceRaster> Coarser() const = 0;
@@ -46,7 +51,9 @@ class MapReference final : public ReferenceRaster {
  public:
   MapReference(const mosaic::MapRenderer& renderer, int level) : renderer_(renderer), level_(level) {}
   Eigen::Matrix<double, 2, 3> RasterToWorld() const override;
-  mosaic::RasterPatch Region(std::int64_t col0, std::int64_t row0, int cols, int rows) const override;
+  using ReferenceRaster::Region;
+  void Region(std::int64_t col0, std::int64_t row0, int cols, int rows, cv::Mat& store,
+              mosaic::RasterPatch* patch) const override;
   std::unique_ptr<const ReferenceRaster> Coarser() const override;
   int level() const { return level_; }
 
@@ -63,7 +70,9 @@ class ImageReference final : public ReferenceRaster {
   /// Throws core::Error (invalid input) unless `image` is a non-empty CV_8UC1 and mm_per_px > 0.
   ImageReference(cv::Mat image, const core::Pose2& world_from_camera, double mm_per_px);
   Eigen::Matrix<double, 2, 3> RasterToWorld() const override;
-  mosaic::RasterPatch Region(std::int64_t col0, std::int64_t row0, int cols, int rows) const override;
+  using ReferenceRaster::Region;
+  void Region(std::int64_t col0, std::int64_t row0, int cols, int rows, cv::Mat& store,
+              mosaic::RasterPatch* patch) const override;
   /// Built on each call (a 2x2 area average of the image).
   std::unique_ptr<const ReferenceRaster> Coarser() const override;
 
