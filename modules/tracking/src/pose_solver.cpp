@@ -167,6 +167,10 @@ PoseSolution SolvePlanarPose(const std::vector<Correspondence>& correspondences,
     return solution;
   }
 
+  if (!options.compute_covariance) {
+    solution.covariance.setConstant(std::numeric_limits<double>::quiet_NaN());
+    return solution;
+  }
   // Residuals are in units of sigma_ref mm: scale the unit-weight covariance by sigma_ref^2.
   ceres::Covariance::Options covariance_options;
   covariance_options.algorithm_type = ceres::DENSE_SVD;

@@ -201,6 +201,8 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
   coarse_solver.loss_scale_mm = std::max(options_.solver.loss_scale_mm, 1.0 * scale * s);
   coarse_solver.outlier_threshold_mm = std::max(options_.solver.outlier_threshold_mm, 3.0 * scale * s);
   coarse_solver.min_inliers = std::min(options_.solver.min_inliers, static_cast<int>(coarse.size()));
+  // With refinement the coarse pose only seeds it: the result's covariance is the fine one's.
+  coarse_solver.compute_covariance = options_.refine_passes == 0;
   if (static_cast<int>(coarse.size()) < options_.solver.min_inliers && options_.refine_passes > 0) {
     return fail(TrackFailure::kTooFewInliers, std::to_string(coarse.size()) + " usable templates, " +
                                                   std::to_string(options_.solver.min_inliers) + " needed");

@@ -662,6 +662,25 @@ TEST(PoseSolver, CovarianceFollowsTheNoise) {
   EXPECT_NEAR(ratio, 1.0, 0.2);
 }
 
+// Without the covariance the solve is the same; the covariance says it was not computed.
+TEST(PoseSolver, SkippingTheCovarianceLeavesThePose) {
+  std::mt19937 rng(12);
+  const Pose2 truth(-4.0, 7.0, 0.3);
+  const std::vector<Correspondence> cs = MakeCorrespondences(truth, 6, 0.01, &rng);
+  PoseSolverOptions options;
+  const PoseSolution with = SolvePlanarPose(cs, Pose2(-3.9, 7.05, 0.29), options);
+  options.compute_covariance = false;
+  const PoseSolution without = SolvePlanarPose(cs, Pose2(-3.9, 7.05, 0.29), options);
+  ASSERT_TRUE(with.ok());
+  ASSERT_TRUE(without.ok());
+  EXPECT_EQ(with.world_from_camera.x_mm(), without.world_from_camera.x_mm());
+  EXPECT_EQ(with.world_from_camera.y_mm(), without.world_from_camera.y_mm());
+  EXPECT_EQ(with.world_from_camera.yaw_rad(), without.world_from_camera.yaw_rad());
+  EXPECT_EQ(with.inlier, without.inlier);
+  EXPECT_TRUE(with.covariance.allFinite());
+  EXPECT_TRUE(without.covariance.array().isNaN().all());
+}
+
 TEST(PoseSolver, SaysWhyItFailed) {
   std::mt19937 rng(11);
   const std::vector<Correspondence> two = MakeCorrespondences(Pose2(), 2, 0.0, &rng);

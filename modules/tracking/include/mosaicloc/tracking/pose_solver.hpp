@@ -30,6 +30,9 @@ struct PoseSolverOptions {
   double outlier_threshold_mm = 0.15;
   int min_inliers = 3;
   int max_iterations = 50;
+  /// false: skip the covariance (ceres::Covariance costs about as much as the solve), for a
+  /// pose that only seeds a finer one; PoseSolution::covariance is then NaN.
+  bool compute_covariance = true;
   bool Check(std::string* why) const;
 };
 
@@ -40,7 +43,7 @@ struct PoseSolution {
   PoseFailure failure = PoseFailure::kNone;
   bool ok() const { return failure == PoseFailure::kNone; }
   core::Pose2 world_from_camera;
-  /// Covariance of (x_mm, y_mm, yaw_rad) of world_from_camera.
+  /// Covariance of (x_mm, y_mm, yaw_rad) of world_from_camera (NaN when not asked for).
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
   std::vector<bool> inlier;       ///< per correspondence
   std::vector<double> residual_mm;  ///< per correspondence, at the solution
