@@ -60,24 +60,49 @@ void CorrelateRows(const std::int16_t* t, int stride_t, int th, const std::int16
 }
 
 #ifdef MOSAICLOC_TRACKING_AVX2
+MOSAICLOC_TARGET_AVX2 MOSAICLOC_ALWAYS_INLINE std::int32_t SumLanes(__m256i acc) {
+  const __m128i half = _mm_add_epi32(_mm256_castsi256_si128(acc), _mm256_extracti128_si256(acc, 1));
+  const __m128i pairs = _mm_add_epi32(half, _mm_shuffle_epi32(half, _MM_SHUFFLE(1, 0, 3, 2)));
+  const __m128i total = _mm_add_epi32(pairs, _mm_shuffle_epi32(pairs, _MM_SHUFFLE(2, 3, 0, 1)));
+  return _mm_cvtsi128_si32(total);
+}
+
+MOSAICLOC_TARGET_AVX2 MOSAICLOC_ALWAYS_INLINE __m256i LoadRow16(const std::int16_t* p) {
+  return _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p));
+}
+
+// Four neighbouring offsets at a time share each load of the template, and the loop overhead.
 MOSAICLOC_TARGET_AVX2 void CorrelateRowsAvx2(const std::int16_t* t, int stride_t, int th, const std::int16_t* w,
                                              int stride_w, int rw, int rh, std::int32_t* out) {
   for (int dy = 0; dy < rh; ++dy) {
-    for (int dx = 0; dx < rw; ++dx) {
-      __m256i acc = _mm256_setzero_si256();
+    int dx = 0;
+    for (; dx + 4 <= rw; dx += 4) {
+      __m256i acc0 = _mm256_setzero_si256(), acc1 = acc0, acc2 = acc0, acc3 = acc0;
       for (int r = 0; r < th; ++r) {
         const std::int16_t* tr = t + static_cast<std::size_t>(r) * stride_t;
         const std::int16_t* wr = w + static_cast<std::size_t>(r + dy) * stride_w + dx;
         for (int c = 0; c < stride_t; c += kGroup) {
-          const __m256i a = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(tr + c));
-          const __m256i b = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(wr + c));
-          acc = _mm256_add_epi32(acc, _mm256_madd_epi16(a, b));
+          const __m256i a = LoadRow16(tr + c);
+          acc0 = _mm256_add_epi32(acc0, _mm256_madd_epi16(a, LoadRow16(wr + c)));
+          acc1 = _mm256_add_epi32(acc1, _mm256_madd_epi16(a, LoadRow16(wr + c + 1)));
+          acc2 = _mm256_add_epi32(acc2, _mm256_madd_epi16(a, LoadRow16(wr + c + 2)));
+          acc3 = _mm256_add_epi32(acc3, _mm256_madd_epi16(a, LoadRow16(wr + c + 3)));
         }
       }
-      const __m128i half = _mm_add_epi32(_mm256_castsi256_si128(acc), _mm256_extracti128_si256(acc, 1));
-      const __m128i pairs = _mm_add_epi32(half, _mm_shuffle_epi32(half, _MM_SHUFFLE(1, 0, 3, 2)));
-      const __m128i total = _mm_add_epi32(pairs, _mm_shuffle_epi32(pairs, _MM_SHUFFLE(2, 3, 0, 1)));
-      out[static_cast<std::size_t>(dy) * rw + dx] = _mm_cvtsi128_si32(total);
+      std::int32_t* o = out + static_cast<std::size_t>(dy) * rw + dx;
+      o[0] = SumLanes(acc0);
+      o[1] = SumLanes(acc1);
+      o[2] = SumLanes(acc2);
+      o[3] = SumLanes(acc3);
+    }
+    for (; dx < rw; ++dx) {
+      __m256i acc = _mm256_setzero_si256();
+      for (int r = 0; r < th; ++r) {
+        const std::int16_t* tr = t + static_cast<std::size_t>(r) * stride_t;
+        const std::int16_t* wr = w + static_cast<std::size_t>(r + dy) * stride_w + dx;
+        for (int c = 0; c < stride_t; c += kGroup) acc = _mm256_add_epi32(acc, _mm256_madd_epi16(LoadRow16(tr + c), LoadRow16(wr + c)));
+      }
+      out[static_cast<std::size_t>(dy) * rw + dx] = SumLanes(acc);
     }
   }
 }
