@@ -132,17 +132,22 @@ cv::Mat DirectZncc(const cv::Mat& templ, const cv::Mat& window) {
   grow(dots, static_cast<std::size_t>(rw) * rh);
   grow(column_sum, static_cast<std::size_t>(window.cols));
   grow(column_sq, static_cast<std::size_t>(window.cols));
-  double sum_t = 0.0, sum_tt = 0.0;
+  // Integer sums (exact, and the loop vectorizes; as doubles they were exact too).
+  std::int64_t sum_t_int = 0, sum_tt_int = 0;
   for (int r = 0; r < th; ++r) {
     const std::uint8_t* row = templ.ptr<std::uint8_t>(r);
     std::int16_t* out = &t16[static_cast<std::size_t>(r) * padded];
+    std::int32_t row_sum = 0, row_sq = 0;  // at most 32768 255^2 < 2^31
     for (int c = 0; c < tw; ++c) {
       out[c] = row[c];
-      sum_t += row[c];
-      sum_tt += static_cast<double>(row[c]) * row[c];
+      row_sum += row[c];
+      row_sq += row[c] * row[c];
     }
+    sum_t_int += row_sum;
+    sum_tt_int += row_sq;
     std::fill(out + tw, out + padded, std::int16_t{0});
   }
+  const double sum_t = static_cast<double>(sum_t_int), sum_tt = static_cast<double>(sum_tt_int);
   for (int r = 0; r < window.rows; ++r) {
     const std::uint8_t* row = window.ptr<std::uint8_t>(r);
     std::int16_t* out = &w16[static_cast<std::size_t>(r) * window_padded];
