@@ -185,6 +185,7 @@ void RankingMap(const cv::Mat& half, int k, cv::Mat* eigen) {
   thread_local std::vector<std::int16_t> quarter_store;
   thread_local std::vector<std::int32_t> pair_store, cell_store, column_store;
   thread_local std::vector<float> mean_store;
+  thread_local std::vector<double> box_store;
   // Quarter-resolution rows with one reflected (BORDER_REFLECT_101) column on either side.
   const std::size_t stride = static_cast<std::size_t>(qw) + 2;
   std::int16_t* quarter = Grown(quarter_store, stride * static_cast<std::size_t>(qh));
@@ -223,6 +224,7 @@ void RankingMap(const cv::Mat& half, int k, cv::Mat* eigen) {
   const std::size_t line = static_cast<std::size_t>(cw + k);
   std::int32_t* columns = Grown(column_store, 3 * line);
   float* means = Grown(mean_store, 3 * static_cast<std::size_t>(cw));
+  double* box = Grown(box_store, static_cast<std::size_t>(cw));
   for (int c = 0; c < 3; ++c) {
     std::int32_t* column = columns + c * line;
     const std::int32_t* cell = cells + c * plane;
@@ -237,13 +239,15 @@ void RankingMap(const cv::Mat& half, int k, cv::Mat* eigen) {
     for (int c = 0; c < 3; ++c) {
       std::int32_t* column = columns + c * line;
       std::fill(column + cw, column + cw + k, column[cw - 1]);
+      // The running sum alone is serial; the conversions after it vectorize.
       std::int64_t sum = 0;
       for (int j = 0; j < k; ++j) sum += column[j];
-      float* mean = means + c * cw;
       for (int x = 0; x < cw; ++x) {
-        mean[x] = static_cast<float>(static_cast<double>(sum) / 256.0 * scale);
+        box[x] = static_cast<double>(sum);
         sum += column[x + k] - column[x];
       }
+      float* mean = means + c * cw;
+      for (int x = 0; x < cw; ++x) mean[x] = static_cast<float>(box[x] / 256.0 * scale);
       // Down a row: the row leaving the window out, the one entering it in.
       const std::int32_t* cell = cells + c * plane;
       const std::int32_t* leaving = cell + static_cast<std::size_t>(sy) * cw;
