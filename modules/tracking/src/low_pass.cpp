@@ -76,9 +76,16 @@ MOSAICLOC_ALWAYS_INLINE void FilterBody(const cv::Mat& src, const cv::Rect& rect
   }
   for (int y = 0; y < rect.height; ++y) {
     std::array<const float*, 2 * R + 1> taps{};
-    for (int i = 0; i <= 2 * R; ++i) {
-      const int from = std::clamp(rect.y + y - R + i, first, last);
-      taps[static_cast<std::size_t>(i)] = b.horizontal.data() + static_cast<std::size_t>(from - first) * cols;
+    const int top = rect.y + y - R;
+    if (top >= first && top + 2 * R <= last) {
+      // Away from the image's top and bottom (nearly every row): consecutive rows, no clamps.
+      const float* base = b.horizontal.data() + static_cast<std::size_t>(top - first) * cols;
+      for (int i = 0; i <= 2 * R; ++i) taps[static_cast<std::size_t>(i)] = base + static_cast<std::size_t>(i) * cols;
+    } else {
+      for (int i = 0; i <= 2 * R; ++i) {
+        const int from = std::clamp(top + i, first, last);
+        taps[static_cast<std::size_t>(i)] = b.horizontal.data() + static_cast<std::size_t>(from - first) * cols;
+      }
     }
     if (dst.depth() == CV_32F) {
       FilterColumns<R>(taps, k, dst.ptr<float>(y), cols);
