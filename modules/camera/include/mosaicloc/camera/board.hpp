@@ -47,7 +47,8 @@ struct BoardDetection {
   std::vector<Eigen::Vector2d> points_px;
 };
 
-/// Finds the board with OpenCV (findChessboardCorners then cornerSubPix to 0.001 px, or
+/// Finds the board with OpenCV (findChessboardCorners then cornerSubPix on the image low-passed
+/// with a Gaussian of sigma 2 px, or
 /// findCirclesGrid, whose blob centroids are already sub-pixel). Nothing when the whole
 /// board is not found. `image` is CV_8UC1.
 std::optional<BoardDetection> DetectBoard(const cv::Mat& image, const BoardSpec& board);
