@@ -43,7 +43,8 @@ TEST(LowPass, RadiusIsThreeSigmaRoundedUp) {
 TEST(LowPass, FloatResultEqualsOpenCvGaussianBlurWithReplicatedBorders) {
   std::uint32_t seed = 1;
   for (const double sigma : {0.5, 1.0, 1.7, 3.0, 5.0}) {
-    for (const cv::Size size : {cv::Size(1, 1), cv::Size(3, 5), cv::Size(48, 48), cv::Size(61, 77), cv::Size(130, 124)}) {
+    for (const cv::Size size : {cv::Size(1, 1), cv::Size(3, 5), cv::Size(9, 6), cv::Size(48, 48), cv::Size(61, 77),
+                                cv::Size(130, 124)}) {
       const cv::Mat image = RandomImage(size.width, size.height, seed++);
       cv::Mat ours;
       detail::GaussianLowPass(image, ours, sigma, CV_32F);
@@ -116,7 +117,9 @@ TEST(LowPass, RectangleIsThePartOfTheWholeFilteredImage) {
 // for bit: the same operations, more lanes at a time.
 TEST(LowPass, VectorBuildsAgreeExactly) {
   for (const double sigma : {0.5, 1.0, 3.0}) {
-    for (const cv::Size size : {cv::Size(5, 9), cv::Size(48, 48), cv::Size(123, 117)}) {
+    // Widths on both sides of multiples of the filter's block of 8 outputs.
+    for (const cv::Size size : {cv::Size(5, 9), cv::Size(8, 11), cv::Size(15, 7), cv::Size(17, 20), cv::Size(48, 48),
+                                cv::Size(63, 31), cv::Size(123, 117)}) {
       const cv::Mat image = RandomImage(size.width, size.height, 300 + size.width);
       for (const int depth : {CV_32F, CV_8U}) {
         cv::Mat fast, plain;
