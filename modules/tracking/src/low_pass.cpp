@@ -5,6 +5,7 @@
 #include <atomic>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <vector>
 
 #include <opencv2/imgproc.hpp>
@@ -71,8 +72,13 @@ MOSAICLOC_ALWAYS_INLINE void FilterColumns(const std::array<const float*, 2 * R 
 
 // Per-thread buffers: the tracker filters several windows a frame.
 struct Buffers {
+  std::vector<std::uint8_t> bytes;
   std::vector<float> padded, horizontal, line;
 };
+
+// The conversion of a padded row to float runs over a multiple of this many pixels: the
+// vector loop converts 32 bytes at a time, and its scalar remainder cost more than the rest.
+constexpr int kConvertBlock = 32;
 
 // Output pixel (x, y) of `dst` is the filtered src pixel (rect.x + x, rect.y + y); src's own
 // edges are replicated. Only the src rows and columns within R of `rect` are read.
@@ -84,10 +90,12 @@ MOSAICLOC_ALWAYS_INLINE void FilterBody(const cv::Mat& src, const cv::Rect& rect
   const int stride = RoundUpToBlock(cols);
   const int first = std::max(rect.y - R, 0), last = std::min(rect.y + rect.height - 1 + R, src.rows - 1);
   // Only ever grown: resizing down and up again zero-fills the regrown part on every call.
-  const auto grow = [](std::vector<float>& v, std::size_t size) {
+  const auto grow = [](auto& v, std::size_t size) {
     if (v.size() < size) v.resize(size);
   };
-  grow(b.padded, static_cast<std::size_t>(stride + 2 * R));
+  const int converted = (stride + 2 * R + kConvertBlock - 1) / kConvertBlock * kConvertBlock;
+  grow(b.bytes, static_cast<std::size_t>(converted));
+  grow(b.padded, static_cast<std::size_t>(converted));
   grow(b.horizontal, static_cast<std::size_t>(stride) * static_cast<std::size_t>(last - first + 1));
   grow(b.line, static_cast<std::size_t>(stride));
   // Padded row i is src column rect.x - R + i, clamped to the image; the values past
@@ -97,10 +105,12 @@ MOSAICLOC_ALWAYS_INLINE void FilterBody(const cv::Mat& src, const cv::Rect& rect
   const int shift = rect.x - R;
   for (int y = first; y <= last; ++y) {
     const std::uint8_t* s = src.ptr<std::uint8_t>(y);
+    std::uint8_t* q = b.bytes.data();
+    std::memset(q, s[0], static_cast<std::size_t>(left));
+    std::memcpy(q + left, s + left + shift, static_cast<std::size_t>(right - left));
+    std::memset(q + right, q[right - 1], static_cast<std::size_t>(converted - right));
     float* p = b.padded.data();
-    for (int i = 0; i < left; ++i) p[i] = s[0];
-    for (int i = left; i < right; ++i) p[i] = s[i + shift];
-    for (int i = right; i < stride + 2 * R; ++i) p[i] = p[right - 1];
+    for (int i = 0; i < converted; ++i) p[i] = q[i];
     FilterRow<R>(p, k, b.horizontal.data() + static_cast<std::size_t>(y - first) * stride, stride);
   }
   for (int y = 0; y < rect.height; ++y) {
