@@ -134,12 +134,15 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   }
   if (outcome.track.ok()) {
     const core::Pose2 fix = outcome.track.world_from_camera * options_.vehicle_from_camera.Inverse();
-    Eigen::Matrix3d fix_covariance = options_.fix_covariance_scale *
-                                     VehicleCovariance(outcome.track.world_from_camera, options_.vehicle_from_camera,
-                                                       outcome.track.covariance);
-    fix_covariance(0, 0) += options_.fix_sigma_floor_mm * options_.fix_sigma_floor_mm;
-    fix_covariance(1, 1) += options_.fix_sigma_floor_mm * options_.fix_sigma_floor_mm;
-    fix_covariance(2, 2) += options_.fix_sigma_floor_rad * options_.fix_sigma_floor_rad;
+    // The floors are errors of the camera's pose (map and rectification errors move what the
+    // camera sees), so they go in before the lever arm: a yaw error of the camera moves the
+    // vehicle's origin sideways by the arm, and the fix's covariance says so.
+    Eigen::Matrix3d camera_covariance = options_.fix_covariance_scale * outcome.track.covariance;
+    camera_covariance(0, 0) += options_.fix_sigma_floor_mm * options_.fix_sigma_floor_mm;
+    camera_covariance(1, 1) += options_.fix_sigma_floor_mm * options_.fix_sigma_floor_mm;
+    camera_covariance(2, 2) += options_.fix_sigma_floor_rad * options_.fix_sigma_floor_rad;
+    const Eigen::Matrix3d fix_covariance =
+        VehicleCovariance(outcome.track.world_from_camera, options_.vehicle_from_camera, camera_covariance);
     outcome.fix_world_from_vehicle = fix;
     outcome.fix_quality = std::clamp(outcome.track.mean_zncc, 0.0, 1.0);
     if (relocalize) {
