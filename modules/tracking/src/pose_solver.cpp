@@ -174,15 +174,29 @@ PoseSolution SolvePlanarPose(const std::vector<Correspondence>& correspondences,
   // Residuals are in units of sigma_ref mm: scale the unit-weight covariance by sigma_ref^2.
   ceres::Covariance::Options covariance_options;
   covariance_options.algorithm_type = ceres::DENSE_SVD;
-  covariance_options.null_space_rank = -1;
+  // Nothing dropped: a direction the correspondences do not determine (all of them at one
+  // point leave the yaw free) fails the computation instead of getting a variance of zero.
+  covariance_options.null_space_rank = 0;
   ceres::Covariance covariance(covariance_options);
   const std::vector<std::pair<const double*, const double*>> blocks = {{pose, pose}};
   double c[9];
-  if (inliers >= 2 && covariance.Compute(blocks, solved.problem.get()) &&
+  // Inliers all at one point leave the yaw free (Ceres would find the rank deficiency too,
+  // and log it).
+  bool spread = false;
+  const Eigen::Vector2d* first = nullptr;
+  for (std::size_t i = 0; i < n && !spread; ++i) {
+    if (!use[i]) continue;
+    if (first == nullptr) {
+      first = &correspondences[i].camera_mm;
+    } else {
+      spread = (correspondences[i].camera_mm - *first).squaredNorm() > 1e-12;
+    }
+  }
+  if (spread && covariance.Compute(blocks, solved.problem.get()) &&
       covariance.GetCovarianceBlock(pose, pose, c)) {
     solution.covariance = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(c) * sigma_ref * sigma_ref;
   } else {
-    // One correspondence: translation only, yaw kept from the start.
+    // One correspondence, or several at one point: translation only, the yaw undetermined.
     solution.covariance = Eigen::Matrix3d::Zero();
     solution.covariance(0, 0) = solution.covariance(1, 1) = sigma_ref * sigma_ref;
     solution.covariance(2, 2) = std::numeric_limits<double>::infinity();

@@ -417,18 +417,29 @@ std::vector<TemplateSpot> SelectTemplates(const cv::Mat& frame, const cv::Mat& h
       const int cy0 = gr * frame.rows / grid.height, cy1 = (gr + 1) * frame.rows / grid.height;
       const int x_lo = std::clamp(cx0 - s / 2, b, max_x), x_hi = std::clamp(cx1 - s / 2, b, max_x);
       const int y_lo = std::clamp(cy0 - s / 2, b, max_y), y_hi = std::clamp(cy1 - s / 2, b, max_y);
+      // Neighbouring cells share their boundary corners: a window more than half covered by
+      // one already chosen adds no geometry (a frame textured in one spot would otherwise give
+      // the same window from every cell, and a pose whose yaw nothing determines).
+      const auto taken = [&spots, s](int x, int y) {
+        const cv::Rect candidate(x, y, s, s);
+        for (const TemplateSpot& spot : spots) {
+          if ((candidate & spot.rect).area() * 2 > candidate.area()) return true;
+        }
+        return false;
+      };
       double best = -1.0;
-      cv::Point best_at(x_lo & ~1, y_lo & ~1);
+      cv::Point best_at(-1, -1);
       for (int y = y_lo; y <= y_hi; y += kStep) {
         for (int x = x_lo; x <= x_hi; x += kStep) {
           const int sx = std::min(x / kStep, cells.width - 1), sy = std::min(y / kStep, cells.height - 1);
           const double e = eigen.at<double>(sy, sx);
-          if (e > best) {
+          if (e > best && !taken(x & ~1, y & ~1)) {
             best = e;
             best_at = {x & ~1, y & ~1};
           }
         }
       }
+      if (best_at.x < 0) continue;  // every window of the cell is taken
       const cv::Rect rect(best_at.x, best_at.y, s, s);
       const double texture = texture_of(rect);
       if (texture >= options.min_texture) spots.push_back({rect, texture});

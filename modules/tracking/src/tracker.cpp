@@ -271,6 +271,10 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
     if (turned_px < options_.repeat_below_px) break;
   }
 
+  if (std::isinf(pose.covariance(2, 2))) {
+    return fail(TrackFailure::kTooFewInliers, std::to_string(pose.inliers) +
+                                                  " inlier templates at one place: the yaw is not determined");
+  }
   result.world_from_camera = pose.world_from_camera;
   result.covariance = pose.covariance;
   result.inliers = pose.inliers;

@@ -1,6 +1,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <optional>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -116,6 +117,27 @@ TEST(Templates, SpreadPicksTexturedWindowsInDistinctCells) {
   EXPECT_NE(spots[0].rect.y, spots[1].rect.y);
 }
 
+// A frame textured in one spot at its centre: the best window of every cell is the same one
+// (the cells' ranges meet there). It is chosen once; no two windows cover each other by half.
+TEST(Templates, OneTexturedSpotIsChosenOnce) {
+  cv::Mat frame(480, 640, CV_8UC1, cv::Scalar(128));
+  cv::Mat noise(96, 96, CV_8UC1);
+  cv::RNG(5).fill(noise, cv::RNG::UNIFORM, 0, 256);
+  noise.copyTo(frame(cv::Rect(272, 192, 96, 96)));
+  TemplateOptions options;
+  options.count = 4;
+  options.min_texture = 0.0;
+  const std::vector<TemplateSpot> spots = SelectTemplates(frame, options);
+  ASSERT_FALSE(spots.empty());
+  EXPECT_EQ(spots[0].rect, cv::Rect(272, 192, 96, 96));
+  for (std::size_t i = 0; i < spots.size(); ++i) {
+    for (std::size_t j = 0; j < i; ++j) {
+      EXPECT_LE((spots[i].rect & spots[j].rect).area() * 2, spots[i].rect.area())
+          << "templates " << j << " and " << i << " at " << spots[i].rect.x << "," << spots[i].rect.y;
+    }
+  }
+}
+
 // The ranking as OpenCV computes it (2x2 area average, Sobel with scale 1/8, products
 // area-averaged into 8 px cells, box filter over a template), to check SelectTemplates' exact
 // integer version against: the same template in every cell.
@@ -146,19 +168,24 @@ std::vector<cv::Rect> OpenCvRanking(const cv::Mat& frame, const TemplateOptions&
       const int y_lo = std::clamp(gr * frame.rows / grid.height - s / 2, b, max_y);
       const int y_hi = std::clamp((gr + 1) * frame.rows / grid.height - s / 2, b, max_y);
       double best = -1.0;
-      cv::Point best_at(x_lo & ~1, y_lo & ~1);
+      std::optional<cv::Rect> chosen;
       for (int y = y_lo; y <= y_hi; y += 8) {
         for (int x = x_lo; x <= x_hi; x += 8) {
           const int sx = std::min(x / 8, cells.width - 1), sy = std::min(y / 8, cells.height - 1);
           const double a = mxx.at<float>(sy, sx), m = mxy.at<float>(sy, sx), c = myy.at<float>(sy, sx);
           const double e = 0.5 * (a + c) - std::sqrt(0.25 * (a - c) * (a - c) + m * m);
-          if (e > best) {
+          const cv::Rect candidate(x & ~1, y & ~1, s, s);
+          // Not more than half covered by a window another cell chose.
+          const bool taken = std::any_of(rects.begin(), rects.end(), [&](const cv::Rect& r) {
+            return (candidate & r).area() * 2 > candidate.area();
+          });
+          if (e > best && !taken) {
             best = e;
-            best_at = {x & ~1, y & ~1};
+            chosen = candidate;
           }
         }
       }
-      rects.emplace_back(best_at.x, best_at.y, s, s);
+      if (chosen) rects.push_back(*chosen);
     }
   }
   return rects;
@@ -681,6 +708,29 @@ TEST(PoseSolver, SkippingTheCovarianceLeavesThePose) {
   EXPECT_TRUE(without.covariance.array().isNaN().all());
 }
 
+// Correspondences all at one point of the frame fix the translation but not the yaw: the
+// covariance says the yaw is unknown rather than exact.
+TEST(PoseSolver, CorrespondencesAtOnePointLeaveTheYawUndetermined) {
+  const Pose2 truth(5.0, -3.0, 0.1);
+  std::vector<Correspondence> cs(4);
+  for (Correspondence& c : cs) {
+    c.camera_mm = {12.0, -7.0};
+    c.world_mm = truth * c.camera_mm;
+    c.sigma_mm = 0.001;
+  }
+  const PoseSolution s = SolvePlanarPose(cs, Pose2(5.1, -3.1, 0.1), PoseSolverOptions{});
+  ASSERT_TRUE(s.ok()) << ToString(s.failure);
+  EXPECT_LT((s.world_from_camera * cs[0].camera_mm - cs[0].world_mm).norm(), 1e-6);
+  EXPECT_TRUE(std::isinf(s.covariance(2, 2))) << s.covariance;
+  // Two distinct points determine it, with a finite variance.
+  cs[1].camera_mm = {-30.0, 20.0};
+  cs[1].world_mm = truth * cs[1].camera_mm;
+  const PoseSolution two = SolvePlanarPose(cs, Pose2(5.1, -3.1, 0.1), PoseSolverOptions{});
+  ASSERT_TRUE(two.ok());
+  EXPECT_TRUE(two.covariance.allFinite()) << two.covariance;
+  EXPECT_GT(two.covariance(2, 2), 0.0);
+}
+
 TEST(PoseSolver, SaysWhyItFailed) {
   std::mt19937 rng(11);
   const std::vector<Correspondence> two = MakeCorrespondences(Pose2(), 2, 0.0, &rng);
@@ -845,6 +895,31 @@ TEST(Tracker, BlankFrameHasNoTexture) {
   const cv::Mat blank(480, 640, CV_8UC1, cv::Scalar(120));
   const TrackResult r = tracker.Track(blank, Pose2::Identity(), PriorCovariance(2.0, 0.2), scene.reference());
   EXPECT_EQ(r.failure, TrackFailure::kNoTexture);
+}
+
+// A frame textured only in one spot: whatever the tracker returns, its yaw is never more
+// certain than the frame allows (the spot's templates once all coincided, giving a yaw of
+// variance zero from a single point).
+TEST(Tracker, FrameTexturedInOneSpotClaimsNoYawItCannotSee) {
+  REQUIRE_ASPHALT(texture);
+  const Scene scene(*texture);
+  const Tracker tracker(scene.camera(), TrackerOptions{});
+  const Pose2 truth(0.6, -0.4, 0.3 * kDeg);
+  const cv::Mat full = scene.Frame(truth, 1.0);
+  for (const int size : {96, 112, 160}) {
+    cv::Mat frame(full.size(), CV_8UC1, cv::Scalar(cv::mean(full)[0]));
+    const cv::Rect spot(320 - size / 2, 240 - size / 2, size, size);
+    full(spot).copyTo(frame(spot));
+    const TrackResult r = tracker.Track(frame, Pose2::Identity(), PriorCovariance(3.0, 0.5), scene.reference());
+    if (!r.ok()) {
+      EXPECT_TRUE(r.failure == TrackFailure::kTooFewInliers || r.failure == TrackFailure::kNoTexture)
+          << size << ": " << Describe(r);
+      continue;
+    }
+    const double yaw_error = std::abs(YawDifference(r.world_from_camera, truth));
+    EXPECT_TRUE(std::isfinite(r.covariance(2, 2)) && r.covariance(2, 2) > 0.0) << size << ": " << r.covariance;
+    EXPECT_LT(yaw_error, 5.0 * std::sqrt(r.covariance(2, 2)) + 1e-6) << size << ": " << Describe(r);
+  }
 }
 
 TEST(Tracker, FrameOffTheMapSaysSo) {

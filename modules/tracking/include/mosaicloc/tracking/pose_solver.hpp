@@ -53,8 +53,9 @@ struct PoseSolution {
 };
 
 /// Planar pose of the camera from correspondences: Ceres, analytic Jacobians, robust loss,
-/// an outlier pass, and the covariance from ceres::Covariance. Needs two correspondences for a
-/// pose (one fixes the translation only and keeps the initial yaw). Never throws for bad data.
+/// an outlier pass, and the covariance from ceres::Covariance. Needs two correspondences at
+/// distinct points for a pose: one (or several at one point) fixes the translation only, and
+/// the covariance's yaw variance is then infinite. Never throws for bad data.
 PoseSolution SolvePlanarPose(const std::vector<Correspondence>& correspondences, const core::Pose2& initial,
                              const PoseSolverOptions& options);
 
