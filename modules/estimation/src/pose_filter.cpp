@@ -165,20 +165,8 @@ FixOutcome PoseFilter::Correct(core::Timestamp time, const core::Pose2& world_fr
     outcome.reason = "fix is older than the filter's history";
     return outcome;
   }
-  // The state at the fix's time: split the increment that spans it.
-  const std::size_t k = NodeBefore(time);
-  Node at = history_[k];
-  std::deque<Node> later(history_.begin() + static_cast<std::ptrdiff_t>(k) + 1, history_.end());
-  const bool split = time > at.time && !later.empty();  // else the fix falls on node k
-  if (split) {
-    const Node& next = later.front();
-    const double fraction = core::ToSeconds(time - at.time) / core::ToSeconds(next.time - at.time);
-    Node part{time, {}, {}, ArcPart(next.increment, fraction), fraction * next.increment_covariance};
-    Propagate(at, &part);
-    later.front().increment = part.increment.Inverse() * next.increment;
-    later.front().increment_covariance = (1.0 - fraction) * next.increment_covariance;
-    at = part;
-  }
+  Split split = SplitAt(time);
+  Node& at = split.at;
   at.covariance += prediction_spread;
 
   const Eigen::Vector3d residual(world_from_vehicle.x_mm() - at.world_from_vehicle.x_mm(),
@@ -204,15 +192,55 @@ FixOutcome PoseFilter::Correct(core::Timestamp time, const core::Pose2& world_fr
   at.covariance = i_minus_k * at.covariance * i_minus_k.transpose() + gain * covariance * gain.transpose();
   at.covariance = 0.5 * (at.covariance + at.covariance.transpose());
 
-  // Replay the later odometry on the corrected state.
-  history_.erase(history_.begin() + static_cast<std::ptrdiff_t>(k + (split ? 1 : 0)), history_.end());
-  history_.push_back(at);
-  for (Node& node : later) {
+  Replay(std::move(split));
+  outcome.accepted = true;
+  return outcome;
+}
+
+PoseFilter::Split PoseFilter::SplitAt(core::Timestamp time) const {
+  // The state at `time`: split the increment that spans it.
+  Split split;
+  split.k = NodeBefore(time);
+  split.at = history_[split.k];
+  split.later.assign(history_.begin() + static_cast<std::ptrdiff_t>(split.k) + 1, history_.end());
+  split.split = time > split.at.time && !split.later.empty();  // else `time` falls on node k
+  if (split.split) {
+    const Node& next = split.later.front();
+    const double fraction = core::ToSeconds(time - split.at.time) / core::ToSeconds(next.time - split.at.time);
+    Node part{time, {}, {}, ArcPart(next.increment, fraction), fraction * next.increment_covariance};
+    Propagate(split.at, &part);
+    split.later.front().increment = part.increment.Inverse() * next.increment;
+    split.later.front().increment_covariance = (1.0 - fraction) * next.increment_covariance;
+    split.at = part;
+  }
+  return split;
+}
+
+void PoseFilter::Replay(Split split) {
+  // The later odometry, replayed on the new state at the split.
+  history_.erase(history_.begin() + static_cast<std::ptrdiff_t>(split.k + (split.split ? 1 : 0)), history_.end());
+  history_.push_back(split.at);
+  for (Node& node : split.later) {
     Propagate(history_.back(), &node);
     history_.push_back(node);
   }
-  outcome.accepted = true;
-  return outcome;
+}
+
+void PoseFilter::RestartAt(core::Timestamp time, const core::Pose2& world_from_vehicle,
+                           const Eigen::Matrix3d& covariance) {
+  if (time >= history_.back().time || time < history_.front().time) {
+    // After the history (the state coasts to it) or before it: nothing to keep.
+    const core::Timestamp odometry = last_odometry_;
+    Reset(time, world_from_vehicle, covariance);
+    if (time < odometry) last_odometry_ = odometry;
+    return;
+  }
+  Split split = SplitAt(time);
+  split.at.world_from_vehicle = world_from_vehicle;
+  split.at.covariance = covariance;
+  // The history before `time` held the old, wrong states: drop it.
+  Replay(std::move(split));
+  while (history_.size() > 1 && history_.front().time < time) history_.pop_front();
 }
 
 }  // namespace mosaicloc::estimation

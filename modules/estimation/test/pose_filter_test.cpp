@@ -87,6 +87,28 @@ TEST(PoseFilter, LateFixGivesTheSameStateAsAnOnTimeFix) {
   EXPECT_LT((on_time.covariance() - late.covariance()).norm(), 1e-12);
 }
 
+// A restart at a frame's time inside the history keeps the odometry after it: the pose
+// later is the new pose moved on by that odometry, and the next frame's fix still finds its
+// time in the history.
+TEST(PoseFilter, RestartInsideTheHistoryReplaysTheLaterOdometry) {
+  PoseFilter filter(PoseFilterOptions{}, At(0), Pose2(), Eigen::Matrix3d::Identity() * 1e-4);
+  for (int i = 1; i <= 20; ++i) filter.Predict(At(i), Arc(10.0, 0.001, 10ms));
+  const Pose2 restart(500.0, 30.0, 0.2);
+  const Timestamp frame = At(12) + 5ms;
+  filter.RestartAt(frame, restart, Eigen::Matrix3d::Identity() * 1e-6);
+  const Pose2 odometry_after = Pose2::Exp({75.0, 0.0, 0.0075});  // 7.5 steps of the arc
+  EXPECT_LT(Distance(filter.world_from_vehicle(), restart * odometry_after), 1e-9);
+  EXPECT_LT(Distance(filter.PoseAt(frame), restart), 1e-9);
+  EXPECT_LT(filter.CovarianceAt(frame)(0, 0), 1e-5);
+  const FixOutcome next = filter.Correct(At(15) + 5ms, filter.PoseAt(At(15) + 5ms), Eigen::Matrix3d::Identity() * 1e-6);
+  EXPECT_TRUE(next.accepted) << next.reason;
+  EXPECT_FALSE(filter.Correct(At(11), restart, Eigen::Matrix3d::Identity() * 1e-6).accepted)
+      << "the states before the restart are gone";
+  // After the history: a plain restart there.
+  filter.RestartAt(At(30), restart, Eigen::Matrix3d::Identity() * 1e-6);
+  EXPECT_LT(Distance(filter.world_from_vehicle(), restart), 1e-12);
+}
+
 TEST(PoseFilter, GatesAFixFarFromThePrediction) {
   PoseFilter filter(PoseFilterOptions{}, At(0), Pose2(), Eigen::Matrix3d::Identity() * 1.0);
   filter.Predict(At(1), Arc(10.0, 0.0, 10ms));

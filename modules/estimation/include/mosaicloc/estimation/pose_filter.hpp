@@ -83,8 +83,12 @@ class PoseFilter {
   /// Never throws: a rejected fix says why.
   FixOutcome Correct(core::Timestamp time, const core::Pose2& world_from_vehicle, const Eigen::Matrix3d& covariance,
                      const Eigen::Matrix3d& prediction_spread = Eigen::Matrix3d::Zero());
-  /// Restarts from a pose (relocalization), dropping the history.
+  /// Restarts from a pose, dropping the history.
   void Reset(core::Timestamp time, const core::Pose2& world_from_vehicle, const Eigen::Matrix3d& covariance);
+  /// Restarts from a pose known at `time` (a relocalized frame's): the odometry after `time`
+  /// is kept and replayed on it, so the next frames still find their time in the history;
+  /// the states before it are dropped. A time after the history is a Reset there.
+  void RestartAt(core::Timestamp time, const core::Pose2& world_from_vehicle, const Eigen::Matrix3d& covariance);
 
   /// The system model: the pose at any time, interpolated along the odometry inside the
   /// history, extrapolated with the latest linear and angular velocity after it.
@@ -108,6 +112,17 @@ class PoseFilter {
   // Index of the last node at or before `time` (history_ is never empty).
   std::size_t NodeBefore(core::Timestamp time) const;
   void Prune();
+  // The history cut at `time`: node k at or before it, the state at `time` (node k itself,
+  // or a part of the next increment), and the nodes after it with the spanning increment cut.
+  struct Split {
+    std::size_t k = 0;
+    Node at;
+    std::deque<Node> later;
+    bool split = false;  ///< `at` is a new node between k and k + 1
+  };
+  Split SplitAt(core::Timestamp time) const;
+  // Replaces the history from the split on by `at` and the later nodes propagated from it.
+  void Replay(Split split);
 
   PoseFilterOptions options_;
   std::deque<Node> history_;
