@@ -6,6 +6,7 @@
 #include <utility>
 #include <vector>
 
+#include <Eigen/LU>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -37,6 +38,11 @@ bool LocalizerOptions::Check(std::string* why) const {
   if (relocalize_level < 1 || relocalize_level > 6) return fail("relocalize_level must be in [1, 6]");
   if (!(relocalize_radius_mm > 0.0)) return fail("relocalize_radius_mm must be > 0");
   if (relocalize_candidates < 1 || relocalize_candidates > 50) return fail("relocalize_candidates must be in [1, 50]");
+  if (!(relocalize_zncc_tie >= 0.0 && relocalize_zncc_tie <= 1.0)) return fail("relocalize_zncc_tie must be in [0, 1]");
+  if (!(relocalize_nearer_factor >= 1.0)) return fail("relocalize_nearer_factor must be >= 1");
+  if (reanchor_after_rejections < 0 || reanchor_after_rejections == 1) {
+    return fail("reanchor_after_rejections must be 0 (never) or >= 2");
+  }
   if (!(relocalize_min_coverage > 0.0 && relocalize_min_coverage <= 1.0)) {
     return fail("relocalize_min_coverage must be in (0, 1]");
   }
@@ -56,6 +62,34 @@ Eigen::Matrix3d VehicleCovariance(const core::Pose2& world_from_camera, const co
                                   const Eigen::Matrix3d& camera_covariance) {
   const Eigen::Matrix3d j = ComposeJacobian(world_from_camera, vehicle_from_camera.Inverse());
   return j * camera_covariance * j.transpose();
+}
+
+tracking::TrackResult ChooseRelocalization(std::vector<tracking::TrackResult> verified, const core::Pose2& prior_camera,
+                                           double zncc_tie, double nearer_factor) {
+  if (verified.empty()) core::ThrowInvalidInput("ChooseRelocalization: no verified place");
+  double best_zncc = 0.0;
+  for (const tracking::TrackResult& r : verified) best_zncc = std::max(best_zncc, r.mean_zncc);
+  std::vector<std::pair<double, std::size_t>> equal;  // (distance from the prediction, index)
+  for (std::size_t i = 0; i < verified.size(); ++i) {
+    if (verified[i].mean_zncc >= best_zncc - zncc_tie) {
+      equal.emplace_back(Distance(verified[i].world_from_camera, prior_camera), i);
+    }
+  }
+  std::sort(equal.begin(), equal.end());
+  if (equal.size() == 1 || equal[1].first >= nearer_factor * equal[0].first) {
+    return std::move(verified[equal[0].second]);
+  }
+  tracking::TrackResult ambiguous;
+  ambiguous.failure = tracking::TrackFailure::kAmbiguous;
+  const core::Pose2& a = verified[equal[0].second].world_from_camera;
+  const core::Pose2& b = verified[equal[1].second].world_from_camera;
+  ambiguous.reason = "relocalization: " + std::to_string(equal.size()) +
+                     " places match the frame equally well (the floor repeats; two of them " +
+                     std::to_string(static_cast<int>(std::lround(Distance(a, b)))) + " mm apart, " +
+                     std::to_string(static_cast<int>(std::lround(equal[0].first))) + " and " +
+                     std::to_string(static_cast<int>(std::lround(equal[1].first))) +
+                     " mm from the prediction)";
+  return ambiguous;
 }
 
 Localizer::Localizer(const camera::IdealCamera& camera, const LocalizerOptions& options,
@@ -122,13 +156,7 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   const bool relocalize = lock_.state() == estimation::LockState::kLost ||
                           options_.tracker.search_sigmas * prior_sigma_px > options_.tracker.max_search_px;
   if (relocalize) {
-    std::optional<tracking::TrackResult> found = Relocalize(frame, prior_camera, prior_camera_covariance);
-    if (found) {
-      outcome.track = std::move(*found);
-    } else {
-      outcome.track.failure = tracking::TrackFailure::kNoMatch;
-      outcome.track.reason = "relocalization found no verified place";
-    }
+    outcome.track = Relocalize(frame, prior_camera, prior_camera_covariance);
   } else {
     outcome.track = tracker_.Track(frame, prior_camera, prior_camera_covariance, reference_);
   }
@@ -147,16 +175,48 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
     outcome.fix_quality = std::clamp(outcome.track.mean_zncc, 0.0, 1.0);
     if (relocalize) {
       // A verified relocalization replaces the prediction it contradicts.
-      filter_->Reset(filter_->time(), fix * Between(filter_->PoseAt(time), filter_->world_from_vehicle()),
-                     fix_covariance);
+      filter_->RestartAt(time, fix, fix_covariance);
       outcome.fixed = true;
       outcome.relocalized = true;
       ++relocalizations_;
+      rejected_run_ = 0;
     } else {
+      const core::Pose2 before = filter_->PoseAt(time);
       const estimation::FixOutcome applied = filter_->Correct(time, fix, fix_covariance, timing);
       outcome.fixed = applied.accepted;
-      if (applied.accepted) fix_speed_mm_per_s_ = filter_->Latest().forward_speed_mm_per_s;
-      if (!applied.accepted) outcome.reason = "fix rejected: " + applied.reason;
+      if (applied.accepted) {
+        fix_speed_mm_per_s_ = filter_->Latest().forward_speed_mm_per_s;
+        rejected_run_ = 0;
+      } else {
+        outcome.reason = "fix rejected: " + applied.reason;
+        // Rejected fixes that all put the vehicle the same amount off the prediction say the
+        // prediction is off, not they.
+        const Eigen::Vector3d offset(fix.x_mm() - before.x_mm(), fix.y_mm() - before.y_mm(),
+                                     core::WrapAngle(fix.yaw_rad() - before.yaw_rad()));
+        // Between two such fixes the offset changes by both fixes' errors and by the odometry's
+        // error over the interval (the prediction's covariance grew by it: no fix came in).
+        const Eigen::Matrix3d offset_covariance = fix_covariance + timing;
+        const Eigen::Matrix3d prediction_covariance = filter_->CovarianceAt(time);
+        Eigen::Matrix3d drift = prediction_covariance - rejected_prediction_covariance_;
+        if ((drift.diagonal().array() < 0.0).any()) drift.setZero();
+        const Eigen::Vector3d change = offset - rejected_offset_;
+        const Eigen::Matrix3d both = offset_covariance + rejected_covariance_ + drift;
+        const bool same = rejected_run_ > 0 && change.dot(both.inverse() * change) <= options_.filter.gate_chi2;
+        rejected_run_ = same ? rejected_run_ + 1 : 1;
+        rejected_offset_ = offset;
+        rejected_covariance_ = offset_covariance;
+        rejected_prediction_covariance_ = prediction_covariance;
+        const bool gated = applied.mahalanobis2 > options_.filter.gate_chi2;  // not "too late" or "too early"
+        if (!gated) rejected_run_ = 0;
+        if (options_.reanchor_after_rejections > 0 && rejected_run_ >= options_.reanchor_after_rejections) {
+          filter_->RestartAt(time, fix, fix_covariance);
+          outcome.fixed = true;
+          outcome.relocalized = true;
+          outcome.reason.clear();
+          ++relocalizations_;
+          rejected_run_ = 0;
+        }
+      }
     }
   } else {
     outcome.reason = tracking::ToString(outcome.track.failure) + std::string(": ") + outcome.track.reason;
@@ -168,8 +228,11 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   return outcome;
 }
 
-std::optional<tracking::TrackResult> Localizer::Relocalize(const cv::Mat& frame, const core::Pose2& prior_camera,
-                                                          const Eigen::Matrix3d& prior_camera_covariance) const {
+tracking::TrackResult Localizer::Relocalize(const cv::Mat& frame, const core::Pose2& prior_camera,
+                                           const Eigen::Matrix3d& prior_camera_covariance) const {
+  tracking::TrackResult none;
+  none.failure = tracking::TrackFailure::kNoMatch;
+  none.reason = "relocalization found no verified place";
   // The coarse level of the map, and the frame averaged down to it.
   std::unique_ptr<const tracking::ReferenceRaster> coarse;
   const tracking::ReferenceRaster* level = &reference_;
@@ -180,7 +243,7 @@ std::optional<tracking::TrackResult> Localizer::Relocalize(const cv::Mat& frame,
     coarse = std::move(next);
     level = coarse.get();
   }
-  if (k == 0) return std::nullopt;
+  if (k == 0) return none;
   const int scale = 1 << k;
   cv::Mat small = frame;
   for (int i = 0; i < k; ++i) cv::resize(small, small, cv::Size(small.cols / 2, small.rows / 2), 0, 0, cv::INTER_AREA);
@@ -201,7 +264,7 @@ std::optional<tracking::TrackResult> Localizer::Relocalize(const cv::Mat& frame,
   cv::Mat mask;
   cv::Mat window = tracking::RenderWindow(*level, small_to_raster, cv::Point(-range, -range),
                                           cv::Size(small.cols + 2 * range, small.rows + 2 * range), &mask);
-  if (cv::countNonZero(mask) < small.cols * small.rows) return std::nullopt;
+  if (cv::countNonZero(mask) < small.cols * small.rows) return none;
   window.setTo(cv::mean(window, mask), ~mask);
   cv::Mat scores;
   cv::matchTemplate(window, small, scores, cv::TM_CCOEFF_NORMED);
@@ -223,20 +286,32 @@ std::optional<tracking::TrackResult> Localizer::Relocalize(const cv::Mat& frame,
   if (peaks.size() > static_cast<std::size_t>(options_.relocalize_candidates)) {
     peaks.resize(static_cast<std::size_t>(options_.relocalize_candidates));
   }
-  // Verify each candidate at full resolution; accept the first that registers well.
+  // Verify every candidate at full resolution.
   const Eigen::Matrix3d candidate_covariance =
       Eigen::Vector3d(std::pow(2.0 * scale * camera_.mm_per_px(), 2), std::pow(2.0 * scale * camera_.mm_per_px(), 2),
                       prior_camera_covariance(2, 2))
           .asDiagonal();
+  std::vector<tracking::TrackResult> verified;
   for (const auto& [score, at] : peaks) {
     // The frame's centre moved by (at - range) small pixels, in the frame's own axes.
     const Eigen::Vector2d shift_px = scale * Eigen::Vector2d(at.x - range, at.y - range);
     const Eigen::Vector2d shift_camera_mm(shift_px.x() * camera_.mm_per_px(), -shift_px.y() * camera_.mm_per_px());
     const core::Pose2 candidate = prior_camera * core::Pose2(shift_camera_mm, 0.0);
     tracking::TrackResult r = tracker_.Track(frame, candidate, candidate_covariance, reference_);
-    if (r.ok() && r.mean_zncc >= options_.relocalize_min_zncc) return r;
+    if (!r.ok() || r.mean_zncc < options_.relocalize_min_zncc) continue;
+    // Two peaks of one place verify to the same pose: keep it once, with its better match.
+    const auto same = std::find_if(verified.begin(), verified.end(), [&r](const tracking::TrackResult& v) {
+      return Distance(v.world_from_camera, r.world_from_camera) < 2.0;
+    });
+    if (same == verified.end()) {
+      verified.push_back(std::move(r));
+    } else if (r.mean_zncc > same->mean_zncc) {
+      *same = std::move(r);
+    }
   }
-  return std::nullopt;
+  if (verified.empty()) return none;
+  return ChooseRelocalization(std::move(verified), prior_camera, options_.relocalize_zncc_tie,
+                              options_.relocalize_nearer_factor);
 }
 
 }  // namespace mosaicloc::localizer

@@ -2,6 +2,7 @@
 #include <numbers>
 
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "mosaicloc/localizer/localizer.hpp"
@@ -21,15 +22,33 @@ using core::Timestamp;
 
 // A real texture laid on the floor at 0.125 mm/texel, its map written straight into a store
 // (each map pixel the 2x2 average of the texels it covers, as a perfect mapping run would),
-// and a vehicle driving over it with biased wheel odometry.
+// and a vehicle driving over it with biased wheel odometry. The texture (256 mm square on
+// the floor) is laid in its eight turned and mirrored versions, 4 x 2, so the floor repeats
+// only every 1024 x 512 mm, beyond the mapped 896 x 384 mm: one place matches each view.
 class Drive : public ::testing::Test {
  protected:
+  virtual bool Repeating() const { return false; }
+
   void SetUp() override {
     const auto texture = test::SharedTexture("asphalt_02_2048.jpg");
     if (!texture) GTEST_SKIP() << test::SharedDataMissingMessage();
     sim::ImageFloorOptions floor_options;
     floor_options.image = *texture;
     floor_options.mm_per_texel = 0.125;
+    if (!Repeating()) {
+      const cv::Mat t = cv::imread(texture->string(), cv::IMREAD_GRAYSCALE);
+      ASSERT_FALSE(t.empty());
+      cv::Mat composite(2 * t.rows, 4 * t.cols, CV_8UC1);
+      for (int i = 0; i < 8; ++i) {
+        cv::Mat version = t.clone();
+        if (i % 4 != 0) cv::rotate(t, version, i % 4 == 1 ? cv::ROTATE_90_CLOCKWISE : i % 4 == 2 ? cv::ROTATE_180
+                                                                                                : cv::ROTATE_90_COUNTERCLOCKWISE);
+        if (i >= 4) cv::flip(version, version, 1);
+        version.copyTo(composite(cv::Rect((i % 4) * t.cols, (i / 4) * t.rows, t.cols, t.rows)));
+      }
+      floor_options.image = scratch_ / "floor.pgm";
+      ASSERT_TRUE(cv::imwrite(floor_options.image.string(), composite));
+    }
     floor_ = sim::MakeImageFloor(floor_options);
     mosaic::MapGrid grid;  // 0.25 mm/px, origin (0, 0), 256 px tiles
     store_ = mosaic::TileStore::Create(scratch_ / "floor.mosaic", grid);
@@ -62,16 +81,21 @@ class Drive : public ::testing::Test {
     std::vector<std::string> reasons;  ///< the first frames without a fix, why
     int first_fix_frame = -1;
     std::int64_t relocalizations = 0;
+    int misses = 0;  ///< frames without a fix
   };
 
   // Runs the localizer for `seconds`, encoders at 100 Hz with a 2 % scale error, frames at
   // 30 Hz; starts from `start_error` off the truth.
-  Run Localize(double seconds, double speed_mps, const Pose2& start_error, double start_sigma_mm = 1.0) {
+  // `slip_mm`: from 0.5 s on, both wheels count that much more travel than was driven (a
+  // wheel slip the odometry model does not expect).
+  Run Localize(double seconds, double speed_mps, const Pose2& start_error, double start_sigma_mm = 1.0,
+               double slip_mm = 0.0, int reanchor_after = LocalizerOptions{}.reanchor_after_rejections) {
     const camera::IdealCamera camera{camera::IdealCameraOptions{}};
     sim::ImagingOptions imaging;
     const sim::Imager imager(*floor_, camera, imaging, 7);
     LocalizerOptions options;
     options.vehicle_from_camera = Pose2(200.0, 0.0, 0.0);
+    options.reanchor_after_rejections = reanchor_after;
     Localizer localizer(camera, options, *reference_);
     const double b = options.odometry.track_width_mm;
     const double mm_per_tick = 2.0 * std::numbers::pi * options.odometry.left_wheel_radius_mm /
@@ -93,7 +117,9 @@ class Drive : public ::testing::Test {
             Between(Truth((encoder_step - 1) / 100.0, speed_mps), Truth(encoder_step / 100.0, speed_mps)).Log();
         left_mm += 1.02 * (twist.x() - 0.5 * b * twist.z());
         right_mm += 1.02 * (twist.x() + 0.5 * b * twist.z());
-        localizer.AddEncoders(Timestamp::FromSeconds(encoder_step / 100.0), ticks(left_mm), ticks(right_mm));
+        const double slip = encoder_step >= 50 ? slip_mm : 0.0;
+        localizer.AddEncoders(Timestamp::FromSeconds(encoder_step / 100.0), ticks(left_mm + slip),
+                              ticks(right_mm + slip));
       }
       const Pose2 truth = Truth(t_frame, speed_mps);
       const Pose2 camera_pose = truth * options.vehicle_from_camera;
@@ -118,6 +144,7 @@ class Drive : public ::testing::Test {
       run.errors_mm.push_back(Distance(outcome.world_from_vehicle, truth));
     }
     run.lock_losses = localizer.lock().losses();
+    run.misses = static_cast<int>(run.errors_mm.size()) - run.fixes;
     run.relocalizations = localizer.relocalizations();
     return run;
   }
@@ -162,6 +189,69 @@ TEST_F(Drive, KidnappedStartRelocalizesWithinTenFrames) {
   EXPECT_LE(run.first_fix_frame, 10);
   EXPECT_GE(run.relocalizations, 1);
   EXPECT_LT(run.errors_mm.back(), 0.05) << "after relocalizing, it tracks";
+}
+
+// A 3 mm slip puts the odometry off by far more than the filter believes: every fix is
+// rejected at the gate, each off the prediction by the same 3 mm. The filter restarts from
+// them after three, instead of losing the lock half a second later.
+TEST_F(Drive, ConsistentlyRejectedFixesReanchorTheFilter) {
+  const Run run = Localize(1.2, 0.3, Pose2(), 1.0, 3.0);
+  EXPECT_EQ(run.lock_losses, 0);
+  EXPECT_EQ(run.relocalizations, 1);
+  EXPECT_LE(run.misses, 2) << (run.reasons.empty() ? std::string() : run.reasons.back());
+  EXPECT_LT(run.errors_mm.back(), 0.05);
+  // Without it the lock is lost, then found again by a relocalization search.
+  const Run without = Localize(1.2, 0.3, Pose2(), 1.0, 3.0, 0);
+  EXPECT_GT(without.misses, 10);
+}
+
+// The plain texture, repeating every 256 mm: a start given half a period off, between two
+// copies of the floor, must not relocalize onto either.
+class RepeatingDrive : public Drive {
+ protected:
+  bool Repeating() const override { return true; }
+};
+
+TEST_F(RepeatingDrive, StartBetweenTwoCopiesOfTheFloorIsAmbiguousNotAWrongFix) {
+  const Run run = Localize(0.5, 0.3, Pose2(128.0, 0.0, 0.0), 250.0);
+  EXPECT_EQ(run.fixes, 0) << "a copy of the floor taken for the place";
+  EXPECT_EQ(run.relocalizations, 0);
+  ASSERT_FALSE(run.reasons.empty());
+  EXPECT_NE(run.reasons.front().find("places match the frame equally well"), std::string::npos)
+      << run.reasons.front();
+}
+
+TEST_F(RepeatingDrive, StartNearOneCopyRelocalizesOntoIt) {
+  // 40 mm off: the nearest copy is the true place, the next over 200 mm away.
+  const Run run = Localize(0.5, 0.3, Pose2(40.0, 0.0, 0.0), 250.0);
+  ASSERT_GE(run.first_fix_frame, 1) << (run.reasons.empty() ? std::string() : run.reasons.front());
+  EXPECT_GE(run.relocalizations, 1);
+  EXPECT_LT(run.errors_mm.back(), 0.05);
+}
+
+tracking::TrackResult Verified(double x_mm, double zncc) {
+  tracking::TrackResult r;
+  r.world_from_camera = Pose2(x_mm, 0.0, 0.0);
+  r.mean_zncc = zncc;
+  return r;
+}
+
+TEST(ChooseRelocalization, TakesTheNearestOfEqualPlacesOnlyWhenThePredictionDecides) {
+  const Pose2 prior(0.0, 0.0, 0.0);
+  EXPECT_EQ(ChooseRelocalization({Verified(300.0, 0.9)}, prior, 0.02, 2.0).world_from_camera.x_mm(), 300.0)
+      << "one place: taken however far";
+  const auto two = [&](double near_mm, double far_mm) {
+    return ChooseRelocalization({Verified(far_mm, 0.95), Verified(near_mm, 0.95)}, prior, 0.02, 2.0);
+  };
+  EXPECT_EQ(two(40.0, -216.0).world_from_camera.x_mm(), 40.0);
+  const tracking::TrackResult halfway = two(120.0, -136.0);
+  EXPECT_EQ(halfway.failure, tracking::TrackFailure::kAmbiguous);
+  EXPECT_NE(halfway.reason.find("2 places"), std::string::npos) << halfway.reason;
+  EXPECT_NE(halfway.reason.find("256 mm apart"), std::string::npos) << halfway.reason;
+  // A clearly better match is no tie, even if farther.
+  EXPECT_EQ(ChooseRelocalization({Verified(10.0, 0.85), Verified(200.0, 0.97)}, prior, 0.02, 2.0)
+                .world_from_camera.x_mm(),
+            200.0);
 }
 
 TEST(CovarianceTransfer, CameraAndVehicleCovariancesAreInverse) {

@@ -3,6 +3,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <Eigen/Core>
 #include <opencv2/core/mat.hpp>
@@ -42,16 +43,27 @@ struct LocalizerOptions {
   double relocalize_radius_mm = 600.0;
   int relocalize_candidates = 5;
   double relocalize_min_zncc = 0.8;   ///< of the verifying registration
+  /// A floor that repeats (tiles, a printed pattern) verifies in several places. Places whose
+  /// ZNCC is within relocalize_zncc_tie of the best are equally good; of those the one
+  /// nearest the prediction is taken only if the next is at least relocalize_nearer_factor
+  /// times as far, else the frame is ambiguous and no place is taken.
+  double relocalize_zncc_tie = 0.02;
+  double relocalize_nearer_factor = 2.0;
   /// Share of a candidate place the map must cover. Less than 1: a vehicle that mapped one
   /// lane and drives it a few mm aside sees a sliver of floor the map does not have.
   float relocalize_min_coverage = 0.75F;
+  /// A filter that is confidently wrong (its odometry dated a few ms off while braking, say)
+  /// rejects every fix at its gate, however well they agree. After this many consecutive
+  /// rejected fixes that are off the prediction by the same amount (within their
+  /// uncertainty), the filter restarts from the newest. 0: never.
+  int reanchor_after_rejections = 3;
   bool Check(std::string* why) const;
 };
 
 /// What happened to one frame.
 struct FrameOutcome {
   bool fixed = false;                ///< a visual fix was accepted by the filter
-  bool relocalized = false;          ///< the fix came from a relocalization (the filter restarted)
+  bool relocalized = false;          ///< the filter restarted from this fix (a relocalization or a re-anchoring)
   std::string reason;                ///< why not, when not
   core::Pose2 fix_world_from_vehicle;  ///< the tracker's fix (valid when the tracker succeeded)
   double fix_quality = 0.0;          ///< 0..1: mean refined ZNCC of the inliers
@@ -94,13 +106,15 @@ class Localizer {
   /// initialized().
   estimation::MotionState Latest() const;
   const estimation::LockMonitor& lock() const { return lock_; }
+  /// Restarts of the filter from a fix: relocalizations, and re-anchorings on fixes the gate
+  /// kept rejecting.
   std::int64_t relocalizations() const { return relocalizations_; }
 
  private:
   // Searches the coarse map around the prediction and verifies the best candidates; the
   // verified registration, or nothing.
-  std::optional<tracking::TrackResult> Relocalize(const cv::Mat& frame, const core::Pose2& prior_camera,
-                                                  const Eigen::Matrix3d& prior_camera_covariance) const;
+  tracking::TrackResult Relocalize(const cv::Mat& frame, const core::Pose2& prior_camera,
+                                   const Eigen::Matrix3d& prior_camera_covariance) const;
 
   camera::IdealCamera camera_;
   LocalizerOptions options_;
@@ -110,6 +124,12 @@ class Localizer {
   std::optional<estimation::PoseFilter> filter_;
   estimation::LockMonitor lock_;
   std::int64_t relocalizations_ = 0;
+  // The run of consecutive fixes the gate rejected: how many, the last one's offset from the
+  // prediction (x, y, yaw) and that offset's covariance.
+  int rejected_run_ = 0;
+  Eigen::Vector3d rejected_offset_ = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d rejected_covariance_ = Eigen::Matrix3d::Zero();
+  Eigen::Matrix3d rejected_prediction_covariance_ = Eigen::Matrix3d::Zero();  ///< the filter's, then
   double fix_speed_mm_per_s_ = 0.0;  ///< forward speed when the last fix was accepted
 };
 
@@ -119,5 +139,12 @@ Eigen::Matrix3d CameraCovariance(const core::Pose2& world_from_vehicle, const co
                                  const Eigen::Matrix3d& vehicle_covariance);
 Eigen::Matrix3d VehicleCovariance(const core::Pose2& world_from_camera, const core::Pose2& vehicle_from_camera,
                                   const Eigen::Matrix3d& camera_covariance);
+
+/// Of the places a relocalization verified (distinct, each a successful registration), the
+/// one to take: among those whose mean ZNCC is within `zncc_tie` of the best, the nearest to
+/// the predicted camera pose, if the next nearest is at least `nearer_factor` times as far;
+/// otherwise a kAmbiguous result saying how many places matched. `verified` must not be empty.
+tracking::TrackResult ChooseRelocalization(std::vector<tracking::TrackResult> verified, const core::Pose2& prior_camera,
+                                           double zncc_tie, double nearer_factor);
 
 }  // namespace mosaicloc::localizer
