@@ -372,17 +372,17 @@ class LiveRun {
         stats_.odometry_valid = true;
       }
       if (valid && read.value().fresh) {
-        // When did the counters take these values? Polling: they changed since the previous
-        // read, so at the middle of the interval between the two reads; unchanged counters
-        // are only passed on once they have stood still for stationary_after. Served: when
-        // the PLC wrote them.
+        // When did the counters take these values? Polling: since the previous read, within
+        // the PLC's last counter period (CountersChangedAt); unchanged counters are only
+        // passed on once they have stood still for stationary_after. Served: when the PLC
+        // wrote them.
         const io::PlcInputs& in = read.value();
         const std::pair<std::int32_t, std::int32_t> ticks{in.left_ticks, in.right_ticks};
         std::optional<core::Timestamp> stamp;
         if (!polling || !have_ticks) {
           stamp = in.time;
         } else if (ticks != last_ticks) {
-          stamp = last_read + (in.time - last_read) / 2;
+          stamp = io::CountersChangedAt(last_read, in.time, counter_period);
         } else if (in.time - counter_period - last_forwarded >= stationary_after) {
           stamp = in.time - counter_period;
         }

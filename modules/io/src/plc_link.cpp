@@ -103,6 +103,12 @@ bool HeartbeatMonitor::stale(core::Timestamp now) const {
   return !last_change_ || now - *last_change_ > timeout_;
 }
 
+core::Timestamp CountersChangedAt(core::Timestamp previous_read, core::Timestamp read, core::Duration counter_period) {
+  const core::Timestamp since =
+      counter_period > core::Duration::zero() ? std::max(previous_read, read - counter_period) : previous_read;
+  return since + (read - since) / 2;
+}
+
 namespace detail {
 
 ModbusContext NewContext(const PlcLinkOptions& options, bool server) {

@@ -182,6 +182,17 @@ TEST_P(ClientWordOrder, ReadsInputsAndWritesFixesAsThePlcSeesThem) {
 
 INSTANTIATE_TEST_SUITE_P(Orders, ClientWordOrder, testing::Values(WordOrder::kHighFirst, WordOrder::kLowFirst));
 
+TEST(CountersChangedAt, MiddleOfTheLastCounterPeriodSinceThePreviousRead) {
+  using namespace std::chrono_literals;
+  const core::Timestamp t0 = core::Timestamp::FromSeconds(100.0);
+  // Polls every 5 ms, counters every 10 ms: the middle between the reads.
+  EXPECT_EQ(CountersChangedAt(t0, t0 + 5ms, 10ms), t0 + 2500us);
+  // A poll 30 ms late: the counters changed in the 10 ms before it, not 15 ms before.
+  EXPECT_EQ(CountersChangedAt(t0, t0 + 30ms, 10ms), t0 + 25ms);
+  // Period unknown: the middle between the reads.
+  EXPECT_EQ(CountersChangedAt(t0, t0 + 30ms, 0ms), t0 + 15ms);
+}
+
 TEST(PlcClientTest, NoPlcIsAFailureNotACrashAndRetriesWithBackoff) {
   const int port = FreePort();
   PlcLinkOptions options = ClientOptions(port);

@@ -122,4 +122,10 @@ class HeartbeatMonitor {
   std::uint32_t last_value_ = 0;
 };
 
+/// When polled counters that changed between two reads took their new values: after the
+/// previous read and, the PLC updating them every `counter_period` (0: unknown), within the
+/// last period before this read; the middle of that interval. A poll that came late (the
+/// machine busy) does not date them to long before the read.
+core::Timestamp CountersChangedAt(core::Timestamp previous_read, core::Timestamp read, core::Duration counter_period);
+
 }  // namespace mosaicloc::io
