@@ -2,12 +2,12 @@
 // Private helpers of the map's SQLite files (the tile store and the build checkpoint).
 
 #include <sqlite3.h>
-#include <zlib.h>
 
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
 
+#include "crc32.hpp"
 #include "mosaicloc/core/error.hpp"
 
 namespace mosaicloc::mosaic::internal {
@@ -31,9 +31,6 @@ class Statement {
 };
 
 /// zlib's CRC32 of a block of bytes.
-inline std::uint32_t Crc32(const void* data, std::size_t bytes) {
-  return static_cast<std::uint32_t>(
-      crc32(crc32(0L, Z_NULL, 0), static_cast<const Bytef*>(data), static_cast<uInt>(bytes)));
-}
+inline std::uint32_t Crc32(const void* data, std::size_t bytes) { return Crc32Update(0, data, bytes); }
 
 }  // namespace mosaicloc::mosaic::internal

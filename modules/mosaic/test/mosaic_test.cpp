@@ -14,6 +14,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "crc32.hpp"
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/mosaic/builder.hpp"
 #include "mosaicloc/mosaic/prefetcher.hpp"
@@ -73,6 +74,32 @@ TEST(MapGrid, PixelCentresFollowTheDesign) {
   EXPECT_EQ(FloorDiv(-1, 256), -1);
   EXPECT_EQ(FloorDiv(-256, 256), -1);
   EXPECT_EQ(FloorDiv(255, 256), 0);
+}
+
+// The folded CRC-32 is zlib's, at every length and alignment, and chains like it.
+TEST(Crc32, EqualsZlibsAtEveryLengthAndAlignment) {
+  const char* check = "123456789";
+  EXPECT_EQ(internal::Crc32Update(0, check, 9), 0xCBF43926u) << "the standard check value";
+  std::vector<unsigned char> data(70000 + 16);
+  std::mt19937 rng(4);
+  for (unsigned char& b : data) b = static_cast<unsigned char>(rng());
+  for (std::size_t offset = 0; offset < 16; offset += 3) {
+    for (std::size_t bytes = 0; bytes <= 300; ++bytes) {
+      ASSERT_EQ(internal::Crc32Update(0, data.data() + offset, bytes),
+                internal::Crc32ZlibOnly(0, data.data() + offset, bytes))
+          << bytes << " bytes at offset " << offset;
+    }
+    for (const std::size_t bytes : {1023u, 4096u, 65536u, 65537u, 70000u}) {
+      ASSERT_EQ(internal::Crc32Update(0, data.data() + offset, bytes),
+                internal::Crc32ZlibOnly(0, data.data() + offset, bytes))
+          << bytes << " bytes at offset " << offset;
+    }
+  }
+  const std::uint32_t first = internal::Crc32Update(0, data.data(), 1000);
+  EXPECT_EQ(internal::Crc32Update(first, data.data() + 1000, 5000), internal::Crc32ZlibOnly(0, data.data(), 6000));
+  std::vector<unsigned char> zeros(4096, 0), ones(4096, 0xFF);
+  EXPECT_EQ(internal::Crc32Update(0, zeros.data(), zeros.size()), internal::Crc32ZlibOnly(0, zeros.data(), zeros.size()));
+  EXPECT_EQ(internal::Crc32Update(0, ones.data(), ones.size()), internal::Crc32ZlibOnly(0, ones.data(), ones.size()));
 }
 
 TEST(TileStore, RoundTripAndMetadata) {
