@@ -175,11 +175,7 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
     outcome.fix_quality = std::clamp(outcome.track.mean_zncc, 0.0, 1.0);
     if (relocalize) {
       // A verified relocalization replaces the prediction it contradicts.
-      filter_->RestartAt(time, fix, fix_covariance);
-      outcome.fixed = true;
-      outcome.relocalized = true;
-      ++relocalizations_;
-      rejected_run_ = 0;
+      Restart(time, fix, fix_covariance, &outcome);
     } else {
       const core::Pose2 before = filter_->PoseAt(time);
       const estimation::FixOutcome applied = filter_->Correct(time, fix, fix_covariance, timing);
@@ -189,32 +185,13 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
         rejected_run_ = 0;
       } else {
         outcome.reason = "fix rejected: " + applied.reason;
-        // Rejected fixes that all put the vehicle the same amount off the prediction say the
-        // prediction is off, not they.
+        const bool gated = applied.mahalanobis2 > options_.filter.gate_chi2;  // not too late or too early
         const Eigen::Vector3d offset(fix.x_mm() - before.x_mm(), fix.y_mm() - before.y_mm(),
                                      core::WrapAngle(fix.yaw_rad() - before.yaw_rad()));
-        // Between two such fixes the offset changes by both fixes' errors and by the odometry's
-        // error over the interval (the prediction's covariance grew by it: no fix came in).
-        const Eigen::Matrix3d offset_covariance = fix_covariance + timing;
-        const Eigen::Matrix3d prediction_covariance = filter_->CovarianceAt(time);
-        Eigen::Matrix3d drift = prediction_covariance - rejected_prediction_covariance_;
-        if ((drift.diagonal().array() < 0.0).any()) drift.setZero();
-        const Eigen::Vector3d change = offset - rejected_offset_;
-        const Eigen::Matrix3d both = offset_covariance + rejected_covariance_ + drift;
-        const bool same = rejected_run_ > 0 && change.dot(both.inverse() * change) <= options_.filter.gate_chi2;
-        rejected_run_ = same ? rejected_run_ + 1 : 1;
-        rejected_offset_ = offset;
-        rejected_covariance_ = offset_covariance;
-        rejected_prediction_covariance_ = prediction_covariance;
-        const bool gated = applied.mahalanobis2 > options_.filter.gate_chi2;  // not "too late" or "too early"
-        if (!gated) rejected_run_ = 0;
-        if (options_.reanchor_after_rejections > 0 && rejected_run_ >= options_.reanchor_after_rejections) {
-          filter_->RestartAt(time, fix, fix_covariance);
-          outcome.fixed = true;
-          outcome.relocalized = true;
-          outcome.reason.clear();
-          ++relocalizations_;
+        if (!gated) {
           rejected_run_ = 0;
+        } else if (RejectedAgain(time, offset, fix_covariance + timing)) {
+          Restart(time, fix, fix_covariance, &outcome);
         }
       }
     }
@@ -226,6 +203,35 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   const double sigma_mm = std::sqrt(std::max(outcome.covariance(0, 0), outcome.covariance(1, 1)));
   outcome.lock = lock_.Update(outcome.fixed, sigma_mm, outcome.reason);
   return outcome;
+}
+
+void Localizer::Restart(core::Timestamp time, const core::Pose2& fix, const Eigen::Matrix3d& fix_covariance,
+                        FrameOutcome* outcome) {
+  filter_->RestartAt(time, fix, fix_covariance);
+  outcome->fixed = true;
+  outcome->relocalized = true;
+  outcome->reason.clear();
+  ++relocalizations_;
+  rejected_run_ = 0;
+}
+
+bool Localizer::RejectedAgain(core::Timestamp time, const Eigen::Vector3d& offset,
+                              const Eigen::Matrix3d& offset_covariance) {
+  // Rejected fixes that all put the vehicle the same amount off the prediction say the
+  // prediction is off, not they. Between two such fixes the offset changes by both fixes'
+  // errors and by the odometry's error over the interval (the prediction's covariance grew
+  // by it: no fix came in).
+  const Eigen::Matrix3d prediction_covariance = filter_->CovarianceAt(time);
+  Eigen::Matrix3d drift = prediction_covariance - rejected_prediction_covariance_;
+  if ((drift.diagonal().array() < 0.0).any()) drift.setZero();
+  const Eigen::Vector3d change = offset - rejected_offset_;
+  const Eigen::Matrix3d both = offset_covariance + rejected_covariance_ + drift;
+  const bool same = rejected_run_ > 0 && change.dot(both.inverse() * change) <= options_.filter.gate_chi2;
+  rejected_run_ = same ? rejected_run_ + 1 : 1;
+  rejected_offset_ = offset;
+  rejected_covariance_ = offset_covariance;
+  rejected_prediction_covariance_ = prediction_covariance;
+  return options_.reanchor_after_rejections > 0 && rejected_run_ >= options_.reanchor_after_rejections;
 }
 
 tracking::TrackResult Localizer::Relocalize(const cv::Mat& frame, const core::Pose2& prior_camera,

@@ -182,15 +182,10 @@ PoseSolution SolvePlanarPose(const std::vector<Correspondence>& correspondences,
   double c[9];
   // Inliers all at one point leave the yaw free (Ceres would find the rank deficiency too,
   // and log it).
+  const std::size_t first = static_cast<std::size_t>(std::find(use.begin(), use.end(), true) - use.begin());
   bool spread = false;
-  const Eigen::Vector2d* first = nullptr;
-  for (std::size_t i = 0; i < n && !spread; ++i) {
-    if (!use[i]) continue;
-    if (first == nullptr) {
-      first = &correspondences[i].camera_mm;
-    } else {
-      spread = (correspondences[i].camera_mm - *first).squaredNorm() > 1e-12;
-    }
+  for (std::size_t i = first + 1; i < n && !spread; ++i) {
+    spread = use[i] && (correspondences[i].camera_mm - correspondences[first].camera_mm).squaredNorm() > 1e-12;
   }
   if (spread && covariance.Compute(blocks, solved.problem.get()) &&
       covariance.GetCovarianceBlock(pose, pose, c)) {

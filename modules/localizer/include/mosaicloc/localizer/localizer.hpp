@@ -115,6 +115,12 @@ class Localizer {
   // verified registration, or nothing.
   tracking::TrackResult Relocalize(const cv::Mat& frame, const core::Pose2& prior_camera,
                                    const Eigen::Matrix3d& prior_camera_covariance) const;
+  // Restarts the filter from a fix (a relocalization or a re-anchoring) and says so.
+  void Restart(core::Timestamp time, const core::Pose2& fix, const Eigen::Matrix3d& fix_covariance,
+               FrameOutcome* outcome);
+  // One more fix rejected at the gate, `offset` off the prediction: extends or starts the run
+  // of rejections off by the same amount; true when it is long enough to re-anchor on.
+  bool RejectedAgain(core::Timestamp time, const Eigen::Vector3d& offset, const Eigen::Matrix3d& offset_covariance);
 
   camera::IdealCamera camera_;
   LocalizerOptions options_;
