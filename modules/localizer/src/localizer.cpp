@@ -177,7 +177,6 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
       // A verified relocalization replaces the prediction it contradicts.
       Restart(time, fix, fix_covariance, &outcome);
     } else {
-      const core::Pose2 before = filter_->PoseAt(time);
       const estimation::FixOutcome applied = filter_->Correct(time, fix, fix_covariance, timing);
       outcome.fixed = applied.accepted;
       if (applied.accepted) {
@@ -186,8 +185,8 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
       } else {
         outcome.reason = "fix rejected: " + applied.reason;
         const bool gated = applied.mahalanobis2 > options_.filter.gate_chi2;  // not too late or too early
-        const Eigen::Vector3d offset(fix.x_mm() - before.x_mm(), fix.y_mm() - before.y_mm(),
-                                     core::WrapAngle(fix.yaw_rad() - before.yaw_rad()));
+        const Eigen::Vector3d offset(fix.x_mm() - predicted.x_mm(), fix.y_mm() - predicted.y_mm(),
+                                     core::WrapAngle(fix.yaw_rad() - predicted.yaw_rad()));
         if (!gated) {
           rejected_run_ = 0;
         } else if (RejectedAgain(time, offset, fix_covariance + timing)) {
