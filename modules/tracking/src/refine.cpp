@@ -84,42 +84,83 @@ struct SampleSums {
   double sm = 0.0, smm = 0.0, sjxm = 0.0, sjym = 0.0, smt = 0.0;
 };
 
-// The samples of the template's points (x_k, y_k) + t, bilinear in double precision from the
-// float raster `pixels` (row stride `stride`, point (x, y) at pixel (x - offset_x, y -
-// offset_y)), every one of them known to be inside. Sums in the order of k.
+// Partial sums in four lanes: lane l takes the terms k = 4j + l of the first n - n % 4, the
+// lanes are combined as (l0 + l1) + (l2 + l3), and the last n % 4 terms follow in order. The
+// plain and AVX2 builds both sum in this order, so they agree bit for bit; four independent
+// chains also keep the additions' latency off the critical path.
+struct Lanes {
+  double v[4] = {0.0, 0.0, 0.0, 0.0};
+  double Total() const { return (v[0] + v[1]) + (v[2] + v[3]); }
+};
+
+// The bilinear sample of the float raster `pixels` (row stride `stride`, point (x, y) at
+// pixel (x - offset_x, y - offset_y)) at the template point (bx, by) + (tx, ty), in double
+// precision; the point is known to be inside.
+MOSAICLOC_ALWAYS_INLINE double SampleAt(double bx, double by, double tx, double ty, const float* pixels,
+                                        std::ptrdiff_t stride, int offset_x, int offset_y) {
+  const double x = bx + tx, y = by + ty;
+  const int ix = static_cast<int>(x), iy = static_cast<int>(y);  // x, y > 0 by the margin
+  const float* p0 = pixels + static_cast<std::ptrdiff_t>(iy - offset_y) * stride + (ix - offset_x);
+  const float* p1 = p0 + stride;
+  const double fx = x - ix, fy = y - iy;
+  const double top = p0[0] + fx * (p0[1] - p0[0]);
+  const double bottom = p1[0] + fx * (p1[1] - p1[0]);
+  return top + fy * (bottom - top);
+}
+
+// Adds the samples k0 <= k < n to the sums one after the other.
+MOSAICLOC_ALWAYS_INLINE void AddSamples(const double* base_x, const double* base_y, const double* jac_x,
+                                        const double* jac_y, const double* templ, std::size_t k0, std::size_t n,
+                                        double tx, double ty, const float* pixels, std::ptrdiff_t stride,
+                                        int offset_x, int offset_y, SampleSums* s) {
+  for (std::size_t k = k0; k < n; ++k) {
+    const double v = SampleAt(base_x[k], base_y[k], tx, ty, pixels, stride, offset_x, offset_y);
+    s->sm += v;
+    s->smm += v * v;
+    s->sjxm += jac_x[k] * v;
+    s->sjym += jac_y[k] * v;
+    s->smt += v * templ[k];
+  }
+}
+
+// The samples v_k of the template's points (x_k, y_k) + t, every one of them inside, and the
+// five sums over them, in the lane order above.
 void SumSamples(const double* base_x, const double* base_y, const double* jac_x, const double* jac_y,
                 const double* templ, std::size_t n, double tx, double ty, const float* pixels, std::ptrdiff_t stride,
                 int offset_x, int offset_y, SampleSums* sums) {
-  SampleSums s = *sums;
-  for (std::size_t k = 0; k < n; ++k) {
-    const double x = base_x[k] + tx, y = base_y[k] + ty;
-    const int ix = static_cast<int>(x), iy = static_cast<int>(y);  // x, y > 0 by the margin
-    const float* p0 = pixels + static_cast<std::ptrdiff_t>(iy - offset_y) * stride + (ix - offset_x);
-    const float* p1 = p0 + stride;
-    const double fx = x - ix, fy = y - iy;
-    const double top = p0[0] + fx * (p0[1] - p0[0]);
-    const double bottom = p1[0] + fx * (p1[1] - p1[0]);
-    const double v = top + fy * (bottom - top);
-    s.sm += v;
-    s.smm += v * v;
-    s.sjxm += jac_x[k] * v;
-    s.sjym += jac_y[k] * v;
-    s.smt += v * templ[k];
+  Lanes m, mm, jxm, jym, mt;
+  std::size_t k = 0;
+  for (; k + 4 <= n; k += 4) {
+    for (int l = 0; l < 4; ++l) {
+      const double v = SampleAt(base_x[k + l], base_y[k + l], tx, ty, pixels, stride, offset_x, offset_y);
+      m.v[l] += v;
+      mm.v[l] += v * v;
+      jxm.v[l] += jac_x[k + l] * v;
+      jym.v[l] += jac_y[k + l] * v;
+      mt.v[l] += v * templ[k + l];
+    }
   }
+  SampleSums s{m.Total(), mm.Total(), jxm.Total(), jym.Total(), mt.Total()};
+  AddSamples(base_x, base_y, jac_x, jac_y, templ, k, n, tx, ty, pixels, stride, offset_x, offset_y, &s);
   *sums = s;
 }
 
 #ifdef MOSAICLOC_TRACKING_AVX2
-// SumSamples four samples at a time: the same operations on each sample, and the lanes added
-// to the sums one after the other, so the result is bit-identical.
+MOSAICLOC_TARGET_AVX2 MOSAICLOC_ALWAYS_INLINE double LaneTotal(__m256d v) {
+  alignas(32) double l[4];
+  _mm256_store_pd(l, v);
+  return (l[0] + l[1]) + (l[2] + l[3]);
+}
+
+// SumSamples four samples at a time: the same operations on each sample, one lane each.
 MOSAICLOC_TARGET_AVX2 void SumSamplesAvx2(const double* base_x, const double* base_y, const double* jac_x,
                                           const double* jac_y, const double* templ, std::size_t n, double tx,
                                           double ty, const float* pixels, std::ptrdiff_t stride, int offset_x,
                                           int offset_y, SampleSums* sums) {
-  SampleSums s = *sums;
   const __m256d vtx = _mm256_set1_pd(tx), vty = _mm256_set1_pd(ty);
   const __m128i vstride = _mm_set1_epi32(static_cast<int>(stride));
   const __m128i shift = _mm_set1_epi32(static_cast<int>(offset_y * stride + offset_x));
+  __m256d m = _mm256_setzero_pd(), mm = m, jxm = m, jym = m, mt = m;
   std::size_t k = 0;
   for (; k + 4 <= n; k += 4) {
     const __m256d x = _mm256_add_pd(_mm256_loadu_pd(base_x + k), vtx);
@@ -147,25 +188,112 @@ MOSAICLOC_TARGET_AVX2 void SumSamplesAvx2(const double* base_x, const double* ba
     const __m256d bottom =
         _mm256_add_pd(_mm256_cvtps_pd(p10), _mm256_mul_pd(fx, _mm256_cvtps_pd(_mm_sub_ps(p11, p10))));
     const __m256d v = _mm256_add_pd(top, _mm256_mul_pd(fy, _mm256_sub_pd(bottom, top)));
-    alignas(32) double lanes[5][4];
-    _mm256_store_pd(lanes[0], v);
-    _mm256_store_pd(lanes[1], _mm256_mul_pd(v, v));
-    _mm256_store_pd(lanes[2], _mm256_mul_pd(_mm256_loadu_pd(jac_x + k), v));
-    _mm256_store_pd(lanes[3], _mm256_mul_pd(_mm256_loadu_pd(jac_y + k), v));
-    _mm256_store_pd(lanes[4], _mm256_mul_pd(v, _mm256_loadu_pd(templ + k)));
-    for (int i = 0; i < 4; ++i) {
-      s.sm += lanes[0][i];
-      s.smm += lanes[1][i];
-      s.sjxm += lanes[2][i];
-      s.sjym += lanes[3][i];
-      s.smt += lanes[4][i];
-    }
+    m = _mm256_add_pd(m, v);
+    mm = _mm256_add_pd(mm, _mm256_mul_pd(v, v));
+    jxm = _mm256_add_pd(jxm, _mm256_mul_pd(_mm256_loadu_pd(jac_x + k), v));
+    jym = _mm256_add_pd(jym, _mm256_mul_pd(_mm256_loadu_pd(jac_y + k), v));
+    mt = _mm256_add_pd(mt, _mm256_mul_pd(v, _mm256_loadu_pd(templ + k)));
   }
+  SampleSums s{LaneTotal(m), LaneTotal(mm), LaneTotal(jxm), LaneTotal(jym), LaneTotal(mt)};
+  AddSamples(base_x, base_y, jac_x, jac_y, templ, k, n, tx, ty, pixels, stride, offset_x, offset_y, &s);
   *sums = s;
-  SumSamples(base_x + k, base_y + k, jac_x + k, jac_y + k, templ + k, n - k, tx, ty, pixels, stride, offset_x,
-             offset_y, sums);
 }
 #endif
+
+// The template's set-up sums, in the lane order of SumSamples. Each body is compiled twice,
+// for the baseline and for AVX2: the same operations on each lane, so the builds agree.
+MOSAICLOC_ALWAYS_INLINE void MomentsBody(const double* t, std::size_t n, double* sum, double* sum_sq) {
+  Lanes s, q;
+  std::size_t k = 0;
+  for (; k + 4 <= n; k += 4) {
+    for (int l = 0; l < 4; ++l) {
+      s.v[l] += t[k + l];
+      q.v[l] += t[k + l] * t[k + l];
+    }
+  }
+  double a = s.Total(), b = q.Total();
+  for (; k < n; ++k) {
+    a += t[k];
+    b += t[k] * t[k];
+  }
+  *sum = a;
+  *sum_sq = b;
+}
+
+// Sums over the normalised template T and Jacobian J: J J^T (three entries), J and J T.
+struct NormalisedSums {
+  double jxjx = 0.0, jxjy = 0.0, jyjy = 0.0, jx = 0.0, jy = 0.0, jxt = 0.0, jyt = 0.0;
+};
+
+// T <- (T - mean) / sd, J <- J / sd (as products with 1 / sd), and the sums over them.
+MOSAICLOC_ALWAYS_INLINE void NormaliseBody(double* __restrict templ, double* __restrict jac_x,
+                                           double* __restrict jac_y, std::size_t n, double mean, double sd,
+                                           NormalisedSums* out) {
+  const double inv = 1.0 / sd;
+  Lanes xx, xy, yy, x, y, xt, yt;
+  std::size_t k = 0;
+  for (; k + 4 <= n; k += 4) {
+    for (int l = 0; l < 4; ++l) {
+      const double t = (templ[k + l] - mean) * inv, jx = jac_x[k + l] * inv, jy = jac_y[k + l] * inv;
+      templ[k + l] = t;
+      jac_x[k + l] = jx;
+      jac_y[k + l] = jy;
+      xx.v[l] += jx * jx;
+      xy.v[l] += jx * jy;
+      yy.v[l] += jy * jy;
+      x.v[l] += jx;
+      y.v[l] += jy;
+      xt.v[l] += jx * t;
+      yt.v[l] += jy * t;
+    }
+  }
+  NormalisedSums s{xx.Total(), xy.Total(), yy.Total(), x.Total(), y.Total(), xt.Total(), yt.Total()};
+  for (; k < n; ++k) {
+    const double t = (templ[k] - mean) * inv, jx = jac_x[k] * inv, jy = jac_y[k] * inv;
+    templ[k] = t;
+    jac_x[k] = jx;
+    jac_y[k] = jy;
+    s.jxjx += jx * jx;
+    s.jxjy += jx * jy;
+    s.jyjy += jy * jy;
+    s.jx += jx;
+    s.jy += jy;
+    s.jxt += jx * t;
+    s.jyt += jy * t;
+  }
+  *out = s;
+}
+
+void Moments(const double* t, std::size_t n, double* sum, double* sum_sq) { MomentsBody(t, n, sum, sum_sq); }
+void Normalise(double* templ, double* jac_x, double* jac_y, std::size_t n, double mean, double sd,
+               NormalisedSums* out) {
+  NormaliseBody(templ, jac_x, jac_y, n, mean, sd, out);
+}
+#ifdef MOSAICLOC_TRACKING_AVX2
+MOSAICLOC_TARGET_AVX2 void MomentsAvx2(const double* t, std::size_t n, double* sum, double* sum_sq) {
+  MomentsBody(t, n, sum, sum_sq);
+}
+MOSAICLOC_TARGET_AVX2 void NormaliseAvx2(double* templ, double* jac_x, double* jac_y, std::size_t n, double mean,
+                                         double sd, NormalisedSums* out) {
+  NormaliseBody(templ, jac_x, jac_y, n, mean, sd, out);
+}
+#endif
+
+struct TemplateKernels {
+  void (*moments)(const double*, std::size_t, double*, double*) = &Moments;
+  void (*normalise)(double*, double*, double*, std::size_t, double, double, NormalisedSums*) = &Normalise;
+};
+
+TemplateKernels ChooseTemplateKernels() {
+  TemplateKernels k;
+#ifdef MOSAICLOC_TRACKING_AVX2
+  if (detail::UseAvx2()) {
+    k.moments = &MomentsAvx2;
+    k.normalise = &NormaliseAvx2;
+  }
+#endif
+  return k;
+}
 
 // The low-passed reference around one template. Sample positions are raster coordinates
 // relative to `origin` (the corner of the largest block the refinement may need); the block
@@ -258,30 +386,43 @@ RefinedMatch RefineDirect(const cv::Mat& frame, const cv::Rect& rect, const Refe
   for (auto* v : {&base_x, &base_y, &templ, &jac_x, &jac_y}) {
     if (v->size() < capacity) v->resize(capacity);
   }
-  double sum = 0.0, sum_sq = 0.0;
+  // The template's sample grid: columns x0, x0 + step, ..., x1 and rows y0, ..., y1.
+  const int x0 = inner.x, x1 = inner.x + (inner.width - 1) / step * step;
+  const int y0 = inner.y, y1 = inner.y + (inner.height - 1) / step * step;
+  // Raster position of grid point (x, y): a00 x + (a01 y + b0), a10 x + (a11 y + b1). Each is
+  // monotonic in x and y in floating point too, so the grid's corners bound all of them.
+  const auto raster_at = [&](int x, int y) {
+    return Eigen::Vector2d(a(0, 0) * x + (a(0, 1) * y + b.x()), a(1, 0) * x + (a(1, 1) * y + b.y()));
+  };
   double min_x = 1e300, min_y = 1e300, max_x = -1e300, max_y = -1e300;
-  std::size_t n = 0;
-  for (int y = inner.y; y < inner.y + inner.height; y += step) {
-    const float* row = templ_source.ptr<float>(y - gradient_rect.y) - gradient_rect.x;
-    const float* up = templ_source.ptr<float>(y - 1 - gradient_rect.y) - gradient_rect.x;
-    const float* down = templ_source.ptr<float>(y + 1 - gradient_rect.y) - gradient_rect.x;
-    for (int x = inner.x; x < inner.x + inner.width; x += step, ++n) {
-      const double gx = 0.5 * (row[x + 1] - row[x - 1]);
-      const double gy = 0.5 * (down[x] - up[x]);
-      const Eigen::Vector2d r = a * Eigen::Vector2d(x, y) + b;
-      base_x[n] = r.x();
-      base_y[n] = r.y();
+  for (const int x : {x0, x1}) {
+    for (const int y : {y0, y1}) {
+      const Eigen::Vector2d r = raster_at(x, y);
       min_x = std::min(min_x, r.x());
       min_y = std::min(min_y, r.y());
       max_x = std::max(max_x, r.x());
       max_y = std::max(max_y, r.y());
+    }
+  }
+  std::size_t n = 0;
+  for (int y = y0; y <= y1; y += step) {
+    const float* row = templ_source.ptr<float>(y - gradient_rect.y) - gradient_rect.x;
+    const float* up = templ_source.ptr<float>(y - 1 - gradient_rect.y) - gradient_rect.x;
+    const float* down = templ_source.ptr<float>(y + 1 - gradient_rect.y) - gradient_rect.x;
+    const double row_x = a(0, 1) * y + b.x(), row_y = a(1, 1) * y + b.y();
+    for (int x = x0; x <= x1; x += step, ++n) {
+      const double gx = 0.5 * (row[x + 1] - row[x - 1]);
+      const double gy = 0.5 * (down[x] - up[x]);
+      base_x[n] = a(0, 0) * x + row_x;
+      base_y[n] = a(1, 0) * x + row_y;
       templ[n] = row[x];
       jac_x[n] = gx * a_inv(0, 0) + gy * a_inv(1, 0);
       jac_y[n] = gx * a_inv(0, 1) + gy * a_inv(1, 1);
-      sum += row[x];
-      sum_sq += static_cast<double>(row[x]) * row[x];
     }
   }
+  const TemplateKernels kernels = ChooseTemplateKernels();
+  double sum = 0.0, sum_sq = 0.0;
+  kernels.moments(templ.data(), n, &sum, &sum_sq);
   const double mean_t = sum / static_cast<double>(n);
   const double std_t = std::sqrt(std::max(sum_sq / static_cast<double>(n) - mean_t * mean_t, 1e-12));
   // With the template normalised (sum T = 0, sum T^2 = n) and e_k = (M_k - mu) / sigma - T_k:
@@ -289,20 +430,13 @@ RefinedMatch RefineDirect(const cv::Mat& frame, const cv::Rect& rect, const Refe
   //   sum_k e_k^2  = 2 n - 2 sum_k M_k T_k / sigma,
   // so one pass of five running sums per iteration does it, with no per-pixel storage.
   // Off-map samples (only near the map's edge) take the general path with their own sums.
-  Eigen::Matrix2d hessian = Eigen::Matrix2d::Zero();
-  double sum_jx = 0.0, sum_jy = 0.0, sum_jxt = 0.0, sum_jyt = 0.0;
-  for (std::size_t k = 0; k < n; ++k) {
-    templ[k] = (templ[k] - mean_t) / std_t;
-    jac_x[k] /= std_t;
-    jac_y[k] /= std_t;
-    hessian(0, 0) += jac_x[k] * jac_x[k];
-    hessian(0, 1) += jac_x[k] * jac_y[k];
-    hessian(1, 1) += jac_y[k] * jac_y[k];
-    sum_jx += jac_x[k];
-    sum_jy += jac_y[k];
-    sum_jxt += jac_x[k] * templ[k];
-    sum_jyt += jac_y[k] * templ[k];
-  }
+  NormalisedSums normalised;
+  kernels.normalise(templ.data(), jac_x.data(), jac_y.data(), n, mean_t, std_t, &normalised);
+  Eigen::Matrix2d hessian;
+  hessian(0, 0) = normalised.jxjx;
+  hessian(0, 1) = normalised.jxjy;
+  hessian(1, 1) = normalised.jyjy;
+  const double sum_jx = normalised.jx, sum_jy = normalised.jy, sum_jxt = normalised.jxt, sum_jyt = normalised.jyt;
   hessian(1, 0) = hessian(0, 1);
   if (!(hessian.determinant() > 1e-12)) {
     match.failure = RefineFailure::kDiverged;
