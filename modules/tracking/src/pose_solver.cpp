@@ -5,6 +5,7 @@
 #include <limits>
 #include <memory>
 
+#include <Eigen/Eigenvalues>
 #include <ceres/ceres.h>
 
 namespace mosaicloc::tracking {
@@ -38,26 +39,29 @@ double Median(std::vector<double> values) {
 }
 
 struct Solved {
-  std::unique_ptr<ceres::Problem> problem;  // holds `pose` as its parameter block
   bool converged = false;
   int iterations = 0;
 };
+
+// The robust loss of the options, or null for none.
+std::unique_ptr<ceres::LossFunction> LossOf(const PoseSolverOptions& options) {
+  if (options.loss == RobustLoss::kHuber) return std::make_unique<ceres::HuberLoss>(options.loss_scale_mm);
+  if (options.loss == RobustLoss::kCauchy) return std::make_unique<ceres::CauchyLoss>(options.loss_scale_mm);
+  return nullptr;
+}
 
 // Solves in place: `pose` is both the start and the result, and stays the problem's block.
 Solved Solve(const std::vector<Correspondence>& cs, const std::vector<bool>& use, const std::vector<double>& scale,
              double* pose, const PoseSolverOptions& options, bool yaw_free) {
   Solved s;
-  s.problem = std::make_unique<ceres::Problem>();
+  ceres::Problem problem;
   for (std::size_t i = 0; i < cs.size(); ++i) {
     if (!use[i]) continue;
-    ceres::LossFunction* loss = nullptr;
-    if (options.loss == RobustLoss::kHuber) loss = new ceres::HuberLoss(options.loss_scale_mm);
-    if (options.loss == RobustLoss::kCauchy) loss = new ceres::CauchyLoss(options.loss_scale_mm);
-    s.problem->AddResidualBlock(new PlanarCost(cs[i], scale[i]), loss, pose);
+    problem.AddResidualBlock(new PlanarCost(cs[i], scale[i]), LossOf(options).release(), pose);
   }
-  if (!yaw_free) s.problem->SetManifold(pose, new ceres::SubsetManifold(3, {2}));
+  if (!yaw_free) problem.SetManifold(pose, new ceres::SubsetManifold(3, {2}));
   ceres::Solver::Options solver_options;
-  solver_options.linear_solver_type = ceres::DENSE_QR;
+  solver_options.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
   solver_options.max_num_iterations = options.max_iterations;
   solver_options.function_tolerance = 1e-12;
   solver_options.parameter_tolerance = 1e-12;
@@ -66,10 +70,36 @@ Solved Solve(const std::vector<Correspondence>& cs, const std::vector<bool>& use
   // The default logs every iteration: formatting those lines cost more than the solve.
   solver_options.logging_type = ceres::SILENT;
   ceres::Solver::Summary summary;
-  ceres::Solve(solver_options, s.problem.get(), &summary);
+  ceres::Solve(solver_options, &problem, &summary);
   s.converged = summary.termination_type == ceres::CONVERGENCE;
   s.iterations = static_cast<int>(summary.iterations.size());
   return s;
+}
+
+// The covariance of the pose at the solution, (J^T J)^-1 of the used residuals, as
+// ceres::Covariance finds it: each residual's Jacobian carries the robust loss's correction,
+// which for Huber and Cauchy (rho'' <= 0) is a factor sqrt(rho'(|r|^2)). Computed here because
+// ceres::Covariance's set-up costs more than the whole solve of three parameters. False when
+// J^T J is rank deficient (a direction the residuals do not determine).
+bool PoseCovariance(const std::vector<Correspondence>& cs, const std::vector<bool>& use,
+                    const std::vector<double>& scale, const double* pose, const PoseSolverOptions& options,
+                    Eigen::Matrix3d* covariance) {
+  const std::unique_ptr<ceres::LossFunction> loss = LossOf(options);
+  Eigen::Matrix3d information = Eigen::Matrix3d::Zero();
+  for (std::size_t i = 0; i < cs.size(); ++i) {
+    if (!use[i]) continue;
+    double r[2];
+    Eigen::Matrix<double, 2, 3, Eigen::RowMajor> j;
+    PlanarResidual(pose, cs[i], scale[i], r, j.data());
+    double rho[3] = {0.0, 1.0, 0.0};
+    if (loss) loss->Evaluate(r[0] * r[0] + r[1] * r[1], rho);
+    information += rho[1] * j.transpose() * j;
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(information);
+  const Eigen::Vector3d values = eigen.eigenvalues();  // ascending
+  if (!(values(0) > 1e-14 * values(2))) return false;
+  *covariance = eigen.eigenvectors() * values.cwiseInverse().asDiagonal() * eigen.eigenvectors().transpose();
+  return true;
 }
 
 }  // namespace
@@ -172,24 +202,15 @@ PoseSolution SolvePlanarPose(const std::vector<Correspondence>& correspondences,
     return solution;
   }
   // Residuals are in units of sigma_ref mm: scale the unit-weight covariance by sigma_ref^2.
-  ceres::Covariance::Options covariance_options;
-  covariance_options.algorithm_type = ceres::DENSE_SVD;
-  // Nothing dropped: a direction the correspondences do not determine (all of them at one
-  // point leave the yaw free) fails the computation instead of getting a variance of zero.
-  covariance_options.null_space_rank = 0;
-  ceres::Covariance covariance(covariance_options);
-  const std::vector<std::pair<const double*, const double*>> blocks = {{pose, pose}};
-  double c[9];
-  // Inliers all at one point leave the yaw free (Ceres would find the rank deficiency too,
-  // and log it).
+  // Inliers all at one point leave the yaw free.
   const std::size_t first = static_cast<std::size_t>(std::find(use.begin(), use.end(), true) - use.begin());
   bool spread = false;
   for (std::size_t i = first + 1; i < n && !spread; ++i) {
     spread = use[i] && (correspondences[i].camera_mm - correspondences[first].camera_mm).squaredNorm() > 1e-12;
   }
-  if (spread && covariance.Compute(blocks, solved.problem.get()) &&
-      covariance.GetCovarianceBlock(pose, pose, c)) {
-    solution.covariance = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(c) * sigma_ref * sigma_ref;
+  Eigen::Matrix3d unit;
+  if (spread && PoseCovariance(correspondences, use, scale, pose, options, &unit)) {
+    solution.covariance = unit * sigma_ref * sigma_ref;
   } else {
     // One correspondence, or several at one point: translation only, the yaw undetermined.
     solution.covariance = Eigen::Matrix3d::Zero();

@@ -4,6 +4,7 @@
 #include <optional>
 #include <random>
 
+#include <ceres/ceres.h>
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -687,6 +688,53 @@ TEST(PoseSolver, CovarianceFollowsTheNoise) {
   }
   const double ratio = std::sqrt(sum_sq / trials) / std::sqrt(reported / trials);
   EXPECT_NEAR(ratio, 1.0, 0.2);
+}
+
+// The covariance is ceres::Covariance's on the same problem at the solution: residuals near
+// the loss scale, so the robust loss's correction of the Jacobian counts.
+TEST(PoseSolver, CovarianceEqualsCeresCovariance) {
+  class Cost final : public ceres::SizedCostFunction<2, 3> {
+   public:
+    explicit Cost(const Correspondence& c) : c_(c) {}
+    bool Evaluate(double const* const* p, double* r, double** j) const override {
+      PlanarResidual(p[0], c_, 1.0, r, j != nullptr ? j[0] : nullptr);
+      return true;
+    }
+
+   private:
+    Correspondence c_;
+  };
+  std::mt19937 rng(14);
+  const Pose2 truth(321.0, -45.0, 0.4);
+  for (const RobustLoss loss : {RobustLoss::kNone, RobustLoss::kHuber, RobustLoss::kCauchy}) {
+    PoseSolverOptions options;
+    options.loss = loss;
+    options.loss_scale_mm = 0.02;
+    options.outlier_threshold_mm = 1.0;  // keep every correspondence
+    const std::vector<Correspondence> cs = MakeCorrespondences(truth, 7, 0.03, &rng);
+    const PoseSolution s = SolvePlanarPose(cs, truth, options);
+    ASSERT_TRUE(s.ok());
+    ASSERT_EQ(s.inliers, 7);
+    double pose[3] = {s.world_from_camera.x_mm(), s.world_from_camera.y_mm(), s.world_from_camera.yaw_rad()};
+    ceres::Problem problem;
+    for (const Correspondence& c : cs) {
+      ceres::LossFunction* f = nullptr;
+      if (loss == RobustLoss::kHuber) f = new ceres::HuberLoss(options.loss_scale_mm);
+      if (loss == RobustLoss::kCauchy) f = new ceres::CauchyLoss(options.loss_scale_mm);
+      problem.AddResidualBlock(new Cost(c), f, pose);
+    }
+    ceres::Covariance::Options covariance_options;
+    covariance_options.algorithm_type = ceres::DENSE_SVD;
+    ceres::Covariance covariance(covariance_options);
+    const std::vector<std::pair<const double*, const double*>> blocks = {{pose, pose}};
+    ASSERT_TRUE(covariance.Compute(blocks, &problem));
+    Eigen::Matrix<double, 3, 3, Eigen::RowMajor> expected;
+    ASSERT_TRUE(covariance.GetCovarianceBlock(pose, pose, expected.data()));
+    // Every sigma is the same, so the solver's unit is sigma^2.
+    const Eigen::Matrix3d got = s.covariance / (0.03 * 0.03);
+    EXPECT_LT((got - expected).norm(), 1e-9 * expected.norm()) << static_cast<int>(loss) << "\n"
+                                                               << got << "\n" << expected;
+  }
 }
 
 // Without the covariance the solve is the same; the covariance says it was not computed.
