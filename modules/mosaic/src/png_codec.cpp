@@ -2,7 +2,9 @@
 
 #include <png.h>
 
+#include <algorithm>
 #include <csetjmp>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 
@@ -47,6 +49,116 @@ void AppendPngBytes(png_structp png, png_bytep data, png_size_t length) {
 
 void FlushNothing(png_structp) {}
 
+// The bytes of a PNG's IDAT chunks, read in order as one zlib stream.
+class IdatStream {
+ public:
+  void Add(const unsigned char* data, std::size_t bytes) {
+    if (bytes > 0) segments_.push_back({data, bytes});
+  }
+  // Copies the next `bytes` bytes to `out` (null: skips them); false if the stream is shorter.
+  bool Read(unsigned char* out, std::size_t bytes) {
+    while (bytes > 0) {
+      if (segment_ == segments_.size()) return false;
+      const Segment& s = segments_[segment_];
+      const std::size_t n = std::min(bytes, s.bytes - offset_);
+      if (out != nullptr) {
+        std::memcpy(out, s.data + offset_, n);
+        out += n;
+      }
+      bytes -= n;
+      offset_ += n;
+      if (offset_ == s.bytes) {
+        ++segment_;
+        offset_ = 0;
+      }
+    }
+    return true;
+  }
+  bool AtEnd() const { return segment_ == segments_.size(); }
+
+ private:
+  struct Segment {
+    const unsigned char* data;
+    std::size_t bytes;
+  };
+  std::vector<Segment> segments_;
+  std::size_t segment_ = 0, offset_ = 0;
+};
+
+std::uint32_t BigEndian32(const unsigned char* p) {
+  return static_cast<std::uint32_t>(p[0]) << 24 | static_cast<std::uint32_t>(p[1]) << 16 |
+         static_cast<std::uint32_t>(p[2]) << 8 | static_cast<std::uint32_t>(p[3]);
+}
+
+}  // namespace
+
+bool DecodeStoredGreyPng(const unsigned char* data, std::size_t bytes, int size_px, cv::Mat& pixels) {
+  if (size_px <= 0 || bytes < 8 + 25 || png_sig_cmp(data, 0, 8) != 0) return false;
+  // IHDR first: size_px square, 8-bit grey, no interlace.
+  const unsigned char* ihdr = data + 8;
+  if (BigEndian32(ihdr) != 13 || std::memcmp(ihdr + 4, "IHDR", 4) != 0) return false;
+  const unsigned char* h = ihdr + 8;
+  const auto side = static_cast<std::uint32_t>(size_px);
+  if (BigEndian32(h) != side || BigEndian32(h + 4) != side || h[8] != 8 || h[9] != 0 || h[10] != 0 || h[11] != 0 ||
+      h[12] != 0) {
+    return false;
+  }
+  // The chunks up to IEND: IDATs gathered, ancillary ones (lower-case first letter) skipped,
+  // any other critical one left to libpng.
+  IdatStream stream;
+  bool ended = false;
+  for (std::size_t at = 8 + 25; !ended;) {
+    if (bytes - at < 12) return false;
+    const std::uint32_t length = BigEndian32(data + at);
+    const unsigned char* type = data + at + 4;
+    if (length > bytes - at - 12) return false;
+    if (std::memcmp(type, "IDAT", 4) == 0) {
+      stream.Add(data + at + 8, length);
+    } else if (std::memcmp(type, "IEND", 4) == 0) {
+      ended = true;
+    } else if ((type[0] & 0x20) == 0) {
+      return false;
+    }
+    at += 12 + static_cast<std::size_t>(length);
+  }
+  // zlib header: deflate, no preset dictionary.
+  unsigned char header[2];
+  if (!stream.Read(header, 2) || (header[0] & 0x0F) != 8 || (header[0] * 256 + header[1]) % 31 != 0 ||
+      (header[1] & 0x20) != 0) {
+    return false;
+  }
+  // Stored blocks only; each row a 0 (no filter) byte and its pixels. The Adler-32 after the
+  // last block is not checked: the caller has verified the whole PNG's CRC32.
+  pixels.create(size_px, size_px, CV_8UC1);
+  const std::size_t row_bytes = side + 1;
+  const std::size_t total = row_bytes * side;
+  std::size_t produced = 0;
+  for (bool last = false; !last;) {
+    unsigned char block[5];
+    if (!stream.Read(block, 5) || (block[0] & 0x06) != 0) return false;
+    last = (block[0] & 0x01) != 0;
+    std::size_t length = block[1] | static_cast<std::size_t>(block[2]) << 8;
+    const std::size_t complement = block[3] | static_cast<std::size_t>(block[4]) << 8;
+    if ((length ^ complement) != 0xFFFF || length > total - produced) return false;
+    while (length > 0) {
+      const std::size_t column = produced % row_bytes;
+      if (column == 0) {
+        unsigned char filter = 0;
+        if (!stream.Read(&filter, 1) || filter != 0) return false;
+        ++produced;
+        --length;
+        continue;
+      }
+      const std::size_t n = std::min(length, row_bytes - column);
+      if (!stream.Read(pixels.ptr(static_cast<int>(produced / row_bytes)) + (column - 1), n)) return false;
+      produced += n;
+      length -= n;
+    }
+  }
+  return produced == total;
+}
+
+namespace {
 }  // namespace
 
 std::vector<unsigned char> EncodeGreyPng(const cv::Mat& pixels, int zlib_level) {
@@ -83,6 +195,7 @@ std::vector<unsigned char> EncodeGreyPng(const cv::Mat& pixels, int zlib_level) 
 }
 
 std::string DecodeGreyPng(const unsigned char* data, std::size_t bytes, int size_px, cv::Mat& pixels) {
+  if (DecodeStoredGreyPng(data, bytes, size_px, pixels)) return {};
   if (bytes < 8 || png_sig_cmp(data, 0, 8) != 0) return "not a decodable PNG: no PNG signature";
   pixels.create(size_px, size_px, CV_8UC1);
   std::vector<png_bytep> rows(static_cast<std::size_t>(size_px));

@@ -15,6 +15,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "crc32.hpp"
+#include "png_codec.hpp"
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/mosaic/builder.hpp"
 #include "mosaicloc/mosaic/prefetcher.hpp"
@@ -203,6 +204,44 @@ TEST(TileStore, PngsWrittenByOpenCvDecodeAlike) {
     // And OpenCV reads what the store writes.
     EXPECT_EQ(cv::norm(cv::imdecode(TileStore::Encode(texture, level), cv::IMREAD_UNCHANGED), texture, cv::NORM_INF), 0.0);
   }
+}
+
+// The stored tiles the store writes take the copying fast path, tiles of the full 256 px
+// size too (their rows span several IDAT chunks and stored blocks) and give libpng's pixels;
+// anything else is left to libpng, and no cut or altered byte makes the fast path accept it.
+TEST(TileStore, StoredTilesDecodeByCopyingAsLibpngDecodesThem) {
+  for (const int size : {64, 256}) {
+    const cv::Mat texture = SourceTexture(size);
+    const std::vector<unsigned char> png = TileStore::Encode(texture, 0);
+    cv::Mat fast;
+    ASSERT_TRUE(internal::DecodeStoredGreyPng(png.data(), png.size(), size, fast)) << size;
+    EXPECT_EQ(cv::norm(fast, texture, cv::NORM_INF), 0.0) << size;
+    EXPECT_EQ(cv::norm(cv::imdecode(png, cv::IMREAD_UNCHANGED), texture, cv::NORM_INF), 0.0);
+    cv::Mat scratch;
+    EXPECT_FALSE(internal::DecodeStoredGreyPng(png.data(), png.size(), size / 2, scratch));
+    for (std::size_t cut = 0; cut < png.size(); cut += 61) {
+      EXPECT_FALSE(internal::DecodeStoredGreyPng(png.data(), cut, size, scratch)) << cut;
+    }
+    // Compressed rows go to libpng, which decodes them to the same pixels.
+    const std::vector<unsigned char> compressed = TileStore::Encode(texture, 6);
+    EXPECT_FALSE(internal::DecodeStoredGreyPng(compressed.data(), compressed.size(), size, scratch));
+    cv::Mat decoded;
+    EXPECT_EQ(TileStore::Decode(compressed, size, decoded), "");
+    EXPECT_EQ(cv::norm(decoded, texture, cv::NORM_INF), 0.0);
+  }
+  // A row filter other than none, or a stored block whose length check fails, is not copied.
+  const cv::Mat texture = SourceTexture(64);
+  std::vector<unsigned char> png = TileStore::Encode(texture, 0);
+  // Signature, IHDR, IDAT length and type, zlib header, stored block header: the first row's
+  // filter byte.
+  const std::size_t first_filter = 8 + 25 + 8 + 2 + 5;
+  ASSERT_EQ(png[first_filter], 0);
+  cv::Mat scratch;
+  png[first_filter] = 1;
+  EXPECT_FALSE(internal::DecodeStoredGreyPng(png.data(), png.size(), 64, scratch));
+  png[first_filter] = 0;
+  png[first_filter - 1] ^= 0x01;  // the block length's complement
+  EXPECT_FALSE(internal::DecodeStoredGreyPng(png.data(), png.size(), 64, scratch));
 }
 
 TEST(TileStore, UndecodableAndMisshapenTilesAreNamed) {
