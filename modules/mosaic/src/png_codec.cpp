@@ -74,7 +74,17 @@ class IdatStream {
     }
     return true;
   }
-  bool AtEnd() const { return segment_ == segments_.size(); }
+  // The next `bytes` bytes in place if they lie in one chunk (then skipped), else null.
+  const unsigned char* Contiguous(std::size_t bytes) {
+    if (segment_ == segments_.size() || segments_[segment_].bytes - offset_ < bytes) return nullptr;
+    const unsigned char* p = segments_[segment_].data + offset_;
+    offset_ += bytes;
+    if (offset_ == segments_[segment_].bytes) {
+      ++segment_;
+      offset_ = 0;
+    }
+    return p;
+  }
 
  private:
   struct Segment {
@@ -142,6 +152,16 @@ bool DecodeStoredGreyPng(const unsigned char* data, std::size_t bytes, int size_
     if ((length ^ complement) != 0xFFFF || length > total - produced) return false;
     while (length > 0) {
       const std::size_t column = produced % row_bytes;
+      // A whole row in one chunk (nearly all): its filter byte and pixels in one step.
+      if (column == 0 && length >= row_bytes) {
+        if (const unsigned char* row = stream.Contiguous(row_bytes)) {
+          if (row[0] != 0) return false;
+          std::memcpy(pixels.ptr(static_cast<int>(produced / row_bytes)), row + 1, side);
+          produced += row_bytes;
+          length -= row_bytes;
+          continue;
+        }
+      }
       if (column == 0) {
         unsigned char filter = 0;
         if (!stream.Read(&filter, 1) || filter != 0) return false;
