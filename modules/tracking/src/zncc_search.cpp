@@ -71,11 +71,36 @@ MOSAICLOC_TARGET_AVX2 MOSAICLOC_ALWAYS_INLINE __m256i LoadRow16(const std::int16
   return _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p));
 }
 
-// Four neighbouring offsets at a time share each load of the template, and the loop overhead.
+// The lane sums of eight accumulators, in order: out[i] = sum of the lanes of acc[i].
+MOSAICLOC_TARGET_AVX2 MOSAICLOC_ALWAYS_INLINE void StoreSums8(const __m256i* acc, std::int32_t* out) {
+  const __m256i h01 = _mm256_hadd_epi32(acc[0], acc[1]), h23 = _mm256_hadd_epi32(acc[2], acc[3]);
+  const __m256i h45 = _mm256_hadd_epi32(acc[4], acc[5]), h67 = _mm256_hadd_epi32(acc[6], acc[7]);
+  // Per 128-bit half: the partial sums of accumulators 0-3 and 4-7.
+  const __m256i h0123 = _mm256_hadd_epi32(h01, h23), h4567 = _mm256_hadd_epi32(h45, h67);
+  const __m256i sums = _mm256_add_epi32(_mm256_permute2x128_si256(h0123, h4567, 0x20),
+                                        _mm256_permute2x128_si256(h0123, h4567, 0x31));
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(out), sums);
+}
+
+// Eight (then four) neighbouring offsets at a time share each load of the template, and the
+// loop overhead. Integer sums: the order of the additions does not matter.
 MOSAICLOC_TARGET_AVX2 void CorrelateRowsAvx2(const std::int16_t* t, int stride_t, int th, const std::int16_t* w,
                                              int stride_w, int rw, int rh, std::int32_t* out) {
   for (int dy = 0; dy < rh; ++dy) {
     int dx = 0;
+    for (; dx + 8 <= rw; dx += 8) {
+      __m256i acc[8];
+      for (__m256i& a : acc) a = _mm256_setzero_si256();
+      for (int r = 0; r < th; ++r) {
+        const std::int16_t* tr = t + static_cast<std::size_t>(r) * stride_t;
+        const std::int16_t* wr = w + static_cast<std::size_t>(r + dy) * stride_w + dx;
+        for (int c = 0; c < stride_t; c += kGroup) {
+          const __m256i a = LoadRow16(tr + c);
+          for (int i = 0; i < 8; ++i) acc[i] = _mm256_add_epi32(acc[i], _mm256_madd_epi16(a, LoadRow16(wr + c + i)));
+        }
+      }
+      StoreSums8(acc, out + static_cast<std::size_t>(dy) * rw + dx);
+    }
     for (; dx + 4 <= rw; dx += 4) {
       __m256i acc0 = _mm256_setzero_si256(), acc1 = acc0, acc2 = acc0, acc3 = acc0;
       for (int r = 0; r < th; ++r) {
