@@ -1,11 +1,7 @@
 #include "mosaicloc/mosaic/tile_cache.hpp"
 
-#include <sys/mman.h>
-
 #include <algorithm>
 #include <chrono>
-#include <cstdint>
-#include <new>
 
 #include <opencv2/core.hpp>
 
@@ -18,48 +14,20 @@ std::size_t TileCache::Bytes(const Tile& tile) {
   return kOverhead + tile.pixels.total() * tile.pixels.elemSize() + tile.problem.size();
 }
 
-namespace {
-
-// Memory for a slab, in whole 2 MiB pages aligned to 2 MiB and marked for transparent huge
-// pages: decoding into fresh 4 KiB pages took a page fault every 4 KiB, a tenth of a frame's
-// time when the vehicle crosses 7 tiles a frame; a huge page faults once per 32 tiles. Where
-// the kernel has no huge page to give, the advice is ignored and the pages are ordinary.
-std::shared_ptr<void> SlabMemory(std::size_t bytes) {
-  constexpr std::size_t kHuge = std::size_t{2} << 20;
-  void* raw = mmap(nullptr, bytes + kHuge, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-  if (raw == MAP_FAILED) throw std::bad_alloc();
-  const auto begin = reinterpret_cast<std::uintptr_t>(raw);
-  const std::uintptr_t aligned = (begin + kHuge - 1) & ~(kHuge - 1);
-  if (aligned > begin) munmap(raw, aligned - begin);
-  const std::uintptr_t end = begin + bytes + kHuge;
-  if (end > aligned + bytes) munmap(reinterpret_cast<void*>(aligned + bytes), end - (aligned + bytes));
-  void* memory = reinterpret_cast<void*>(aligned);
-#ifdef MADV_HUGEPAGE
-  madvise(memory, bytes, MADV_HUGEPAGE);
-#endif
-  return std::shared_ptr<void>(memory, [bytes](void* p) { munmap(p, bytes); });
-}
-
-}  // namespace
-
-TileCache::BufferPool::Slot TileCache::BufferPool::Take(int tile_size_px) {
-  constexpr std::size_t kHuge = std::size_t{2} << 20;
+cv::Mat TileCache::BufferPool::Take(int tile_size_px) {
+  constexpr int kSlabTiles = 64;
   const std::lock_guard lock(mutex);
   if (free.empty()) {
-    // At least 64 tiles, and whole huge pages.
-    const std::size_t tile_bytes = static_cast<std::size_t>(tile_size_px) * static_cast<std::size_t>(tile_size_px);
-    const std::size_t bytes = (64 * tile_bytes + kHuge - 1) / kHuge * kHuge;
-    const int tiles = static_cast<int>(bytes / tile_bytes);
-    const std::shared_ptr<void> memory = SlabMemory(bytes);
-    const cv::Mat slab(tiles * tile_size_px, tile_size_px, CV_8UC1, memory.get());
-    for (int i = 0; i < tiles; ++i) free.push_back({slab.rowRange(i * tile_size_px, (i + 1) * tile_size_px), memory});
+    cv::Mat slab(kSlabTiles * tile_size_px, tile_size_px, CV_8UC1);
+    for (int i = 0; i < kSlabTiles; ++i) free.push_back(slab.rowRange(i * tile_size_px, (i + 1) * tile_size_px));
+    slabs.push_back(slab);
   }
-  Slot slot = std::move(free.back());
+  cv::Mat slot = free.back();
   free.pop_back();
   return slot;
 }
 
-void TileCache::BufferPool::Give(Slot slot) {
+void TileCache::BufferPool::Give(cv::Mat slot) {
   const std::lock_guard lock(mutex);
   free.push_back(std::move(slot));
 }
@@ -107,10 +75,9 @@ std::shared_ptr<const Tile> TileCache::Get(const TileKey& key) {
 }
 
 std::shared_ptr<const Tile> TileCache::MakeTile(const TileKey& key) {
-  // Decode straight into a slot; the tile's deleter gives the slot back. The slot holds its
-  // slab's memory, so a tile that outlives the cache keeps its pixels.
-  BufferPool::Slot slot = pool_->Take(store_.grid().tile_size_px);
-  TileRead read = store_.Read(key, slot.pixels);
+  // Decode straight into a slot; the tile's deleter gives the slot back.
+  cv::Mat slot = pool_->Take(store_.grid().tile_size_px);
+  TileRead read = store_.Read(key, slot);
   std::weak_ptr<BufferPool> pool = pool_;
   auto* tile = new Tile();
   std::shared_ptr<Tile> shared(tile, [pool, slot](Tile* dying) {

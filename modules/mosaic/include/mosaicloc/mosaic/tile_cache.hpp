@@ -41,8 +41,7 @@ struct TileCacheStats {
 /// slow load never blocks hits on other tiles. A corrupt tile is cached as corrupt (with the
 /// reason) and never used as pixels.
 ///
-/// Tile pixels live in slabs of at least 64 tiles (whole 2 MiB pages, transparent huge pages
-/// where the kernel gives them) and evicted tiles' slots are recycled: with one
+/// Tile pixels live in slabs of 64 tiles and evicted tiles' slots are recycled: with one
 /// heap allocation per tile, the compressed blobs and decoder state allocated between them
 /// while loading left holes the heap kept (measured: 45 MiB held free beyond a 256 MiB
 /// budget). A tile's pixels are valid while the Tile is held; keep the shared_ptr, not a
@@ -76,14 +75,11 @@ class TileCache {
   /// Tile-sized slots carved from slabs. Shared with the tiles' deleters, so a tile that
   /// outlives the cache keeps its slab alive.
   struct BufferPool {
-    struct Slot {
-      cv::Mat pixels;               ///< a tile's rows of a slab (not owning them)
-      std::shared_ptr<void> slab;  ///< the slab's memory
-    };
-    Slot Take(int tile_size_px);
-    void Give(Slot slot);
+    cv::Mat Take(int tile_size_px);
+    void Give(cv::Mat slot);
     std::mutex mutex;
-    std::vector<Slot> free;
+    std::vector<cv::Mat> slabs;
+    std::vector<cv::Mat> free;
   };
   std::shared_ptr<const Tile> MakeTile(const TileKey& key);
 
