@@ -7,6 +7,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <ceres/ceres.h>
+#include <ceres/tiny_solver.h>
 
 namespace mosaicloc::tracking {
 namespace {
@@ -19,29 +20,11 @@ namespace {
 // in mm for a typical correspondence and the loss scale keeps its meaning. Jacobian:
 //   dr/dx = (1, 0) / s,  dr/dy = (0, 1) / s,  dr/dyaw = R'(yaw) p / s,
 //   R'(yaw) p = (-sin p_x - cos p_y,  cos p_x - sin p_y).
-class PlanarCost final : public ceres::SizedCostFunction<2, 3> {
- public:
-  PlanarCost(const Correspondence& c, double scale) : c_(c), scale_(scale) {}
-  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override {
-    PlanarResidual(parameters[0], c_, scale_, residuals,
-                   jacobians != nullptr && jacobians[0] != nullptr ? jacobians[0] : nullptr);
-    return true;
-  }
-
- private:
-  Correspondence c_;
-  double scale_;
-};
 
 double Median(std::vector<double> values) {
   std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2), values.end());
   return values[values.size() / 2];
 }
-
-struct Solved {
-  bool converged = false;
-  int iterations = 0;
-};
 
 // The robust loss of the options, or null for none.
 std::unique_ptr<ceres::LossFunction> LossOf(const PoseSolverOptions& options) {
@@ -50,30 +33,94 @@ std::unique_ptr<ceres::LossFunction> LossOf(const PoseSolverOptions& options) {
   return nullptr;
 }
 
-// Solves in place: `pose` is both the start and the result, and stays the problem's block.
+// The used correspondences' residuals, each weighted by sqrt(w_i), as a ceres::TinySolver
+// function of (x, y, yaw), or of (x, y) with the yaw held (P = 2).
+template <int P>
+struct WeightedResiduals {
+  using Scalar = double;
+  enum { NUM_RESIDUALS = Eigen::Dynamic, NUM_PARAMETERS = P };
+  const std::vector<const Correspondence*>& cs;
+  const std::vector<double>& scale;
+  const std::vector<double>& root_weight;
+  double yaw;
+  int NumResiduals() const { return static_cast<int>(2 * cs.size()); }
+  bool operator()(const double* x, double* residuals, double* jacobian) const {
+    const double pose[3] = {x[0], x[1], P == 3 ? x[2] : yaw};
+    const std::size_t n = 2 * cs.size();
+    for (std::size_t i = 0; i < cs.size(); ++i) {
+      double r[2], j[6];
+      PlanarResidual(pose, *cs[i], scale[i], r, jacobian != nullptr ? j : nullptr);
+      residuals[2 * i] = root_weight[i] * r[0];
+      residuals[2 * i + 1] = root_weight[i] * r[1];
+      if (jacobian == nullptr) continue;
+      for (int p = 0; p < P; ++p) {  // column-major, n x P
+        jacobian[static_cast<std::size_t>(p) * n + 2 * i] = root_weight[i] * j[p];
+        jacobian[static_cast<std::size_t>(p) * n + 2 * i + 1] = root_weight[i] * j[3 + p];
+      }
+    }
+    return true;
+  }
+};
+
+struct Solved {
+  bool converged = false;
+  int iterations = 0;
+};
+
+// Minimises sum_i rho(|r_i|^2) over the used correspondences, in place (`pose` is the start
+// and the result), by iteratively reweighted least squares: each round weighs residual i by
+// rho'(|r_i|^2) at the current pose (1 without a loss) and solves that weighted problem with
+// ceres::TinySolver (Levenberg-Marquardt). A fixed point is a stationary point of the robust
+// cost, sum_i rho'_i J_i^T r_i = 0, the same optimum ceres::Solve finds; for three parameters
+// and a handful of residuals ceres::Solve's set-up cost about ten times the arithmetic.
+template <int P>
+Solved SolveRounds(const std::vector<const Correspondence*>& cs, const std::vector<double>& scale, double* pose,
+                   const PoseSolverOptions& options) {
+  const std::unique_ptr<ceres::LossFunction> loss = LossOf(options);
+  std::vector<double> root_weight(cs.size(), 1.0);
+  const WeightedResiduals<P> residuals{cs, scale, root_weight, pose[2]};
+  ceres::TinySolver<WeightedResiduals<P>> solver;
+  solver.options.max_num_iterations = options.max_iterations;
+  solver.options.gradient_tolerance = 1e-14;
+  solver.options.parameter_tolerance = 1e-12;
+  solver.options.function_tolerance = 1e-12;
+  Solved s;
+  Eigen::Matrix<double, P, 1> x;
+  for (int p = 0; p < P; ++p) x(p) = pose[p];
+  for (int round = 0; round < options.max_iterations; ++round) {
+    s.iterations = round + 1;
+    for (std::size_t i = 0; i < cs.size(); ++i) {
+      const double at[3] = {x(0), x(1), P == 3 ? x(P - 1) : pose[2]};
+      double r[2];
+      PlanarResidual(at, *cs[i], scale[i], r, nullptr);
+      double rho[3] = {0.0, 1.0, 0.0};
+      if (loss) loss->Evaluate(r[0] * r[0] + r[1] * r[1], rho);
+      root_weight[i] = std::sqrt(rho[1]);
+    }
+    const Eigen::Matrix<double, P, 1> before = x;
+    const auto& summary = solver.Solve(residuals, &x);
+    if (summary.status == ceres::TinySolver<WeightedResiduals<P>>::HIT_MAX_ITERATIONS || !x.allFinite()) break;
+    // Without a loss the weights never change: one round is the solution.
+    if (!loss || (x - before).norm() <= 1e-12 * (before.norm() + 1e-12)) {
+      s.converged = true;
+      break;
+    }
+  }
+  for (int p = 0; p < P; ++p) pose[p] = x(p);
+  return s;
+}
+
+// Solves in place: `pose` is both the start and the result. With !yaw_free the yaw is held.
 Solved Solve(const std::vector<Correspondence>& cs, const std::vector<bool>& use, const std::vector<double>& scale,
              double* pose, const PoseSolverOptions& options, bool yaw_free) {
-  Solved s;
-  ceres::Problem problem;
+  std::vector<const Correspondence*> used;
+  std::vector<double> used_scale;
   for (std::size_t i = 0; i < cs.size(); ++i) {
     if (!use[i]) continue;
-    problem.AddResidualBlock(new PlanarCost(cs[i], scale[i]), LossOf(options).release(), pose);
+    used.push_back(&cs[i]);
+    used_scale.push_back(scale[i]);
   }
-  if (!yaw_free) problem.SetManifold(pose, new ceres::SubsetManifold(3, {2}));
-  ceres::Solver::Options solver_options;
-  solver_options.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
-  solver_options.max_num_iterations = options.max_iterations;
-  solver_options.function_tolerance = 1e-12;
-  solver_options.parameter_tolerance = 1e-12;
-  solver_options.gradient_tolerance = 1e-14;
-  solver_options.num_threads = 1;
-  // The default logs every iteration: formatting those lines cost more than the solve.
-  solver_options.logging_type = ceres::SILENT;
-  ceres::Solver::Summary summary;
-  ceres::Solve(solver_options, &problem, &summary);
-  s.converged = summary.termination_type == ceres::CONVERGENCE;
-  s.iterations = static_cast<int>(summary.iterations.size());
-  return s;
+  return yaw_free ? SolveRounds<3>(used, used_scale, pose, options) : SolveRounds<2>(used, used_scale, pose, options);
 }
 
 // The covariance of the pose at the solution, (J^T J)^-1 of the used residuals, as

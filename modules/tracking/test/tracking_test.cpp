@@ -690,20 +690,60 @@ TEST(PoseSolver, CovarianceFollowsTheNoise) {
   EXPECT_NEAR(ratio, 1.0, 0.2);
 }
 
+// One correspondence as a Ceres cost, for comparisons with ceres::Solve and ceres::Covariance.
+class PlanarCeresCost final : public ceres::SizedCostFunction<2, 3> {
+ public:
+  explicit PlanarCeresCost(const Correspondence& c) : c_(c) {}
+  bool Evaluate(double const* const* p, double* r, double** j) const override {
+    PlanarResidual(p[0], c_, 1.0, r, j != nullptr ? j[0] : nullptr);
+    return true;
+  }
+
+ private:
+  Correspondence c_;
+};
+
+ceres::LossFunction* CeresLoss(RobustLoss loss, double scale) {
+  if (loss == RobustLoss::kHuber) return new ceres::HuberLoss(scale);
+  if (loss == RobustLoss::kCauchy) return new ceres::CauchyLoss(scale);
+  return nullptr;
+}
+
+// The reweighted rounds reach the optimum ceres::Solve reaches on the same robust problem,
+// with a quarter of the correspondences off by several loss scales.
+TEST(PoseSolver, OptimumEqualsCeresSolve) {
+  std::mt19937 rng(15);
+  const Pose2 truth(-812.0, 95.0, 1.1);
+  for (const RobustLoss loss : {RobustLoss::kNone, RobustLoss::kHuber, RobustLoss::kCauchy}) {
+    PoseSolverOptions options;
+    options.loss = loss;
+    options.outlier_threshold_mm = 10.0;  // keep every correspondence: compare the robust solve itself
+    std::vector<Correspondence> cs = MakeCorrespondences(truth, 12, 0.02, &rng);
+    for (std::size_t i = 0; i < cs.size(); i += 4) cs[i].world_mm += Eigen::Vector2d(0.3, -0.2);
+    const Pose2 start(-811.6, 95.3, 1.098);
+    const PoseSolution s = SolvePlanarPose(cs, start, options);
+    ASSERT_TRUE(s.ok()) << ToString(s.failure);
+    double pose[3] = {start.x_mm(), start.y_mm(), start.yaw_rad()};
+    ceres::Problem problem;
+    for (const Correspondence& c : cs) {
+      problem.AddResidualBlock(new PlanarCeresCost(c), CeresLoss(loss, options.loss_scale_mm), pose);
+    }
+    ceres::Solver::Options solver_options;
+    solver_options.function_tolerance = solver_options.parameter_tolerance = 1e-14;
+    solver_options.gradient_tolerance = 1e-16;
+    solver_options.max_num_iterations = 200;
+    solver_options.logging_type = ceres::SILENT;
+    ceres::Solver::Summary summary;
+    ceres::Solve(solver_options, &problem, &summary);
+    EXPECT_NEAR(s.world_from_camera.x_mm(), pose[0], 1e-8) << static_cast<int>(loss);
+    EXPECT_NEAR(s.world_from_camera.y_mm(), pose[1], 1e-8) << static_cast<int>(loss);
+    EXPECT_NEAR(s.world_from_camera.yaw_rad(), pose[2], 1e-10) << static_cast<int>(loss);
+  }
+}
+
 // The covariance is ceres::Covariance's on the same problem at the solution: residuals near
 // the loss scale, so the robust loss's correction of the Jacobian counts.
 TEST(PoseSolver, CovarianceEqualsCeresCovariance) {
-  class Cost final : public ceres::SizedCostFunction<2, 3> {
-   public:
-    explicit Cost(const Correspondence& c) : c_(c) {}
-    bool Evaluate(double const* const* p, double* r, double** j) const override {
-      PlanarResidual(p[0], c_, 1.0, r, j != nullptr ? j[0] : nullptr);
-      return true;
-    }
-
-   private:
-    Correspondence c_;
-  };
   std::mt19937 rng(14);
   const Pose2 truth(321.0, -45.0, 0.4);
   for (const RobustLoss loss : {RobustLoss::kNone, RobustLoss::kHuber, RobustLoss::kCauchy}) {
@@ -718,10 +758,7 @@ TEST(PoseSolver, CovarianceEqualsCeresCovariance) {
     double pose[3] = {s.world_from_camera.x_mm(), s.world_from_camera.y_mm(), s.world_from_camera.yaw_rad()};
     ceres::Problem problem;
     for (const Correspondence& c : cs) {
-      ceres::LossFunction* f = nullptr;
-      if (loss == RobustLoss::kHuber) f = new ceres::HuberLoss(options.loss_scale_mm);
-      if (loss == RobustLoss::kCauchy) f = new ceres::CauchyLoss(options.loss_scale_mm);
-      problem.AddResidualBlock(new Cost(c), f, pose);
+      problem.AddResidualBlock(new PlanarCeresCost(c), CeresLoss(loss, options.loss_scale_mm), pose);
     }
     ceres::Covariance::Options covariance_options;
     covariance_options.algorithm_type = ceres::DENSE_SVD;

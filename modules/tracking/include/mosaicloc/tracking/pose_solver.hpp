@@ -29,9 +29,9 @@ struct PoseSolverOptions {
   /// pose is then solved again from the inliers alone.
   double outlier_threshold_mm = 0.15;
   int min_inliers = 3;
-  int max_iterations = 50;
-  /// false: skip the covariance (ceres::Covariance costs about as much as the solve), for a
-  /// pose that only seeds a finer one; PoseSolution::covariance is then NaN.
+  int max_iterations = 50;  ///< reweighting rounds, and Levenberg-Marquardt steps in each
+  /// false: skip the covariance, for a pose that only seeds a finer one;
+  /// PoseSolution::covariance is then NaN.
   bool compute_covariance = true;
   bool Check(std::string* why) const;
 };
@@ -52,8 +52,10 @@ struct PoseSolution {
   double rms_residual_mm = 0.0;   ///< over inliers
 };
 
-/// Planar pose of the camera from correspondences: Ceres, analytic Jacobians, robust loss,
-/// an outlier pass, and the covariance from ceres::Covariance. Needs two correspondences at
+/// Planar pose of the camera from correspondences: the robust cost minimised by reweighted
+/// Levenberg-Marquardt rounds of ceres::TinySolver with analytic Jacobians, an outlier pass,
+/// and the covariance (J^T J)^-1 of the solution, with the loss's correction as
+/// ceres::Covariance applies it. Needs two correspondences at
 /// distinct points for a pose: one (or several at one point) fixes the translation only, and
 /// the covariance's yaw variance is then infinite. Never throws for bad data.
 PoseSolution SolvePlanarPose(const std::vector<Correspondence>& correspondences, const core::Pose2& initial,
