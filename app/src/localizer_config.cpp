@@ -1,5 +1,7 @@
 #include "localizer_config.hpp"
 
+#include <cmath>
+
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/yaml.hpp"
 
@@ -114,6 +116,15 @@ LocalizerConfig LoadLocalizerConfig(const std::filesystem::path& file) {
   LocalizerConfig config;
   ReadLocalizerConfig(core::LoadYamlFile(file), file.string(), &config);
   return config;
+}
+
+mosaic::PrefetchOptions PrefetchOptionsFor(const LocalizerConfig& config, int width_px, int height_px,
+                                           double mm_per_px) {
+  mosaic::PrefetchOptions prefetch;
+  prefetch.horizon_s = config.prefetch_horizon_s;
+  prefetch.view_radius_mm = 0.5 * std::hypot(width_px, height_px) * mm_per_px + 30.0;
+  prefetch.min_turn_radius_mm = config.prefetch_turn_radius_mm;
+  return prefetch;
 }
 
 }  // namespace mosaicloc::app

@@ -7,6 +7,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "mosaicloc/localizer/localizer.hpp"
+#include "mosaicloc/mosaic/prefetcher.hpp"
 
 namespace mosaicloc::app {
 
@@ -22,6 +23,11 @@ struct LocalizerConfig {
   double start_sigma_deg = 0.5;
   double required_overlap = 0.5;   ///< beta of the overlap speed limit
 };
+
+/// The prefetcher of `run` (and `replay --prefetch`): the configured horizon and turns, and
+/// the camera's footprint (its half diagonal) with the tracker's search margin around it.
+mosaic::PrefetchOptions PrefetchOptionsFor(const LocalizerConfig& config, int width_px, int height_px,
+                                           double mm_per_px);
 
 /// Reads a localizer configuration. Keys left out keep their defaults; unknown keys, wrong
 /// types and values out of range are all reported at once as core::Error naming file, line

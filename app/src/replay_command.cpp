@@ -20,6 +20,7 @@
 #include "mosaicloc/dataset/trajectory.hpp"
 #include "mosaicloc/localizer/localizer.hpp"
 #include "mosaicloc/localizer/speed_limits.hpp"
+#include "mosaicloc/mosaic/prefetcher.hpp"
 #include "mosaicloc/mosaic/renderer.hpp"
 #include "mosaicloc/mosaic/tile_cache.hpp"
 #include "mosaicloc/mosaic/tile_store.hpp"
@@ -69,6 +70,7 @@ struct ReplayArgs {
   std::string mode;  // empty: mosaic with --map, else an error
   std::optional<double> required_overlap;
   std::vector<double> start_offset;  // dx_mm, dy_mm, dyaw_deg in the start's vehicle frame
+  bool prefetch = false;             // load tiles ahead on the prefetcher's threads, as `run` does
 };
 
 
@@ -236,6 +238,17 @@ void RunMosaic(const ReplayArgs& args, const GlobalOptions& global) {
   }
 
   const camera::IdealCamera camera = CameraOf(info);
+  // With --prefetch the map's tiles along the predicted path are loaded on threads of their
+  // own, as `run` loads them, and the frames' processing times are the tracking thread's.
+  // The estimates are the same either way: only where a tile is loaded changes.
+  std::unique_ptr<mosaic::TilePrefetcher> prefetcher;  // after the cache: stops before it goes
+  if (args.prefetch) {
+    if (!(config.prefetch_horizon_s > 0.0)) {
+      core::ThrowInvalidInput("replay --prefetch: map.prefetch_horizon_s of the configuration is 0");
+    }
+    prefetcher = std::make_unique<mosaic::TilePrefetcher>(
+        cache, PrefetchOptionsFor(config, info.camera.width_px, info.camera.height_px, info.camera.mm_per_px));
+  }
   config.localizer.odometry = OdometryFor(info);
   config.localizer.vehicle_from_camera = info.camera.vehicle_from_camera;
   // A live recording's encoder time stamps carry the PLC's timing error; the run noted it.
@@ -277,6 +290,13 @@ void RunMosaic(const ReplayArgs& args, const GlobalOptions& global) {
     const localizer::FrameOutcome outcome = localizer.ProcessFrame(frame->time, frame->image);
     record.Frame(frame->time, outcome.world_from_vehicle,
                  std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count());
+    if (prefetcher && localizer.initialized()) {
+      const estimation::MotionState motion = localizer.Latest();
+      const double heading = motion.world_from_vehicle.yaw_rad();
+      prefetcher->Predict(motion.world_from_vehicle * info.camera.vehicle_from_camera,
+                          motion.forward_speed_mm_per_s * Eigen::Vector2d(std::cos(heading), std::sin(heading)),
+                          motion.yaw_rate_rad_per_s);
+    }
     if (outcome.fixed) {
       record.Fix(frame->time, outcome.fix_world_from_vehicle, static_cast<int>(outcome.lock), outcome.fix_quality);
     } else {
@@ -374,6 +394,9 @@ Action AddReplayCommand(CLI::App& app, const GlobalOptions& global) {
                       "frame (a kidnapped vehicle; relocalization must find it)")
       ->delimiter(',')
       ->expected(3);
+  command->add_flag("--prefetch", args->prefetch,
+                    "mosaic mode: load the map's tiles ahead on threads of their own, as `run` does "
+                    "(map.prefetch_horizon_s of the configuration); the estimates do not change");
   return [args, &global] {
     const std::string mode = args->mode.empty() ? (args->map.empty() ? "" : "mosaic") : args->mode;
     if (mode.empty()) {

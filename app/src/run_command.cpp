@@ -193,12 +193,8 @@ class LiveRun {
     renderer_ = std::make_unique<mosaic::MapRenderer>(*cache_);
     reference_ = std::make_unique<tracking::MapReference>(*renderer_, 0);
     if (config.localizer.prefetch_horizon_s > 0.0) {
-      // The camera's footprint and the tracker's search margin around it.
-      mosaic::PrefetchOptions prefetch;
-      prefetch.horizon_s = config.localizer.prefetch_horizon_s;
-      prefetch.view_radius_mm = 0.5 * std::hypot(camera.width_px, camera.height_px) * camera.mm_per_px + 30.0;
-      prefetch.min_turn_radius_mm = config.localizer.prefetch_turn_radius_mm;
-      prefetcher_ = std::make_unique<mosaic::TilePrefetcher>(*cache_, prefetch);
+      prefetcher_ = std::make_unique<mosaic::TilePrefetcher>(
+          *cache_, PrefetchOptionsFor(config.localizer, camera.width_px, camera.height_px, camera.mm_per_px));
     }
     localizer::LocalizerOptions options = config.localizer.localizer;
     options.odometry.left_wheel_radius_mm = vehicle.left_wheel_radius_mm;

@@ -57,6 +57,18 @@ assert worst < 0.5, worst
 PY
 done
 
+# Loading the tiles ahead on the prefetcher's threads (as `run` does) changes where they are
+# loaded, not the estimate: byte for byte the same report. Without a horizon it is refused.
+expect_exit 0 "$MOSAICLOC" --quiet --json replay --dataset "$SCRATCH/asphalt-run" --map "$SCRATCH/asphalt.mosaic" \
+  --out "$SCRATCH/asphalt-prefetch" --prefetch
+for file in estimate.tum fixes.csv; do
+  cmp -s "$SCRATCH/asphalt-report/$file" "$SCRATCH/asphalt-prefetch/$file" || fail "--prefetch changed $file"
+done
+printf 'map: {prefetch_horizon_s: 0}\n' > "$SCRATCH/no-prefetch.yaml"
+expect_exit 2 "$MOSAICLOC" replay --dataset "$SCRATCH/asphalt-run" --map "$SCRATCH/asphalt.mosaic" \
+  --out "$SCRATCH/r5" --prefetch --config "$SCRATCH/no-prefetch.yaml"
+expect_in "$SCRATCH/err" "prefetch_horizon_s"
+
 # A kidnapped start, 400 mm and 2 degrees off: the lock is lost, relocalization finds the
 # vehicle, and from then on it is as precise as ever.
 expect_exit 0 "$MOSAICLOC" --quiet --json replay --dataset "$SCRATCH/asphalt-run" --map "$SCRATCH/asphalt.mosaic" \
