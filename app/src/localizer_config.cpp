@@ -127,4 +127,12 @@ mosaic::PrefetchOptions PrefetchOptionsFor(const LocalizerConfig& config, int wi
   return prefetch;
 }
 
+void PredictTiles(mosaic::TilePrefetcher& prefetcher, const estimation::MotionState& motion,
+                  const core::Pose2& vehicle_from_camera) {
+  const double heading = motion.world_from_vehicle.yaw_rad();
+  prefetcher.Predict(motion.world_from_vehicle * vehicle_from_camera,
+                     motion.forward_speed_mm_per_s * Eigen::Vector2d(std::cos(heading), std::sin(heading)),
+                     motion.yaw_rate_rad_per_s);
+}
+
 }  // namespace mosaicloc::app

@@ -29,6 +29,10 @@ struct LocalizerConfig {
 mosaic::PrefetchOptions PrefetchOptionsFor(const LocalizerConfig& config, int width_px, int height_px,
                                            double mm_per_px);
 
+/// Asks `prefetcher` for the tiles along the path the motion state predicts for the camera.
+void PredictTiles(mosaic::TilePrefetcher& prefetcher, const estimation::MotionState& motion,
+                  const core::Pose2& vehicle_from_camera);
+
 /// Reads a localizer configuration. Keys left out keep their defaults; unknown keys, wrong
 /// types and values out of range are all reported at once as core::Error naming file, line
 /// and key.

@@ -291,11 +291,7 @@ void RunMosaic(const ReplayArgs& args, const GlobalOptions& global) {
     record.Frame(frame->time, outcome.world_from_vehicle,
                  std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count());
     if (prefetcher && localizer.initialized()) {
-      const estimation::MotionState motion = localizer.Latest();
-      const double heading = motion.world_from_vehicle.yaw_rad();
-      prefetcher->Predict(motion.world_from_vehicle * info.camera.vehicle_from_camera,
-                          motion.forward_speed_mm_per_s * Eigen::Vector2d(std::cos(heading), std::sin(heading)),
-                          motion.yaw_rate_rad_per_s);
+      PredictTiles(*prefetcher, localizer.Latest(), info.camera.vehicle_from_camera);
     }
     if (outcome.fixed) {
       record.Fix(frame->time, outcome.fix_world_from_vehicle, static_cast<int>(outcome.lock), outcome.fix_quality);

@@ -448,11 +448,7 @@ class LiveRun {
     const Clock::time_point now = Clock::now();
     if (prefetcher_ && localizer_->initialized() && now - last_prediction_ >= std::chrono::milliseconds(30)) {
       last_prediction_ = now;
-      const core::Pose2 world_from_camera = motion.world_from_vehicle * camera_info_.vehicle_from_camera;
-      const double heading = motion.world_from_vehicle.yaw_rad();
-      prefetcher_->Predict(world_from_camera,
-                           motion.forward_speed_mm_per_s * Eigen::Vector2d(std::cos(heading), std::sin(heading)),
-                           motion.yaw_rate_rad_per_s);
+      PredictTiles(*prefetcher_, motion, camera_info_.vehicle_from_camera);
     }
     const std::lock_guard lock(published_mutex_);
     published_.motion = motion;

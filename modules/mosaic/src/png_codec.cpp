@@ -55,16 +55,14 @@ class IdatStream {
   void Add(const unsigned char* data, std::size_t bytes) {
     if (bytes > 0) segments_.push_back({data, bytes});
   }
-  // Copies the next `bytes` bytes to `out` (null: skips them); false if the stream is shorter.
+  // Copies the next `bytes` bytes to `out`; false if the stream is shorter.
   bool Read(unsigned char* out, std::size_t bytes) {
     while (bytes > 0) {
       if (segment_ == segments_.size()) return false;
       const Segment& s = segments_[segment_];
       const std::size_t n = std::min(bytes, s.bytes - offset_);
-      if (out != nullptr) {
-        std::memcpy(out, s.data + offset_, n);
-        out += n;
-      }
+      std::memcpy(out, s.data + offset_, n);
+      out += n;
       bytes -= n;
       offset_ += n;
       if (offset_ == s.bytes) {

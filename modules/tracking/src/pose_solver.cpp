@@ -33,6 +33,14 @@ std::unique_ptr<ceres::LossFunction> LossOf(const PoseSolverOptions& options) {
   return nullptr;
 }
 
+// rho'(|r|^2) of the loss at residual r (1 without a loss): the weight of the residual in a
+// reweighting round, and the square of the factor the loss puts on its Jacobian.
+double LossWeight(const ceres::LossFunction* loss, const double* r) {
+  double rho[3] = {0.0, 1.0, 0.0};
+  if (loss != nullptr) loss->Evaluate(r[0] * r[0] + r[1] * r[1], rho);
+  return rho[1];
+}
+
 // The used correspondences' residuals, each weighted by sqrt(w_i), as a ceres::TinySolver
 // function of (x, y, yaw), or of (x, y) with the yaw held (P = 2).
 template <int P>
@@ -44,8 +52,15 @@ struct WeightedResiduals {
   const std::vector<double>& root_weight;
   double yaw;
   int NumResiduals() const { return static_cast<int>(2 * cs.size()); }
+  // (x, y, yaw) of the parameters x.
+  void PoseOf(const double* x, double* pose) const {
+    pose[0] = x[0];
+    pose[1] = x[1];
+    pose[2] = P == 3 ? x[P - 1] : yaw;
+  }
   bool operator()(const double* x, double* residuals, double* jacobian) const {
-    const double pose[3] = {x[0], x[1], P == 3 ? x[2] : yaw};
+    double pose[3];
+    PoseOf(x, pose);
     const std::size_t n = 2 * cs.size();
     for (std::size_t i = 0; i < cs.size(); ++i) {
       double r[2], j[6];
@@ -89,13 +104,12 @@ Solved SolveRounds(const std::vector<const Correspondence*>& cs, const std::vect
   for (int p = 0; p < P; ++p) x(p) = pose[p];
   for (int round = 0; round < options.max_iterations; ++round) {
     s.iterations = round + 1;
+    double at[3];
+    residuals.PoseOf(x.data(), at);
     for (std::size_t i = 0; i < cs.size(); ++i) {
-      const double at[3] = {x(0), x(1), P == 3 ? x(P - 1) : pose[2]};
       double r[2];
       PlanarResidual(at, *cs[i], scale[i], r, nullptr);
-      double rho[3] = {0.0, 1.0, 0.0};
-      if (loss) loss->Evaluate(r[0] * r[0] + r[1] * r[1], rho);
-      root_weight[i] = std::sqrt(rho[1]);
+      root_weight[i] = std::sqrt(LossWeight(loss.get(), r));
     }
     const Eigen::Matrix<double, P, 1> before = x;
     const auto& summary = solver.Solve(residuals, &x);
@@ -138,9 +152,7 @@ bool PoseCovariance(const std::vector<Correspondence>& cs, const std::vector<boo
     double r[2];
     Eigen::Matrix<double, 2, 3, Eigen::RowMajor> j;
     PlanarResidual(pose, cs[i], scale[i], r, j.data());
-    double rho[3] = {0.0, 1.0, 0.0};
-    if (loss) loss->Evaluate(r[0] * r[0] + r[1] * r[1], rho);
-    information += rho[1] * j.transpose() * j;
+    information += LossWeight(loss.get(), r) * j.transpose() * j;
   }
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(information);
   const Eigen::Vector3d values = eigen.eigenvalues();  // ascending
