@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The localization target table: for each floor (procedural concrete and the real textures
 # of ../shared/data) and each speed (half and three times the overlap speed limit at 30 Hz),
-# map the floor with a slow 30 m run, drive it with other noise and wheel errors, and replay
-# with the mosaic, with dead reckoning only and with frame-to-frame visual odometry only.
+# map the floor with a slow 30 m run, drive it with other noise and with wheels 2 % and 2.5 %
+# larger than calibrated (and the simulator's slip), and replay with the mosaic, with dead
+# reckoning only and with frame-to-frame visual odometry only.
 # Usage: benchmarks/localization_table.sh [MOSAICLOC] [WORK_DIR]   (prints a table)
 set -euo pipefail
 HERE="$(cd "$(dirname "$0")/.." && pwd)"
@@ -11,6 +12,8 @@ WORK=${2:-$(mktemp -d)}
 TEXTURES=${MOSAICLOC_SHARED_DATA:-$HERE/../shared/data}/textures
 mkdir -p "$WORK"
 printf 'route: {straight_length_m: 30.0, max_accel_mps2: 3.0}\n' > "$WORK/route.yaml"
+printf 'route: {straight_length_m: 30.0, max_accel_mps2: 3.0}\nencoders: {left_radius_error: 0.02, right_radius_error: 0.025}\n' \
+  > "$WORK/drive.yaml"
 
 floors=("procedural")
 for t in asphalt_02_2048.jpg brick_floor_1024.png; do
@@ -24,7 +27,7 @@ for floor in "${floors[@]}"; do
     --route straight --laps 1 --speed-mps 0.6 --seed 31 >/dev/null
   "$MOSAICLOC" -q map build --dataset "$WORK/$name-map" --out "$WORK/$name.mosaic" --overwrite >/dev/null
   for speed in 1.2 7.2; do
-    "$MOSAICLOC" -q simulate --out "$WORK/$name-$speed" --overwrite --config "$WORK/route.yaml" --floor "$floor" \
+    "$MOSAICLOC" -q simulate --out "$WORK/$name-$speed" --overwrite --config "$WORK/drive.yaml" --floor "$floor" \
       --route straight --laps 1 --speed-mps "$speed" --seed 32 >/dev/null
     for mode in mosaic dead-reckoning visual-odometry; do
       map_args=()

@@ -85,6 +85,8 @@ void ReadLocalizerConfig(const YAML::Node& node, const std::string& file_name, L
   filter.Optional("fix_sigma_floor_rad", &o.fix_sigma_floor_rad, InRange(0.0, 1.0));
   filter.Optional("fix_covariance_scale", &o.fix_covariance_scale, InRange(1.0, 1e6));
   filter.Optional("wheel_variance_mm", &o.odometry.wheel_variance_mm, InRange(0.0, 100.0));
+  filter.Optional("wheel_scale_sigma", &o.filter.wheel_scale_sigma, InRange(0.0, 0.5));
+  filter.Optional("wheel_scale_walk_per_sqrt_m", &o.filter.wheel_scale_walk_per_sqrt_m, InRange(0.0, 0.1));
   filter.Optional("start_sigma_mm", &config->start_sigma_mm, InRange(1e-3, 1e5));
   filter.Optional("start_sigma_deg", &config->start_sigma_deg, InRange(1e-4, 180.0));
   filter.Finish();

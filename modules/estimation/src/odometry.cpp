@@ -85,6 +85,7 @@ core::Result<OdometryIncrement, OdometryFailure> DiffDriveOdometry::Update(core:
   }
 
   const double b = options_.track_width_mm;
+  increment.track_width_mm = b;
   const double ds = 0.5 * (increment.right_mm + increment.left_mm);
   const double dtheta = (increment.right_mm - increment.left_mm) / b;
   increment.previous_from_current = core::Pose2::Exp({ds, 0.0, dtheta});

@@ -16,6 +16,27 @@ core::Pose2 ArcPart(const core::Pose2& increment, double fraction) {
   return core::Pose2::Exp(fraction * increment.Log());
 }
 
+// d (dx, dy) / d (ds, dtheta) of the arc Exp(ds, 0, dtheta): dx = ds sin(t) / t,
+// dy = ds (1 - cos t) / t (series near t = 0, where the closed forms cancel).
+Eigen::Matrix2d ArcTranslationJacobian(double ds, double t) {
+  double a, c, da, dc;  // sin(t)/t, (1 - cos t)/t and their derivatives in t
+  if (std::abs(t) < 1e-4) {
+    a = 1.0 - t * t / 6.0;
+    c = 0.5 * t - t * t * t / 24.0;
+    da = -t / 3.0;
+    dc = 0.5 - t * t / 8.0;
+  } else {
+    const double sin_t = std::sin(t), cos_t = std::cos(t);
+    a = sin_t / t;
+    c = (1.0 - cos_t) / t;
+    da = (t * cos_t - sin_t) / (t * t);
+    dc = (t * sin_t - (1.0 - cos_t)) / (t * t);
+  }
+  Eigen::Matrix2d j;
+  j << a, ds * da, c, ds * dc;
+  return j;
+}
+
 }  // namespace
 
 bool PoseFilterOptions::Check(std::string* why) const {
@@ -31,6 +52,10 @@ bool PoseFilterOptions::Check(std::string* why) const {
   if (!(coast_acceleration_mps2 >= 0.0) || !(coast_yaw_acceleration_radps2 >= 0.0)) {
     return fail("coast accelerations must be >= 0");
   }
+  if (!(wheel_scale_sigma >= 0.0 && wheel_scale_sigma <= 0.5)) return fail("wheel_scale_sigma must be in [0, 0.5]");
+  if (!(wheel_scale_walk_per_sqrt_m >= 0.0 && wheel_scale_walk_per_sqrt_m <= 0.1)) {
+    return fail("wheel_scale_walk_per_sqrt_m must be in [0, 0.1]");
+  }
   return true;
 }
 
@@ -39,45 +64,100 @@ PoseFilter::PoseFilter(const PoseFilterOptions& options, core::Timestamp time, c
     : options_(options) {
   std::string why;
   if (!options_.Check(&why)) core::ThrowInvalidInput("pose filter options: " + why);
+  Node start;
+  start.covariance.bottomRightCorner<2, 2>() =
+      Eigen::Matrix2d::Identity() * (options_.wheel_scale_sigma * options_.wheel_scale_sigma);
+  history_.push_back(start);
   Reset(time, world_from_vehicle, covariance);
 }
 
 void PoseFilter::Reset(core::Timestamp time, const core::Pose2& world_from_vehicle, const Eigen::Matrix3d& covariance) {
+  Node node;
+  node.time = time;
+  node.world_from_vehicle = world_from_vehicle;
+  node.wheel_scale = history_.back().wheel_scale;
+  node.covariance.topLeftCorner<3, 3>() = covariance;
+  node.covariance.bottomRightCorner<2, 2>() = history_.back().covariance.bottomRightCorner<2, 2>();
   history_.clear();
-  history_.push_back({time, world_from_vehicle, covariance, core::Pose2::Identity(), Eigen::Matrix3d::Zero()});
+  history_.push_back(node);
   last_odometry_ = time;
 }
 
-void PoseFilter::Propagate(const Node& from, Node* to) {
+void PoseFilter::Propagate(const Node& from, Node* to) const {
   const double yaw = from.world_from_vehicle.yaw_rad();
   const double c = std::cos(yaw), s = std::sin(yaw);
+  const Eigen::Matrix2d rotation = from.world_from_vehicle.Rotation();
+  Matrix5d f = Matrix5d::Identity();
+  Matrix5d noise = Matrix5d::Zero();
+  to->wheel_scale = from.wheel_scale;
+  if (to->from_wheels) {
+    const double b = to->track_width_mm;
+    const double left = (1.0 + from.wheel_scale.x()) * to->left_mm;
+    const double right = (1.0 + from.wheel_scale.y()) * to->right_mm;
+    const double ds = 0.5 * (left + right), dtheta = (right - left) / b;
+    to->increment = core::Pose2::Exp({ds, 0.0, dtheta});
+    // d(pose+)/d(k_l, k_r) through (ds, dtheta): dk_l moves ds by l/2 and dtheta by -l/b.
+    const Eigen::Matrix2d arc = ArcTranslationJacobian(ds, dtheta);
+    Eigen::Matrix2d d_motion;  // columns k_l, k_r; rows ds, dtheta
+    d_motion << 0.5 * to->left_mm, 0.5 * to->right_mm, -to->left_mm / b, to->right_mm / b;
+    f.block<2, 2>(0, 3) = rotation * arc * d_motion;
+    f.block<1, 2>(2, 3) = d_motion.row(1);
+    const double walk = options_.wheel_scale_walk_per_sqrt_m * options_.wheel_scale_walk_per_sqrt_m * 1e-3;
+    noise(3, 3) = walk * std::abs(to->left_mm);
+    noise(4, 4) = walk * std::abs(to->right_mm);
+  }
   const double dx = to->increment.x_mm(), dy = to->increment.y_mm();
-  Eigen::Matrix3d f = Eigen::Matrix3d::Identity();
   f(0, 2) = -(s * dx + c * dy);
   f(1, 2) = c * dx - s * dy;
   Eigen::Matrix3d g = Eigen::Matrix3d::Identity();
-  g.topLeftCorner<2, 2>() = from.world_from_vehicle.Rotation();
+  g.topLeftCorner<2, 2>() = rotation;
+  noise.topLeftCorner<3, 3>() = g * to->increment_covariance * g.transpose();
   to->world_from_vehicle = from.world_from_vehicle * to->increment;
-  to->covariance = f * from.covariance * f.transpose() + g * to->increment_covariance * g.transpose();
+  to->covariance = f * from.covariance * f.transpose() + noise;
+}
+
+PoseFilter::Node PoseFilter::Part(const Node& node, double fraction) {
+  Node part = node;
+  if (node.from_wheels) {
+    part.left_mm = fraction * node.left_mm;
+    part.right_mm = fraction * node.right_mm;
+  } else {
+    part.increment = ArcPart(node.increment, fraction);
+  }
+  part.increment_covariance = fraction * node.increment_covariance;
+  return part;
 }
 
 void PoseFilter::Predict(core::Timestamp time, const OdometryIncrement& increment) {
   if (time <= history_.back().time) return;  // out of order: odometry never goes back
-  Node node{time, {}, {}, increment.previous_from_current, increment.covariance};
+  Node node;
+  node.time = time;
+  node.from_wheels = increment.track_width_mm > 0.0;
+  node.left_mm = increment.left_mm;
+  node.right_mm = increment.right_mm;
+  node.track_width_mm = increment.track_width_mm;
+  node.increment = increment.previous_from_current;
+  node.increment_covariance = increment.covariance;
   // The state may already be past the increment's start (the filter coasted to a frame while
   // the odometry was late): only the part of the arc after it is new motion.
   const core::Timestamp start = time - increment.dt;
   if (increment.dt > core::Duration::zero() && start < history_.back().time) {
     const double done = core::ToSeconds(history_.back().time - start) / core::ToSeconds(increment.dt);
-    node.increment = Between(ArcPart(increment.previous_from_current, done), increment.previous_from_current);
-    node.increment_covariance = (1.0 - done) * increment.covariance;
+    node = Part(node, 1.0 - done);
+    node.time = time;
   }
   Propagate(history_.back(), &node);
   history_.push_back(node);
   last_odometry_ = time;
   const double dt_s = core::ToSeconds(increment.dt);
   if (dt_s > 0.0) {
-    const Eigen::Vector3d twist = increment.previous_from_current.Log();
+    // The speeds of the whole increment, with the wheels' scales applied.
+    Eigen::Vector3d twist = increment.previous_from_current.Log();
+    if (node.from_wheels) {
+      const double left = (1.0 + node.wheel_scale.x()) * increment.left_mm;
+      const double right = (1.0 + node.wheel_scale.y()) * increment.right_mm;
+      twist = {0.5 * (left + right), 0.0, (right - left) / increment.track_width_mm};
+    }
     forward_speed_mm_per_s_ = twist.x() / dt_s;
     yaw_rate_rad_per_s_ = twist.z() / dt_s;
   }
@@ -96,8 +176,10 @@ void PoseFilter::Coast(core::Timestamp time) {
   const double position = options_.extrapolation_position_variance_mm2_per_s * dt_s + 0.25 * a_mm * a_mm * quartic;
   const double yaw = options_.extrapolation_yaw_variance_rad2_per_s * dt_s +
                      0.25 * std::pow(options_.coast_yaw_acceleration_radps2, 2) * quartic;
-  Node node{time, {}, {}, core::Pose2::Exp({forward_speed_mm_per_s_ * dt_s, 0.0, yaw_rate_rad_per_s_ * dt_s}),
-            Eigen::Vector3d(position, position, yaw).asDiagonal()};
+  Node node;
+  node.time = time;
+  node.increment = core::Pose2::Exp({forward_speed_mm_per_s_ * dt_s, 0.0, yaw_rate_rad_per_s_ * dt_s});
+  node.increment_covariance = Eigen::Vector3d(position, position, yaw).asDiagonal();
   Propagate(history_.back(), &node);
   history_.push_back(node);
   Prune();
@@ -105,7 +187,8 @@ void PoseFilter::Coast(core::Timestamp time) {
 
 MotionState PoseFilter::Latest() const {
   const Node& node = history_.back();
-  return {node.time, node.world_from_vehicle, node.covariance, forward_speed_mm_per_s_, yaw_rate_rad_per_s_};
+  return {node.time, node.world_from_vehicle, node.covariance.topLeftCorner<3, 3>(), forward_speed_mm_per_s_,
+          yaw_rate_rad_per_s_};
 }
 
 core::Pose2 MotionState::PoseAt(core::Timestamp at) const {
@@ -144,10 +227,10 @@ Eigen::Matrix3d PoseFilter::CovarianceAt(core::Timestamp time) const {
     const Node& next = history_[k + 1];
     const double fraction =
         std::clamp(core::ToSeconds(time - node.time) / core::ToSeconds(next.time - node.time), 0.0, 1.0);
-    return (1.0 - fraction) * node.covariance + fraction * next.covariance;
+    return (1.0 - fraction) * node.covariance.topLeftCorner<3, 3>() + fraction * next.covariance.topLeftCorner<3, 3>();
   }
   const double dt_s = std::max(0.0, core::ToSeconds(time - node.time));
-  Eigen::Matrix3d p = node.covariance;
+  Eigen::Matrix3d p = node.covariance.topLeftCorner<3, 3>();
   p(0, 0) += options_.extrapolation_position_variance_mm2_per_s * dt_s;
   p(1, 1) += options_.extrapolation_position_variance_mm2_per_s * dt_s;
   p(2, 2) += options_.extrapolation_yaw_variance_rad2_per_s * dt_s;
@@ -167,12 +250,12 @@ FixOutcome PoseFilter::Correct(core::Timestamp time, const core::Pose2& world_fr
   }
   Split split = SplitAt(time);
   Node& at = split.at;
-  at.covariance += prediction_spread;
+  at.covariance.topLeftCorner<3, 3>() += prediction_spread;
 
   const Eigen::Vector3d residual(world_from_vehicle.x_mm() - at.world_from_vehicle.x_mm(),
                                  world_from_vehicle.y_mm() - at.world_from_vehicle.y_mm(),
                                  core::WrapAngle(world_from_vehicle.yaw_rad() - at.world_from_vehicle.yaw_rad()));
-  const Eigen::Matrix3d s = at.covariance + covariance;
+  const Eigen::Matrix3d s = at.covariance.topLeftCorner<3, 3>() + covariance;
   const Eigen::Matrix3d s_inverse = s.inverse();
   outcome.mahalanobis2 = residual.dot(s_inverse * residual);
   if (!std::isfinite(outcome.mahalanobis2) || outcome.mahalanobis2 > options_.gate_chi2) {
@@ -183,13 +266,16 @@ FixOutcome PoseFilter::Correct(core::Timestamp time, const core::Pose2& world_fr
                      std::to_string(std::sqrt(s(2, 2))) + " rad)";
     return outcome;
   }
-  const Eigen::Matrix3d gain = at.covariance * s_inverse;
-  const Eigen::Vector3d correction = gain * residual;
-  at.world_from_vehicle = core::Pose2(at.world_from_vehicle.x_mm() + correction.x(),
-                                      at.world_from_vehicle.y_mm() + correction.y(),
-                                      at.world_from_vehicle.yaw_rad() + correction.z());
-  const Eigen::Matrix3d i_minus_k = Eigen::Matrix3d::Identity() - gain;
-  at.covariance = i_minus_k * at.covariance * i_minus_k.transpose() + gain * covariance * gain.transpose();
+  // H = [I 0]: P H^T is P's first three columns.
+  const Eigen::Matrix<double, 5, 3> gain = at.covariance.leftCols<3>() * s_inverse;
+  const Eigen::Matrix<double, 5, 1> correction = gain * residual;
+  at.world_from_vehicle = core::Pose2(at.world_from_vehicle.x_mm() + correction(0),
+                                      at.world_from_vehicle.y_mm() + correction(1),
+                                      at.world_from_vehicle.yaw_rad() + correction(2));
+  at.wheel_scale += correction.tail<2>();
+  Matrix5d i_minus_kh = Matrix5d::Identity();
+  i_minus_kh.leftCols<3>() -= gain;
+  at.covariance = i_minus_kh * at.covariance * i_minus_kh.transpose() + gain * covariance * gain.transpose();
   at.covariance = 0.5 * (at.covariance + at.covariance.transpose());
 
   Replay(std::move(split));
@@ -207,10 +293,12 @@ PoseFilter::Split PoseFilter::SplitAt(core::Timestamp time) const {
   if (split.split) {
     const Node& next = split.later.front();
     const double fraction = core::ToSeconds(time - split.at.time) / core::ToSeconds(next.time - split.at.time);
-    Node part{time, {}, {}, ArcPart(next.increment, fraction), fraction * next.increment_covariance};
+    Node part = Part(next, fraction);
+    part.time = time;
     Propagate(split.at, &part);
-    split.later.front().increment = part.increment.Inverse() * next.increment;
-    split.later.front().increment_covariance = (1.0 - fraction) * next.increment_covariance;
+    const core::Timestamp next_time = next.time;
+    split.later.front() = Part(next, 1.0 - fraction);
+    split.later.front().time = next_time;
     split.at = part;
   }
   return split;
@@ -237,7 +325,11 @@ void PoseFilter::RestartAt(core::Timestamp time, const core::Pose2& world_from_v
   }
   Split split = SplitAt(time);
   split.at.world_from_vehicle = world_from_vehicle;
-  split.at.covariance = covariance;
+  // The new pose is independent of the old one, and so of how the scales were estimated.
+  const Eigen::Matrix2d scale_covariance = split.at.covariance.bottomRightCorner<2, 2>();
+  split.at.covariance.setZero();
+  split.at.covariance.topLeftCorner<3, 3>() = covariance;
+  split.at.covariance.bottomRightCorner<2, 2>() = scale_covariance;
   // The history before `time` held the old, wrong states: drop it.
   Replay(std::move(split));
   while (history_.size() > 1 && history_.front().time < time) history_.pop_front();

@@ -200,9 +200,10 @@ TEST_F(Drive, ConsistentlyRejectedFixesReanchorTheFilter) {
   EXPECT_EQ(run.relocalizations, 1);
   EXPECT_LE(run.misses, 2) << (run.reasons.empty() ? std::string() : run.reasons.back());
   EXPECT_LT(run.errors_mm.back(), 0.05);
-  // Without it the lock is lost, then found again by a relocalization search.
+  // Without it the fixes stay rejected until the prediction's uncertainty, growing frame by
+  // frame without a fix, covers the slip.
   const Run without = Localize(1.2, 0.3, Pose2(), 1.0, 3.0, 0);
-  EXPECT_GT(without.misses, 10);
+  EXPECT_GE(without.misses, 5);
 }
 
 // The plain texture, repeating every 256 mm: a start given half a period off, between two

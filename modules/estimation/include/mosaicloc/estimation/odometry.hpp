@@ -43,6 +43,9 @@ struct OdometryIncrement {
   core::Duration dt{};
   double left_mm = 0.0;
   double right_mm = 0.0;
+  /// The track width the travels were turned into motion with: with it a filter that
+  /// estimates the wheels' scale errors can turn them again.
+  double track_width_mm = 0.0;
   core::Pose2 previous_from_current;  ///< exact arc of constant curvature
   double forward_speed_mps = 0.0;
   double yaw_rate_radps = 0.0;
