@@ -52,6 +52,9 @@ TEST(LocalizerConfig, DefaultFileEqualsCompiledDefaults) {
   EXPECT_EQ(l.lock.lost_after_misses, m.lock.lost_after_misses);
   EXPECT_EQ(l.lock.regain_after_fixes, m.lock.regain_after_fixes);
   EXPECT_EQ(l.lock.lost_above_sigma_mm, m.lock.lost_above_sigma_mm);
+  EXPECT_EQ(l.relocalize_after_misses, m.relocalize_after_misses);
+  EXPECT_EQ(l.filter.wheel_scale_sigma, m.filter.wheel_scale_sigma);
+  EXPECT_EQ(l.filter.wheel_scale_walk_per_sqrt_m, m.filter.wheel_scale_walk_per_sqrt_m);
   EXPECT_EQ(loaded.start_sigma_mm, compiled.start_sigma_mm);
   EXPECT_EQ(loaded.start_sigma_deg, compiled.start_sigma_deg);
   EXPECT_EQ(loaded.cache_budget_mib, compiled.cache_budget_mib);

@@ -43,6 +43,7 @@ bool LocalizerOptions::Check(std::string* why) const {
   if (reanchor_after_rejections < 0 || reanchor_after_rejections == 1) {
     return fail("reanchor_after_rejections must be 0 (never) or >= 2");
   }
+  if (relocalize_after_misses < 0) return fail("relocalize_after_misses must be >= 0");
   if (!(relocalize_min_coverage > 0.0 && relocalize_min_coverage <= 1.0)) {
     return fail("relocalize_min_coverage must be in (0, 1]");
   }
@@ -107,6 +108,8 @@ Localizer::Localizer(const camera::IdealCamera& camera, const LocalizerOptions& 
 void Localizer::Initialize(core::Timestamp time, const core::Pose2& world_from_vehicle,
                            const Eigen::Matrix3d& covariance) {
   filter_.emplace(options_.filter, time, world_from_vehicle, covariance);
+  rejected_run_ = 0;
+  unmatched_run_ = 0;
 }
 
 bool Localizer::AddEncoders(core::Timestamp time, std::int32_t left_ticks, std::int32_t right_ticks) {
@@ -150,13 +153,15 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   const Eigen::Matrix3d prior_camera_covariance =
       CameraCovariance(predicted, options_.vehicle_from_camera, predicted_covariance);
 
-  // Lost, or too uncertain for the tracker's search range: relocalize on the coarse map.
+  // Lost, or missing the map frame after frame, or too uncertain for the tracker's search
+  // range: relocalize on the coarse map.
   const double prior_sigma_px =
       std::sqrt(std::max(prior_camera_covariance(0, 0), prior_camera_covariance(1, 1))) / camera_.mm_per_px();
-  const bool relocalize = lock_.state() == estimation::LockState::kLost ||
-                          options_.tracker.search_sigmas * prior_sigma_px > options_.tracker.max_search_px;
+  const bool wide = lock_.state() == estimation::LockState::kLost ||
+                    (options_.relocalize_after_misses > 0 && unmatched_run_ >= options_.relocalize_after_misses);
+  const bool relocalize = wide || options_.tracker.search_sigmas * prior_sigma_px > options_.tracker.max_search_px;
   if (relocalize) {
-    outcome.track = Relocalize(frame, prior_camera, prior_camera_covariance);
+    outcome.track = Relocalize(frame, prior_camera, prior_camera_covariance, wide);
   } else {
     outcome.track = tracker_.Track(frame, prior_camera, prior_camera_covariance, reference_);
   }
@@ -197,6 +202,11 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   } else {
     outcome.reason = tracking::ToString(outcome.track.failure) + std::string(": ") + outcome.track.reason;
   }
+  if (outcome.fixed) {
+    unmatched_run_ = 0;
+  } else if (outcome.track.failure != tracking::TrackFailure::kNoTexture) {
+    ++unmatched_run_;
+  }
   outcome.world_from_vehicle = filter_->PoseAt(time);
   outcome.covariance = filter_->CovarianceAt(time);
   const double sigma_mm = std::sqrt(std::max(outcome.covariance(0, 0), outcome.covariance(1, 1)));
@@ -234,7 +244,7 @@ bool Localizer::RejectedAgain(core::Timestamp time, const Eigen::Vector3d& offse
 }
 
 tracking::TrackResult Localizer::Relocalize(const cv::Mat& frame, const core::Pose2& prior_camera,
-                                           const Eigen::Matrix3d& prior_camera_covariance) const {
+                                           const Eigen::Matrix3d& prior_camera_covariance, bool wide) const {
   tracking::TrackResult none;
   none.failure = tracking::TrackFailure::kNoMatch;
   none.reason = "relocalization found no verified place";
@@ -256,11 +266,10 @@ tracking::TrackResult Localizer::Relocalize(const cv::Mat& frame, const core::Po
   // A window around the prediction in the frame's orientation: small-frame pixel q is frame
   // pixel scale q + (scale - 1) / 2.
   const double sigma_mm = std::sqrt(std::max(prior_camera_covariance(0, 0), prior_camera_covariance(1, 1)));
-  // Lost: the covariance no longer says where to look (it is what the filter believed when
-  // the fixes stopped), so the whole radius is searched.
-  const double radius_mm = lock_.state() == estimation::LockState::kLost
-                               ? options_.relocalize_radius_mm
-                               : std::min(options_.relocalize_radius_mm, 3.0 * sigma_mm + 20.0);
+  // Lost or missing: the covariance no longer says where to look (it is what the filter
+  // believed when the fixes stopped), so the whole radius is searched.
+  const double radius_mm =
+      wide ? options_.relocalize_radius_mm : std::min(options_.relocalize_radius_mm, 3.0 * sigma_mm + 20.0);
   const int range = static_cast<int>(std::ceil(radius_mm / (camera_.mm_per_px() * scale)));
   Eigen::Matrix<double, 2, 3> small_to_frame;
   small_to_frame << scale, 0.0, 0.5 * (scale - 1), 0.0, scale, 0.5 * (scale - 1);

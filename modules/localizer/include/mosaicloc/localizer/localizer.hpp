@@ -52,6 +52,11 @@ struct LocalizerOptions {
   /// Share of a candidate place the map must cover. Less than 1: a vehicle that mapped one
   /// lane and drives it a few mm aside sees a sliver of floor the map does not have.
   float relocalize_min_coverage = 0.75F;
+  /// A prior that is confidently wrong (a vehicle pushed aside while switched off) keeps the
+  /// tracker searching a small window where its view is not. After this many frames in a row
+  /// without a fix (other than for want of texture), the whole relocalize_radius_mm is
+  /// searched as when the lock is lost, without waiting for the loss. 0: only when lost.
+  int relocalize_after_misses = 5;
   /// A filter that is confidently wrong (its odometry dated a few ms off while braking, say)
   /// rejects every fix at its gate, however well they agree. After this many consecutive
   /// rejected fixes that are off the prediction by the same amount (within their
@@ -113,8 +118,9 @@ class Localizer {
  private:
   // Searches the coarse map around the prediction and verifies the best candidates; the
   // verified registration, or nothing.
+  // `wide`: the prediction is not to be trusted, so the whole relocalize_radius_mm is searched.
   tracking::TrackResult Relocalize(const cv::Mat& frame, const core::Pose2& prior_camera,
-                                   const Eigen::Matrix3d& prior_camera_covariance) const;
+                                   const Eigen::Matrix3d& prior_camera_covariance, bool wide) const;
   // Restarts the filter from a fix (a relocalization or a re-anchoring) and says so.
   void Restart(core::Timestamp time, const core::Pose2& fix, const Eigen::Matrix3d& fix_covariance,
                FrameOutcome* outcome);
@@ -137,6 +143,7 @@ class Localizer {
   Eigen::Matrix3d rejected_covariance_ = Eigen::Matrix3d::Zero();
   Eigen::Matrix3d rejected_prediction_covariance_ = Eigen::Matrix3d::Zero();  ///< the filter's, then
   double fix_speed_mm_per_s_ = 0.0;  ///< forward speed when the last fix was accepted
+  int unmatched_run_ = 0;  ///< consecutive frames without a fix, not counting those without texture
 };
 
 /// Covariance of world_from_camera = world_from_vehicle * vehicle_from_camera given the
