@@ -32,8 +32,9 @@
 namespace mosaicloc::app {
 namespace {
 
-estimation::DiffDriveOptions OdometryFor(const dataset::DatasetInfo& info) {
-  estimation::DiffDriveOptions options;
+// The dataset's vehicle geometry over `options` (the configuration's error model).
+estimation::DiffDriveOptions OdometryFor(const dataset::DatasetInfo& info,
+                                         estimation::DiffDriveOptions options = estimation::DiffDriveOptions{}) {
   options.left_wheel_radius_mm = info.vehicle.left_wheel_radius_mm;
   options.right_wheel_radius_mm = info.vehicle.right_wheel_radius_mm;
   options.track_width_mm = info.vehicle.track_width_mm;
@@ -249,7 +250,7 @@ void RunMosaic(const ReplayArgs& args, const GlobalOptions& global) {
     prefetcher = std::make_unique<mosaic::TilePrefetcher>(
         cache, PrefetchOptionsFor(config, info.camera.width_px, info.camera.height_px, info.camera.mm_per_px));
   }
-  config.localizer.odometry = OdometryFor(info);
+  config.localizer.odometry = OdometryFor(info, config.localizer.odometry);
   config.localizer.vehicle_from_camera = info.camera.vehicle_from_camera;
   // A live recording's encoder time stamps carry the PLC's timing error; the run noted it.
   if (const auto noted = info.provenance.find("encoder_timing_sigma_ms"); noted != info.provenance.end()) {
