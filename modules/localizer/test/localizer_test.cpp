@@ -201,6 +201,10 @@ TEST_F(Drive, KidnappedStartWithAConfidentPriorRelocalizesWithinTenFrames) {
   EXPECT_LE(run.first_fix_frame, 10);
   EXPECT_EQ(run.lock_losses, 0);
   EXPECT_EQ(run.relocalizations, 1);
+  // From the relocalization on (frame f is errors_mm[f - 1]) it is where it is.
+  for (std::size_t i = static_cast<std::size_t>(run.first_fix_frame) - 1; i < run.errors_mm.size(); ++i) {
+    EXPECT_LT(run.errors_mm[i], 0.1) << "frame " << i + 1;
+  }
   EXPECT_LT(run.errors_mm.back(), 0.05);
 }
 
