@@ -307,6 +307,9 @@ void RunMosaic(const ReplayArgs& args, const GlobalOptions& global) {
   if (rejected > 0) core::Log().warn("{} encoder samples rejected", rejected);
   const mosaic::TileCacheStats stats = cache.stats();
   core::Log().info("map cache: {} tiles loaded, {} relocalizations", stats.misses, localizer.relocalizations());
+  const Eigen::Vector2d scale = 100.0 * localizer.wheel_scale_error(), sigma = 100.0 * localizer.wheel_scale_sigma();
+  core::Log().info("wheel scale errors learnt: left {:+.3f} % (sigma {:.3f}), right {:+.3f} % (sigma {:.3f})",
+                   scale.x(), sigma.x(), scale.y(), sigma.y());
   record.Finish(args, global, info, config.required_overlap, localizer.lock().losses(), "mosaic localization");
 }
 

@@ -592,6 +592,10 @@ class LiveRun {
             {"fix_rate", processed > 0 ? static_cast<double>(stats_.fixes) / static_cast<double>(processed) : 0.0},
             {"lock_losses", localizer_->lock().losses()},
             {"relocalizations", localizer_->relocalizations()},
+            {"wheel_scale_error", localizer_->initialized()
+                                      ? nlohmann::json::array({localizer_->wheel_scale_error().x(),
+                                                               localizer_->wheel_scale_error().y()})
+                                      : nlohmann::json(nullptr)},
             {"latency_p50_ms", percentile(latency, 50.0)},
             {"latency_p99_ms", percentile(latency, 99.0)},
             {"encoder_samples", stats_.encoder_samples.load()},

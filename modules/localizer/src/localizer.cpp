@@ -132,6 +132,16 @@ estimation::MotionState Localizer::Latest() const {
   return filter_->Latest();
 }
 
+Eigen::Vector2d Localizer::wheel_scale_error() const {
+  if (!filter_) core::ThrowRuntime("localizer: wheel_scale_error before Initialize");
+  return filter_->wheel_scale_error();
+}
+
+Eigen::Vector2d Localizer::wheel_scale_sigma() const {
+  if (!filter_) core::ThrowRuntime("localizer: wheel_scale_sigma before Initialize");
+  return filter_->wheel_scale_covariance().diagonal().cwiseMax(0.0).cwiseSqrt();
+}
+
 FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame) {
   FrameOutcome outcome;
   if (!filter_) core::ThrowRuntime("localizer: ProcessFrame before Initialize");

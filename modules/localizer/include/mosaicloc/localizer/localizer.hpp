@@ -110,6 +110,11 @@ class Localizer {
   /// The latest state and velocities (for answering from another thread); requires
   /// initialized().
   estimation::MotionState Latest() const;
+  /// What the filter has learnt of each wheel's scale error (left, right: 0.02 when the
+  /// wheel travels 2 % farther than its calibrated radius says), and the standard deviations.
+  /// A persistent one is a radius to recalibrate. Requires initialized().
+  Eigen::Vector2d wheel_scale_error() const;
+  Eigen::Vector2d wheel_scale_sigma() const;
   const estimation::LockMonitor& lock() const { return lock_; }
   /// Restarts of the filter from a fix: relocalizations, and re-anchorings on fixes the gate
   /// kept rejecting.
