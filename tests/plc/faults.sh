@@ -7,7 +7,10 @@ require_peers
 make_site site 0.5
 
 PORT=$(free_port)
-run_config "$SCRATCH/run.yaml" "$PORT"
+# Retries at most 200 ms apart: the restarted PLC (a Python process) may take a second to
+# listen on a loaded machine, and the default backoff, doubling to 2 s, could then outlast
+# the short run.
+run_config "$SCRATCH/run.yaml" "$PORT" "  reconnect_max_ms: 200.0"
 START=$(start_in 2.0)
 plc() {  # plc NAME: the pymodbus PLC with the faults, in the background
   $PYTHON "$PLC_DIR/pymodbus_plc.py" --dataset "$SCRATCH/site-run" --port "$PORT" --start-unix "$START" \
