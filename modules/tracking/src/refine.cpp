@@ -200,8 +200,8 @@ MOSAICLOC_TARGET_AVX2 void SumSamplesAvx2(const double* base_x, const double* ba
 }
 #endif
 
-// The template's set-up sums, in the lane order of SumSamples. Each body is compiled twice,
-// for the baseline and for AVX2: the same operations on each lane, so the builds agree.
+// The template's set-up sums, in the lane order of SumSamples. The AVX2 builds below do the
+// same operations on each lane, so the builds agree.
 MOSAICLOC_ALWAYS_INLINE void MomentsBody(const double* t, std::size_t n, double* sum, double* sum_sq) {
   Lanes s, q;
   std::size_t k = 0;
@@ -270,12 +270,62 @@ void Normalise(double* templ, double* jac_x, double* jac_y, std::size_t n, doubl
   NormaliseBody(templ, jac_x, jac_y, n, mean, sd, out);
 }
 #ifdef MOSAICLOC_TRACKING_AVX2
+// The bodies above, one lane per vector element: the compiler's own vectorization of them
+// shuffled the four lanes through memory and cost several times as much.
 MOSAICLOC_TARGET_AVX2 void MomentsAvx2(const double* t, std::size_t n, double* sum, double* sum_sq) {
-  MomentsBody(t, n, sum, sum_sq);
+  __m256d s = _mm256_setzero_pd(), q = s;
+  std::size_t k = 0;
+  for (; k + 4 <= n; k += 4) {
+    const __m256d v = _mm256_loadu_pd(t + k);
+    s = _mm256_add_pd(s, v);
+    q = _mm256_add_pd(q, _mm256_mul_pd(v, v));
+  }
+  double a = LaneTotal(s), b = LaneTotal(q);
+  for (; k < n; ++k) {
+    a += t[k];
+    b += t[k] * t[k];
+  }
+  *sum = a;
+  *sum_sq = b;
 }
+
 MOSAICLOC_TARGET_AVX2 void NormaliseAvx2(double* templ, double* jac_x, double* jac_y, std::size_t n, double mean,
                                          double sd, NormalisedSums* out) {
-  NormaliseBody(templ, jac_x, jac_y, n, mean, sd, out);
+  const double inv = 1.0 / sd;
+  const __m256d vinv = _mm256_set1_pd(inv), vmean = _mm256_set1_pd(mean);
+  __m256d xx = _mm256_setzero_pd(), xy = xx, yy = xx, x = xx, y = xx, xt = xx, yt = xx;
+  std::size_t k = 0;
+  for (; k + 4 <= n; k += 4) {
+    const __m256d t = _mm256_mul_pd(_mm256_sub_pd(_mm256_loadu_pd(templ + k), vmean), vinv);
+    const __m256d jx = _mm256_mul_pd(_mm256_loadu_pd(jac_x + k), vinv);
+    const __m256d jy = _mm256_mul_pd(_mm256_loadu_pd(jac_y + k), vinv);
+    _mm256_storeu_pd(templ + k, t);
+    _mm256_storeu_pd(jac_x + k, jx);
+    _mm256_storeu_pd(jac_y + k, jy);
+    xx = _mm256_add_pd(xx, _mm256_mul_pd(jx, jx));
+    xy = _mm256_add_pd(xy, _mm256_mul_pd(jx, jy));
+    yy = _mm256_add_pd(yy, _mm256_mul_pd(jy, jy));
+    x = _mm256_add_pd(x, jx);
+    y = _mm256_add_pd(y, jy);
+    xt = _mm256_add_pd(xt, _mm256_mul_pd(jx, t));
+    yt = _mm256_add_pd(yt, _mm256_mul_pd(jy, t));
+  }
+  NormalisedSums s{LaneTotal(xx), LaneTotal(xy), LaneTotal(yy), LaneTotal(x),
+                   LaneTotal(y),  LaneTotal(xt), LaneTotal(yt)};
+  for (; k < n; ++k) {
+    const double t = (templ[k] - mean) * inv, jx = jac_x[k] * inv, jy = jac_y[k] * inv;
+    templ[k] = t;
+    jac_x[k] = jx;
+    jac_y[k] = jy;
+    s.jxjx += jx * jx;
+    s.jxjy += jx * jy;
+    s.jyjy += jy * jy;
+    s.jx += jx;
+    s.jy += jy;
+    s.jxt += jx * t;
+    s.jyt += jy * t;
+  }
+  *out = s;
 }
 #endif
 
