@@ -225,6 +225,24 @@ struct NormalisedSums {
   double jxjx = 0.0, jxjy = 0.0, jyjy = 0.0, jx = 0.0, jy = 0.0, jxt = 0.0, jyt = 0.0;
 };
 
+// The samples k0 <= k < n of NormaliseBody, added to the sums one after the other.
+MOSAICLOC_ALWAYS_INLINE void NormaliseTail(double* templ, double* jac_x, double* jac_y, std::size_t k0,
+                                           std::size_t n, double mean, double inv, NormalisedSums* s) {
+  for (std::size_t k = k0; k < n; ++k) {
+    const double t = (templ[k] - mean) * inv, jx = jac_x[k] * inv, jy = jac_y[k] * inv;
+    templ[k] = t;
+    jac_x[k] = jx;
+    jac_y[k] = jy;
+    s->jxjx += jx * jx;
+    s->jxjy += jx * jy;
+    s->jyjy += jy * jy;
+    s->jx += jx;
+    s->jy += jy;
+    s->jxt += jx * t;
+    s->jyt += jy * t;
+  }
+}
+
 // T <- (T - mean) / sd, J <- J / sd (as products with 1 / sd), and the sums over them.
 MOSAICLOC_ALWAYS_INLINE void NormaliseBody(double* __restrict templ, double* __restrict jac_x,
                                            double* __restrict jac_y, std::size_t n, double mean, double sd,
@@ -248,19 +266,7 @@ MOSAICLOC_ALWAYS_INLINE void NormaliseBody(double* __restrict templ, double* __r
     }
   }
   NormalisedSums s{xx.Total(), xy.Total(), yy.Total(), x.Total(), y.Total(), xt.Total(), yt.Total()};
-  for (; k < n; ++k) {
-    const double t = (templ[k] - mean) * inv, jx = jac_x[k] * inv, jy = jac_y[k] * inv;
-    templ[k] = t;
-    jac_x[k] = jx;
-    jac_y[k] = jy;
-    s.jxjx += jx * jx;
-    s.jxjy += jx * jy;
-    s.jyjy += jy * jy;
-    s.jx += jx;
-    s.jy += jy;
-    s.jxt += jx * t;
-    s.jyt += jy * t;
-  }
+  NormaliseTail(templ, jac_x, jac_y, k, n, mean, inv, &s);
   *out = s;
 }
 
@@ -312,19 +318,7 @@ MOSAICLOC_TARGET_AVX2 void NormaliseAvx2(double* templ, double* jac_x, double* j
   }
   NormalisedSums s{LaneTotal(xx), LaneTotal(xy), LaneTotal(yy), LaneTotal(x),
                    LaneTotal(y),  LaneTotal(xt), LaneTotal(yt)};
-  for (; k < n; ++k) {
-    const double t = (templ[k] - mean) * inv, jx = jac_x[k] * inv, jy = jac_y[k] * inv;
-    templ[k] = t;
-    jac_x[k] = jx;
-    jac_y[k] = jy;
-    s.jxjx += jx * jx;
-    s.jxjy += jx * jy;
-    s.jyjy += jy * jy;
-    s.jx += jx;
-    s.jy += jy;
-    s.jxt += jx * t;
-    s.jyt += jy * t;
-  }
+  NormaliseTail(templ, jac_x, jac_y, k, n, mean, inv, &s);
   *out = s;
 }
 #endif
