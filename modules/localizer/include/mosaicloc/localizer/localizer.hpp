@@ -112,7 +112,8 @@ class Localizer {
   estimation::MotionState Latest() const;
   /// What the filter has learnt of each wheel's scale error (left, right: 0.02 when the
   /// wheel travels 2 % farther than its calibrated radius says), and the standard deviations.
-  /// A persistent one is a radius to recalibrate. Requires initialized().
+  /// One that persists over long drives is a radius to recalibrate; over a short drive the
+  /// estimate also absorbs encoder time-stamp errors. Requires initialized().
   Eigen::Vector2d wheel_scale_error() const;
   Eigen::Vector2d wheel_scale_sigma() const;
   const estimation::LockMonitor& lock() const { return lock_; }
