@@ -584,6 +584,11 @@ class LiveRun {
     };
     const io::PlcLinkStats& link = stats_.link;
     const std::int64_t processed = stats_.processed;
+    nlohmann::json wheel_scale = nullptr;
+    if (localizer_->initialized()) {
+      const Eigen::Vector2d k = localizer_->wheel_scale_error();
+      wheel_scale = nlohmann::json::array({k.x(), k.y()});
+    }
     return {{"stopped", why},
             {"frames", stats_.frames.load()},
             {"frames_dropped", stats_.frames_dropped.load() + source_->dropped()},
@@ -592,10 +597,7 @@ class LiveRun {
             {"fix_rate", processed > 0 ? static_cast<double>(stats_.fixes) / static_cast<double>(processed) : 0.0},
             {"lock_losses", localizer_->lock().losses()},
             {"relocalizations", localizer_->relocalizations()},
-            {"wheel_scale_error", localizer_->initialized()
-                                      ? nlohmann::json::array({localizer_->wheel_scale_error().x(),
-                                                               localizer_->wheel_scale_error().y()})
-                                      : nlohmann::json(nullptr)},
+            {"wheel_scale_error", wheel_scale},
             {"latency_p50_ms", percentile(latency, 50.0)},
             {"latency_p99_ms", percentile(latency, 99.0)},
             {"encoder_samples", stats_.encoder_samples.load()},

@@ -200,6 +200,17 @@ MOSAICLOC_TARGET_AVX2 void SumSamplesAvx2(const double* base_x, const double* ba
 }
 #endif
 
+// The samples k0 <= k < n of MomentsBody, added to the lanes' totals one after the other.
+MOSAICLOC_ALWAYS_INLINE void MomentsTail(const double* t, std::size_t k0, std::size_t n, double a, double b,
+                                         double* sum, double* sum_sq) {
+  for (std::size_t k = k0; k < n; ++k) {
+    a += t[k];
+    b += t[k] * t[k];
+  }
+  *sum = a;
+  *sum_sq = b;
+}
+
 // The template's set-up sums, in the lane order of SumSamples. The AVX2 builds below do the
 // same operations on each lane, so the builds agree.
 MOSAICLOC_ALWAYS_INLINE void MomentsBody(const double* t, std::size_t n, double* sum, double* sum_sq) {
@@ -211,13 +222,7 @@ MOSAICLOC_ALWAYS_INLINE void MomentsBody(const double* t, std::size_t n, double*
       q.v[l] += t[k + l] * t[k + l];
     }
   }
-  double a = s.Total(), b = q.Total();
-  for (; k < n; ++k) {
-    a += t[k];
-    b += t[k] * t[k];
-  }
-  *sum = a;
-  *sum_sq = b;
+  MomentsTail(t, k, n, s.Total(), q.Total(), sum, sum_sq);
 }
 
 // Sums over the normalised template T and Jacobian J: J J^T (three entries), J and J T.
@@ -286,13 +291,7 @@ MOSAICLOC_TARGET_AVX2 void MomentsAvx2(const double* t, std::size_t n, double* s
     s = _mm256_add_pd(s, v);
     q = _mm256_add_pd(q, _mm256_mul_pd(v, v));
   }
-  double a = LaneTotal(s), b = LaneTotal(q);
-  for (; k < n; ++k) {
-    a += t[k];
-    b += t[k] * t[k];
-  }
-  *sum = a;
-  *sum_sq = b;
+  MomentsTail(t, k, n, LaneTotal(s), LaneTotal(q), sum, sum_sq);
 }
 
 MOSAICLOC_TARGET_AVX2 void NormaliseAvx2(double* templ, double* jac_x, double* jac_y, std::size_t n, double mean,
