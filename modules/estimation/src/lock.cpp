@@ -9,6 +9,7 @@ const char* ToString(LockState state) {
     case LockState::kTracking: return "tracking";
     case LockState::kDegraded: return "degraded";
     case LockState::kLost: return "lost";
+    case LockState::kOffMap: return "off-map";
   }
   return "unknown";
 }
@@ -30,10 +31,11 @@ LockMonitor::LockMonitor(const LockOptions& options) : options_(options) {
   if (!options_.Check(&why)) core::ThrowInvalidInput("lock options: " + why);
 }
 
-LockState LockMonitor::Update(bool fixed, double position_sigma_mm, const std::string& reason) {
-  if (fixed) {
+LockState LockMonitor::Update(FrameVerdict verdict, double position_sigma_mm, const std::string& reason) {
+  if (verdict == FrameVerdict::kFixed) {
     misses_ = 0;
     ++fixes_in_a_row_;
+    if (state_ == LockState::kOffMap) state_ = LockState::kDegraded;
     if (state_ != LockState::kTracking && fixes_in_a_row_ >= options_.regain_after_fixes) {
       state_ = LockState::kTracking;
     }
@@ -41,14 +43,20 @@ LockState LockMonitor::Update(bool fixed, double position_sigma_mm, const std::s
   }
   last_reason_ = reason;
   fixes_in_a_row_ = 0;
+  if (verdict == FrameVerdict::kOffMap) {
+    state_ = LockState::kOffMap;
+    return state_;
+  }
   ++misses_;
   LockState next = state_;
   if (misses_ >= options_.lost_after_misses || position_sigma_mm > options_.lost_above_sigma_mm) {
     next = LockState::kLost;
   } else if (misses_ >= options_.degraded_after_misses && state_ == LockState::kTracking) {
     next = LockState::kDegraded;
+  } else if (state_ == LockState::kOffMap) {
+    next = LockState::kDegraded;  // back on the map, not fixed yet
   }
-  if (next == LockState::kLost && state_ != LockState::kLost) ++losses_;
+  if (next == LockState::kLost && (state_ == LockState::kTracking || state_ == LockState::kDegraded)) ++losses_;
   state_ = next;
   return state_;
 }

@@ -249,21 +249,48 @@ TEST(LockMonitor, DegradesLosesAndRegainsWithHysteresis) {
   options.lost_after_misses = 4;
   options.regain_after_fixes = 3;
   LockMonitor lock(options);
-  EXPECT_EQ(lock.Update(false, 0.1, "no texture"), LockState::kTracking);
-  EXPECT_EQ(lock.Update(false, 0.1), LockState::kDegraded);
-  EXPECT_EQ(lock.Update(true, 0.1), LockState::kDegraded) << "one fix is not enough";
-  EXPECT_EQ(lock.Update(true, 0.1), LockState::kDegraded);
-  EXPECT_EQ(lock.Update(true, 0.1), LockState::kTracking);
-  for (int i = 0; i < 4; ++i) lock.Update(false, 0.1, "off map");
+  constexpr FrameVerdict kFixed = FrameVerdict::kFixed, kMissed = FrameVerdict::kMissed;
+  EXPECT_EQ(lock.Update(kMissed, 0.1, "no texture"), LockState::kTracking);
+  EXPECT_EQ(lock.Update(kMissed, 0.1), LockState::kDegraded);
+  EXPECT_EQ(lock.Update(kFixed, 0.1), LockState::kDegraded) << "one fix is not enough";
+  EXPECT_EQ(lock.Update(kFixed, 0.1), LockState::kDegraded);
+  EXPECT_EQ(lock.Update(kFixed, 0.1), LockState::kTracking);
+  for (int i = 0; i < 4; ++i) lock.Update(kMissed, 0.1, "no match");
   EXPECT_EQ(lock.state(), LockState::kLost);
   EXPECT_EQ(lock.losses(), 1);
-  EXPECT_EQ(lock.last_reason(), "off map");
-  lock.Update(false, 0.1);
+  EXPECT_EQ(lock.last_reason(), "no match");
+  lock.Update(kMissed, 0.1);
   EXPECT_EQ(lock.losses(), 1) << "staying lost is one loss";
-  for (int i = 0; i < 3; ++i) lock.Update(true, 0.1);
+  for (int i = 0; i < 3; ++i) lock.Update(kFixed, 0.1);
   EXPECT_EQ(lock.state(), LockState::kTracking);
-  EXPECT_EQ(lock.Update(false, 50.0), LockState::kLost) << "too uncertain is lost at once";
+  EXPECT_EQ(lock.Update(kMissed, 50.0), LockState::kLost) << "too uncertain is lost at once";
   EXPECT_EQ(lock.losses(), 2);
+}
+
+// A view predicted off the map is no miss: however long the excursion and however uncertain
+// the dead reckoning, the state says off-map and no loss is counted. Back on the map, the
+// lock counts misses and fixes again from degraded.
+TEST(LockMonitor, OffTheMapIsAStateOfItsOwnAndNoLoss) {
+  LockOptions options;
+  options.degraded_after_misses = 2;
+  options.lost_after_misses = 4;
+  options.regain_after_fixes = 3;
+  LockMonitor lock(options);
+  for (int i = 0; i < 100; ++i) EXPECT_EQ(lock.Update(FrameVerdict::kOffMap, 0.1 * i, "off-map"), LockState::kOffMap);
+  EXPECT_EQ(lock.losses(), 0);
+  EXPECT_EQ(lock.last_reason(), "off-map");
+  EXPECT_EQ(lock.Update(FrameVerdict::kMissed, 1.0), LockState::kDegraded) << "back on the map, not fixed yet";
+  EXPECT_EQ(lock.Update(FrameVerdict::kOffMap, 1.0), LockState::kOffMap);
+  EXPECT_EQ(lock.Update(FrameVerdict::kFixed, 1.0), LockState::kDegraded) << "a fix is on the map";
+  EXPECT_EQ(lock.Update(FrameVerdict::kFixed, 0.1), LockState::kDegraded);
+  EXPECT_EQ(lock.Update(FrameVerdict::kFixed, 0.1), LockState::kTracking);
+  EXPECT_EQ(lock.losses(), 0);
+  // Back on the map with dead reckoning too uncertain to be tracking: lost, but the lock was
+  // not lost here: it ended when the view left the map.
+  lock.Update(FrameVerdict::kOffMap, 30.0);
+  EXPECT_EQ(lock.Update(FrameVerdict::kMissed, 30.0), LockState::kLost);
+  EXPECT_EQ(lock.losses(), 0);
+  EXPECT_STREQ(ToString(LockState::kOffMap), "off-map");
 }
 
 }  // namespace

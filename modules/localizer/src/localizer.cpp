@@ -2,10 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <utility>
 #include <vector>
 
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
@@ -44,6 +47,7 @@ bool LocalizerOptions::Check(std::string* why) const {
     return fail("reanchor_after_rejections must be 0 (never) or >= 2");
   }
   if (relocalize_after_misses < 0) return fail("relocalize_after_misses must be >= 0");
+  if (!(on_map_coverage > 0.0 && on_map_coverage <= 1.0)) return fail("on_map_coverage must be in (0, 1]");
   if (!(relocalize_min_coverage > 0.0 && relocalize_min_coverage <= 1.0)) {
     return fail("relocalize_min_coverage must be in (0, 1]");
   }
@@ -93,6 +97,15 @@ tracking::TrackResult ChooseRelocalization(std::vector<tracking::TrackResult> ve
   return ambiguous;
 }
 
+std::string FrameOutcome::ReasonWord() const {
+  if (fixed) return {};
+  if (lock == estimation::LockState::kOffMap) return "off-map";
+  if (track.ok()) return "rejected";
+  std::string word = tracking::ToString(track.failure);
+  std::replace(word.begin(), word.end(), ' ', '-');
+  return word;
+}
+
 Localizer::Localizer(const camera::IdealCamera& camera, const LocalizerOptions& options,
                      const tracking::ReferenceRaster& reference)
     : camera_(camera),
@@ -110,6 +123,7 @@ void Localizer::Initialize(core::Timestamp time, const core::Pose2& world_from_v
   filter_.emplace(options_.filter, time, world_from_vehicle, covariance);
   rejected_run_ = 0;
   unmatched_run_ = 0;
+  kidnapped_ = false;
 }
 
 bool Localizer::AddEncoders(core::Timestamp time, std::int32_t left_ticks, std::int32_t right_ticks) {
@@ -163,15 +177,16 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   const Eigen::Matrix3d prior_camera_covariance =
       CameraCovariance(predicted, options_.vehicle_from_camera, predicted_covariance);
 
-  // Lost, or missing the map frame after frame, or too uncertain for the tracker's search
-  // range: relocalize on the coarse map.
+  // A known kidnap (requested, or the view missing the map where the prediction says it is
+  // wholly on it, frame after frame), or a prediction too uncertain for the tracker's search
+  // range: relocalize on the coarse map (design.md section 7).
+  if (options_.relocalize_after_misses > 0 && unmatched_run_ >= options_.relocalize_after_misses) kidnapped_ = true;
   const double prior_sigma_px =
       std::sqrt(std::max(prior_camera_covariance(0, 0), prior_camera_covariance(1, 1))) / camera_.mm_per_px();
-  const bool wide = lock_.state() == estimation::LockState::kLost ||
-                    (options_.relocalize_after_misses > 0 && unmatched_run_ >= options_.relocalize_after_misses);
-  const bool relocalize = wide || options_.tracker.search_sigmas * prior_sigma_px > options_.tracker.max_search_px;
+  const bool relocalize =
+      kidnapped_ || options_.tracker.search_sigmas * prior_sigma_px > options_.tracker.max_search_px;
   if (relocalize) {
-    outcome.track = Relocalize(frame, prior_camera, prior_camera_covariance, wide);
+    outcome.track = Relocalize(frame, prior_camera, prior_camera_covariance, kidnapped_);
   } else {
     outcome.track = tracker_.Track(frame, prior_camera, prior_camera_covariance, reference_);
   }
@@ -212,16 +227,47 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   } else {
     outcome.reason = tracking::ToString(outcome.track.failure) + std::string(": ") + outcome.track.reason;
   }
+  estimation::FrameVerdict verdict = estimation::FrameVerdict::kFixed;
   if (outcome.fixed) {
     unmatched_run_ = 0;
-  } else if (outcome.track.failure != tracking::TrackFailure::kNoTexture) {
-    ++unmatched_run_;
+    kidnapped_ = false;
+  } else {
+    verdict = ClassifyMiss(outcome, prior_camera, prior_camera_covariance, &outcome.reason);
   }
   outcome.world_from_vehicle = filter_->PoseAt(time);
   outcome.covariance = filter_->CovarianceAt(time);
   const double sigma_mm = std::sqrt(std::max(outcome.covariance(0, 0), outcome.covariance(1, 1)));
-  outcome.lock = lock_.Update(outcome.fixed, sigma_mm, outcome.reason);
+  outcome.lock = lock_.Update(verdict, sigma_mm, outcome.reason);
   return outcome;
+}
+
+estimation::FrameVerdict Localizer::ClassifyMiss(const FrameOutcome& outcome, const core::Pose2& prior_camera,
+                                                 const Eigen::Matrix3d& prior_camera_covariance, std::string* reason) {
+  if (outcome.track.failure == tracking::TrackFailure::kNoTexture) return estimation::FrameVerdict::kMissed;
+  // A known kidnap makes the prediction meaningless: where it lies says nothing.
+  if (kidnapped_) {
+    ++unmatched_run_;
+    return estimation::FrameVerdict::kMissed;
+  }
+  const int level = std::min(2, options_.relocalize_level);
+  const double seen = MapCoverage(reference_, camera_, prior_camera, 0.0, level);
+  if (seen < options_.on_map_coverage) {
+    unmatched_run_ = 0;
+    *reason = "off-map: " + std::to_string(static_cast<int>(std::floor(100.0 * seen))) +
+              " % of the predicted view is mapped (" + *reason + ")";
+    return estimation::FrameVerdict::kOffMap;
+  }
+  // The prediction's 3-sigma region: its position, and its yaw turning the view's corners.
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> position(prior_camera_covariance.topLeftCorner<2, 2>());
+  const double half_diagonal_mm = 0.5 * std::hypot(camera_.width_mm(), camera_.height_mm());
+  const double margin_mm = 3.0 * (std::sqrt(std::max(position.eigenvalues().maxCoeff(), 0.0)) +
+                                  std::sqrt(std::max(prior_camera_covariance(2, 2), 0.0)) * half_diagonal_mm);
+  if (MapCoverage(reference_, camera_, prior_camera, margin_mm, level) >= options_.on_map_coverage) {
+    ++unmatched_run_;
+  } else {
+    unmatched_run_ = 0;  // at the map's edge: the view may be off it
+  }
+  return estimation::FrameVerdict::kMissed;
 }
 
 void Localizer::Restart(core::Timestamp time, const core::Pose2& fix, const Eigen::Matrix3d& fix_covariance,
@@ -254,7 +300,7 @@ bool Localizer::RejectedAgain(core::Timestamp time, const Eigen::Vector3d& offse
 }
 
 tracking::TrackResult Localizer::Relocalize(const cv::Mat& frame, const core::Pose2& prior_camera,
-                                           const Eigen::Matrix3d& prior_camera_covariance, bool wide) const {
+                                           const Eigen::Matrix3d& prior_camera_covariance, bool kidnapped) const {
   tracking::TrackResult none;
   none.failure = tracking::TrackFailure::kNoMatch;
   none.reason = "relocalization found no verified place";
@@ -276,10 +322,11 @@ tracking::TrackResult Localizer::Relocalize(const cv::Mat& frame, const core::Po
   // A window around the prediction in the frame's orientation: small-frame pixel q is frame
   // pixel scale q + (scale - 1) / 2.
   const double sigma_mm = std::sqrt(std::max(prior_camera_covariance(0, 0), prior_camera_covariance(1, 1)));
-  // Lost or missing: the covariance no longer says where to look (it is what the filter
-  // believed when the fixes stopped), so the whole radius is searched.
-  const double radius_mm =
-      wide ? options_.relocalize_radius_mm : std::min(options_.relocalize_radius_mm, 3.0 * sigma_mm + 20.0);
+  // Kidnapped: the covariance no longer says where to look, so the whole radius is searched.
+  // Else the prediction's gate, and a little more for the candidates' own uncertainty.
+  const double radius_mm = kidnapped ? options_.relocalize_radius_mm
+                                     : std::min(options_.relocalize_radius_mm,
+                                                std::sqrt(options_.filter.gate_chi2) * sigma_mm + 20.0);
   const int range = static_cast<int>(std::ceil(radius_mm / (camera_.mm_per_px() * scale)));
   Eigen::Matrix<double, 2, 3> small_to_frame;
   small_to_frame << scale, 0.0, 0.5 * (scale - 1), 0.0, scale, 0.5 * (scale - 1);
@@ -334,8 +381,60 @@ tracking::TrackResult Localizer::Relocalize(const cv::Mat& frame, const core::Po
     }
   }
   if (verified.empty()) return none;
+  if (!kidnapped) {
+    // Only a place the prediction allows: one period of a repeating floor away is not.
+    std::vector<tracking::TrackResult> allowed;
+    double nearest_mm = std::numeric_limits<double>::infinity();
+    for (tracking::TrackResult& r : verified) {
+      const Eigen::Vector3d offset(r.world_from_camera.x_mm() - prior_camera.x_mm(),
+                                   r.world_from_camera.y_mm() - prior_camera.y_mm(),
+                                   core::WrapAngle(r.world_from_camera.yaw_rad() - prior_camera.yaw_rad()));
+      const Eigen::Matrix3d both = prior_camera_covariance + options_.fix_covariance_scale * r.covariance;
+      nearest_mm = std::min(nearest_mm, offset.head<2>().norm());
+      if (offset.dot(both.ldlt().solve(offset)) <= options_.filter.gate_chi2) allowed.push_back(std::move(r));
+    }
+    if (allowed.empty()) {
+      none.reason = "relocalization: " + std::to_string(verified.size()) +
+                    " places match the frame, none within the prediction's uncertainty (the nearest " +
+                    std::to_string(static_cast<int>(std::lround(nearest_mm))) + " mm off, sigma " +
+                    std::to_string(static_cast<int>(std::lround(sigma_mm))) + " mm)";
+      return none;
+    }
+    verified = std::move(allowed);
+  }
   return ChooseRelocalization(std::move(verified), prior_camera, options_.relocalize_zncc_tie,
                               options_.relocalize_nearer_factor);
+}
+
+double MapCoverage(const tracking::ReferenceRaster& reference, const camera::IdealCamera& camera,
+                   const core::Pose2& world_from_camera, double margin_mm, int level) {
+  std::unique_ptr<const tracking::ReferenceRaster> coarse;
+  const tracking::ReferenceRaster* raster = &reference;
+  int k = 0;
+  for (; k < level; ++k) {
+    std::unique_ptr<const tracking::ReferenceRaster> next = raster->Coarser();
+    if (!next) break;
+    coarse = std::move(next);
+    raster = coarse.get();
+  }
+  // A grid over the footprint in the frame's orientation, one sample per coarse pixel.
+  const double step_mm = raster->mm_per_px();
+  const double half_w = 0.5 * camera.width_mm() + margin_mm;
+  const double half_h = 0.5 * camera.height_mm() + margin_mm;
+  const int cols = std::max(1, static_cast<int>(std::ceil(2.0 * half_w / step_mm)));
+  const int rows = std::max(1, static_cast<int>(std::ceil(2.0 * half_h / step_mm)));
+  // Grid pixel (i, j) -> camera floor point (-half_w + (i + 0.5) w / cols, half_h - ...).
+  Eigen::Matrix<double, 2, 3> grid_to_camera;
+  grid_to_camera << 2.0 * half_w / cols, 0.0, -half_w + half_w / cols, 0.0, -2.0 * half_h / rows,
+      half_h - half_h / rows;
+  const double c = std::cos(world_from_camera.yaw_rad()), s = std::sin(world_from_camera.yaw_rad());
+  Eigen::Matrix<double, 2, 3> camera_to_world;
+  camera_to_world << c, -s, world_from_camera.x_mm(), s, c, world_from_camera.y_mm();
+  const Eigen::Matrix<double, 2, 3> grid_to_raster =
+      tracking::ComposeAffine(raster->WorldToRaster(), tracking::ComposeAffine(camera_to_world, grid_to_camera));
+  cv::Mat mask;
+  tracking::RenderWindow(*raster, grid_to_raster, cv::Point(0, 0), cv::Size(cols, rows), &mask);
+  return static_cast<double>(cv::countNonZero(mask)) / static_cast<double>(mask.total());
 }
 
 }  // namespace mosaicloc::localizer

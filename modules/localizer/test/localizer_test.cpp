@@ -28,6 +28,10 @@ using core::Timestamp;
 class Drive : public ::testing::Test {
  protected:
   virtual bool Repeating() const { return false; }
+  /// The map's extent in 256 px (64 mm) tiles, and a band of tile columns left unmapped.
+  virtual int MapCols() const { return 14; }
+  virtual int MapRows() const { return 6; }
+  virtual bool Mapped(int /*col*/) const { return true; }
 
   void SetUp() override {
     const auto texture = test::SharedTexture("asphalt_02_2048.jpg");
@@ -53,8 +57,9 @@ class Drive : public ::testing::Test {
     mosaic::MapGrid grid;  // 0.25 mm/px, origin (0, 0), 256 px tiles
     store_ = mosaic::TileStore::Create(scratch_ / "floor.mosaic", grid);
     std::vector<mosaic::TileWrite> tiles;
-    for (int row = 0; row < 6; ++row) {      // y from 0 down to -384 mm
-      for (int col = 0; col < 14; ++col) {   // x from 0 to 896 mm
+    for (int row = 0; row < MapRows(); ++row) {    // y from 0 down (-384 mm for 6 rows)
+      for (int col = 0; col < MapCols(); ++col) {  // x from 0 (to 896 mm for 14 columns)
+        if (!Mapped(col)) continue;
         cv::Mat texels = floor_->Render(2 * 256 * col, 2 * 256 * row, 512, 512), pixels;
         cv::resize(texels, pixels, cv::Size(256, 256), 0, 0, cv::INTER_AREA);
         cv::max(pixels, 1, pixels);
@@ -80,8 +85,13 @@ class Drive : public ::testing::Test {
     std::int64_t lock_losses = 0;
     std::vector<std::string> reasons;  ///< the first frames without a fix, why
     int first_fix_frame = -1;
+    std::vector<double> fix_errors_mm;  ///< per frame: the accepted fix's error, -1 without one
+    std::vector<estimation::LockState> states;
+    std::vector<Pose2> cameras;  ///< the true camera pose of each frame
     std::int64_t relocalizations = 0;
     int misses = 0;  ///< frames without a fix
+    estimation::LockState last_state = estimation::LockState::kTracking;
+    std::vector<std::string> words;  ///< ReasonWord() of the first frames without a fix
   };
 
   // Runs the localizer for `seconds`, encoders at 100 Hz with a 2 % scale error, frames at
@@ -128,6 +138,11 @@ class Drive : public ::testing::Test {
       const FrameOutcome outcome = localizer.ProcessFrame(Timestamp::FromSeconds(t_frame), image);
       run.fixes += outcome.fixed ? 1 : 0;
       if (outcome.fixed && run.first_fix_frame < 0) run.first_fix_frame = frame;
+      run.last_state = outcome.lock;
+      run.states.push_back(outcome.lock);
+      run.cameras.push_back(camera_pose);
+      run.fix_errors_mm.push_back(outcome.fixed ? Distance(outcome.fix_world_from_vehicle, truth) : -1.0);
+      if (!outcome.fixed && run.words.size() < 5) run.words.push_back(outcome.ReasonWord());
       if (!outcome.fixed && run.reasons.size() < 5) {
         const Pose2& found = outcome.track.world_from_camera;
         run.reasons.push_back(outcome.reason + " (camera found at " + std::to_string(found.x_mm()) + ", " +
@@ -174,11 +189,17 @@ TEST_F(Drive, TracksToAFractionOfAMillimetreWithBiasedOdometry) {
   EXPECT_LT(max, 0.2);
 }
 
-TEST_F(Drive, OffTheMapLosesTheLockAndCountsIt) {
-  // Start 2 m away from the mapped strip: no fix can be made, the lock is lost once.
+TEST_F(Drive, OffTheMapIsOffMapNotLost) {
+  // Start 2 m away from the mapped strip: no fix can be made, and none is expected there. The
+  // localizer dead-reckons, says off-map, and neither loses the lock nor searches the map.
   const Run run = Localize(1.0, 0.3, Pose2(0.0, 2000.0, 0.0));
   EXPECT_EQ(run.fixes, 0);
-  EXPECT_EQ(run.lock_losses, 1);
+  EXPECT_EQ(run.lock_losses, 0);
+  EXPECT_EQ(run.relocalizations, 0);
+  EXPECT_EQ(run.last_state, estimation::LockState::kOffMap);
+  ASSERT_FALSE(run.reasons.empty());
+  EXPECT_EQ(run.reasons.front().rfind("off-map: 0 % of the predicted view is mapped", 0), 0u) << run.reasons.front();
+  EXPECT_EQ(run.words.front(), "off-map");
 }
 
 TEST_F(Drive, KidnappedStartRelocalizesWithinTenFrames) {
@@ -191,16 +212,18 @@ TEST_F(Drive, KidnappedStartRelocalizesWithinTenFrames) {
   EXPECT_LT(run.errors_mm.back(), 0.05) << "after relocalizing, it tracks";
 }
 
-// The same half metre, but the start claims to be good to a millimetre (a vehicle pushed
-// aside while switched off): the tracker's small window misses, and after a few such frames
-// the map is searched as widely as when lost, before the lock is.
+// A start a quarter of a metre off that claims to be good to a millimetre (a vehicle pushed
+// aside while switched off): the tracker's small window misses where the prediction, with its
+// uncertainty, lies wholly on the map. That is evidence of a kidnap: after a few such frames
+// the map is searched without the prior, before the lock is lost.
 TEST_F(Drive, KidnappedStartWithAConfidentPriorRelocalizesWithinTenFrames) {
-  const Run run = Localize(1.0, 0.3, Pose2(500.0, 0.0, 0.0));
+  const Run run = Localize(1.0, 0.3, Pose2(-250.0, 0.0, 0.0));
   ASSERT_GE(run.first_fix_frame, 1) << (run.reasons.empty() ? std::string() : run.reasons.front());
   RecordProperty("first_fix_frame", run.first_fix_frame);
   EXPECT_LE(run.first_fix_frame, 10);
   EXPECT_EQ(run.lock_losses, 0);
   EXPECT_EQ(run.relocalizations, 1);
+  EXPECT_EQ(run.words.front(), "no-match") << "a miss on the map, not off it";
   // From the relocalization on (frame f is errors_mm[f - 1]) it is where it is.
   for (std::size_t i = static_cast<std::size_t>(run.first_fix_frame) - 1; i < run.errors_mm.size(); ++i) {
     EXPECT_LT(run.errors_mm[i], 0.1) << "frame " << i + 1;
@@ -252,6 +275,42 @@ TEST_F(RepeatingDrive, StartNearOneCopyRelocalizesOntoIt) {
   const Run run = Localize(0.5, 0.3, Pose2(40.0, 0.0, 0.0), 250.0);
   ASSERT_GE(run.first_fix_frame, 1) << (run.reasons.empty() ? std::string() : run.reasons.front());
   EXPECT_GE(run.relocalizations, 1);
+  EXPECT_LT(run.errors_mm.back(), 0.05);
+}
+
+// The repeating floor with a 256 mm band across the lane left unmapped (x 448 to 704 mm): a
+// vehicle leaves the map and comes back onto it, as on a lane nobody mapped yet. Copies of the
+// floor a period away lie on the map on both sides.
+class RepeatingExcursion : public Drive {
+ protected:
+  bool Repeating() const override { return true; }
+  int MapCols() const override { return 20; }
+  int MapRows() const override { return 8; }
+  bool Mapped(int col) const override { return col < 7 || col > 10; }
+};
+
+TEST_F(RepeatingExcursion, LeavingTheMapIsOffMapAndNeverAWrongFix) {
+  const Run run = Localize(1.6, 0.5, Pose2());
+  ASSERT_FALSE(run.errors_mm.empty());
+  int wrong = 0, off_map = 0;
+  for (std::size_t i = 0; i < run.fix_errors_mm.size(); ++i) {
+    if (run.fix_errors_mm[i] > 1.0) {
+      ++wrong;
+      ADD_FAILURE() << "frame " << i + 1 << ": a fix " << run.fix_errors_mm[i] << " mm off";
+    }
+    off_map += run.states[i] == estimation::LockState::kOffMap ? 1 : 0;
+  }
+  EXPECT_EQ(wrong, 0);
+  EXPECT_GE(off_map, 5) << "the view wholly in the band is off the map";
+  EXPECT_EQ(run.lock_losses, 0) << "off the map is not lost";
+  // Back on the map (the whole view past x = 704 mm): a fix within three frames, on the truth.
+  std::size_t back = 0;
+  while (back < run.cameras.size() && run.cameras[back].x_mm() - 80.0 < 704.0) ++back;
+  ASSERT_LT(back + 3, run.cameras.size());
+  std::size_t first = back;
+  while (first < back + 3 && run.fix_errors_mm[first] < 0.0) ++first;
+  ASSERT_LT(first, back + 3) << "no fix within three frames of the return";
+  EXPECT_LT(run.fix_errors_mm[first], 0.02);
   EXPECT_LT(run.errors_mm.back(), 0.05);
 }
 

@@ -5,9 +5,18 @@
 
 namespace mosaicloc::estimation {
 
-/// Visual lock, as reported to the PLC (design.md section 6: 1 tracking, 2 degraded, 3 lost).
-enum class LockState { kTracking = 1, kDegraded = 2, kLost = 3 };
+/// Visual lock, as reported to the PLC (design.md section 6: 1 tracking, 2 degraded, 3 lost,
+/// 4 off-map). Off-map: the prediction puts the camera's view (partly) off the mapped floor,
+/// so no fix is expected and the estimate is dead reckoning; that is not a loss of the lock.
+enum class LockState { kTracking = 1, kDegraded = 2, kLost = 3, kOffMap = 4 };
 const char* ToString(LockState state);
+
+/// What one frame gave the lock.
+enum class FrameVerdict {
+  kFixed,   ///< a visual fix was accepted
+  kMissed,  ///< no fix where the map says there should be one
+  kOffMap,  ///< no fix, and the predicted view is (partly) off the map: none was expected
+};
 
 struct LockOptions {
   int degraded_after_misses = 2;   ///< consecutive frames without a fix before "degraded"
@@ -20,12 +29,15 @@ struct LockOptions {
 
 /// Lock state with hysteresis: it degrades after a few frames without a fix, is lost after
 /// more (or when the position uncertainty grows too large), and needs several fixes in a row
-/// to return to tracking. Counts every loss.
+/// to return to tracking. Frames predicted off the map put it in kOffMap, whatever the
+/// uncertainty, without counting towards a loss; the first fix back on the map makes it
+/// degraded. Counts every loss: a change to kLost from tracking or degraded (off-map to lost
+/// is not one: the lock ended when the view left the map).
 class LockMonitor {
  public:
   explicit LockMonitor(const LockOptions& options);
   /// One frame's outcome; `reason` (why there was no fix) is kept for reporting.
-  LockState Update(bool fixed, double position_sigma_mm, const std::string& reason = {});
+  LockState Update(FrameVerdict verdict, double position_sigma_mm, const std::string& reason = {});
   LockState state() const { return state_; }
   std::int64_t losses() const { return losses_; }
   const std::string& last_reason() const { return last_reason_; }

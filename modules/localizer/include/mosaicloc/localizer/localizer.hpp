@@ -35,10 +35,13 @@ struct LocalizerOptions {
   /// which puts the odometry v * dt behind or ahead along the heading. The prediction is
   /// widened by that much along the heading, for the search and for the gate.
   double odometry_timing_sigma_ms = 0.0;
-  /// Relocalization, when the lock is lost or the prediction is too uncertain for the
-  /// tracker's search range: the frame is searched for at this coarse map level (3 = 8x
-  /// coarser), within relocalize_radius_mm of the prediction, and the best peaks verified
-  /// with the full tracker.
+  /// Relocalization, when the prediction is too uncertain for the tracker's search range or
+  /// a kidnap is known (below): the frame is searched for at this coarse map level (3 = 8x
+  /// coarser) around the prediction and the best peaks verified with the full tracker.
+  /// Without a known kidnap the search covers the prediction's gate (filter.gate_chi2) and a
+  /// place outside it is never taken; with one, relocalize_radius_mm is searched whatever the
+  /// prior says. On a floor that repeats, relocalize_radius_mm should exceed the period, or a
+  /// kidnapped vehicle may take the one copy it sees.
   int relocalize_level = 3;
   double relocalize_radius_mm = 600.0;
   int relocalize_candidates = 5;
@@ -52,10 +55,15 @@ struct LocalizerOptions {
   /// Share of a candidate place the map must cover. Less than 1: a vehicle that mapped one
   /// lane and drives it a few mm aside sees a sliver of floor the map does not have.
   float relocalize_min_coverage = 0.75F;
-  /// A prior that is confidently wrong (a vehicle pushed aside while switched off) keeps the
-  /// tracker searching a small window where its view is not. After this many frames in a row
-  /// without a fix (other than for want of texture), the whole relocalize_radius_mm is
-  /// searched as when the lock is lost, without waiting for the loss. 0: only when lost.
+  /// A frame without a fix whose predicted view the map covers less than this share of is
+  /// off the map (state and reason "off-map"): a miss is expected there, the filter
+  /// dead-reckons, and the lock is not lost.
+  double on_map_coverage = 0.98;
+  /// Evidence of a kidnap from the view itself: after this many frames in a row without a
+  /// fix (other than for want of texture) whose predicted view, grown by the prediction's
+  /// 3-sigma uncertainty, lies wholly on the map, the prior is wrong (a vehicle pushed aside
+  /// while switched off, a confidently wrong start), and relocalize_radius_mm is searched
+  /// without it. Misses at the map's edge or off it are no such evidence. 0: only on request.
   int relocalize_after_misses = 5;
   /// A filter that is confidently wrong (its odometry dated a few ms off while braking, say)
   /// rejects every fix at its gate, however well they agree. After this many consecutive
@@ -67,6 +75,11 @@ struct LocalizerOptions {
 
 /// What happened to one frame.
 struct FrameOutcome {
+  /// Why there is no fix, in one word (fixes.csv): "off-map", "rejected" (at the filter's
+  /// gate), or the tracker's failure ("no-texture", "no-match", "ambiguous",
+  /// "too-few-inliers", "not-converged"); empty with a fix.
+  std::string ReasonWord() const;
+
   bool fixed = false;                ///< a visual fix was accepted by the filter
   bool relocalized = false;          ///< the filter restarted from this fix (a relocalization or a re-anchoring)
   std::string reason;                ///< why not, when not
@@ -120,13 +133,24 @@ class Localizer {
   /// Restarts of the filter from a fix: relocalizations, and re-anchorings on fixes the gate
   /// kept rejecting.
   std::int64_t relocalizations() const { return relocalizations_; }
+  /// The vehicle's pose is not known (it was moved while switched off, or the start pose is a
+  /// guess): from the next frame on, relocalize_radius_mm around the prediction is searched
+  /// and the one place found taken, whatever the prior's covariance says, until a fix.
+  void RequestRelocalization() { kidnapped_ = true; }
+  /// A kidnap is known (requested, or seen by the view) and not yet resolved by a fix.
+  bool kidnapped() const { return kidnapped_; }
 
  private:
   // Searches the coarse map around the prediction and verifies the best candidates; the
   // verified registration, or nothing.
-  // `wide`: the prediction is not to be trusted, so the whole relocalize_radius_mm is searched.
+  // `kidnapped`: the prediction is not to be trusted, so the whole relocalize_radius_mm is
+  // searched and any place may be taken; else only places inside the prediction's gate.
   tracking::TrackResult Relocalize(const cv::Mat& frame, const core::Pose2& prior_camera,
-                                   const Eigen::Matrix3d& prior_camera_covariance, bool wide) const;
+                                   const Eigen::Matrix3d& prior_camera_covariance, bool kidnapped) const;
+  // What a frame without a fix says: off the map (none expected), a miss inside the map
+  // that is evidence against the prior, or a miss that is neither.
+  estimation::FrameVerdict ClassifyMiss(const FrameOutcome& outcome, const core::Pose2& prior_camera,
+                                        const Eigen::Matrix3d& prior_camera_covariance, std::string* reason);
   // Restarts the filter from a fix (a relocalization or a re-anchoring) and says so.
   void Restart(core::Timestamp time, const core::Pose2& fix, const Eigen::Matrix3d& fix_covariance,
                FrameOutcome* outcome);
@@ -149,8 +173,16 @@ class Localizer {
   Eigen::Matrix3d rejected_covariance_ = Eigen::Matrix3d::Zero();
   Eigen::Matrix3d rejected_prediction_covariance_ = Eigen::Matrix3d::Zero();  ///< the filter's, then
   double fix_speed_mm_per_s_ = 0.0;  ///< forward speed when the last fix was accepted
-  int unmatched_run_ = 0;  ///< consecutive frames without a fix, not counting those without texture
+  /// Consecutive frames without a fix whose prediction, with its uncertainty, lies wholly on
+  /// the map (frames without texture neither count nor break the run).
+  int unmatched_run_ = 0;
+  bool kidnapped_ = false;
 };
+
+/// Share (0..1) of the floor seen by a camera at `world_from_camera`, grown by `margin_mm`
+/// on every side, that `reference` maps; sampled on its coarser level `level` (0: itself).
+double MapCoverage(const tracking::ReferenceRaster& reference, const camera::IdealCamera& camera,
+                   const core::Pose2& world_from_camera, double margin_mm, int level);
 
 /// Covariance of world_from_camera = world_from_vehicle * vehicle_from_camera given the
 /// covariance of world_from_vehicle (first order), and the inverse mapping.
