@@ -48,6 +48,10 @@ bool LocalizerOptions::Check(std::string* why) const {
   }
   if (relocalize_after_misses < 0) return fail("relocalize_after_misses must be >= 0");
   if (!(on_map_coverage > 0.0 && on_map_coverage <= 1.0)) return fail("on_map_coverage must be in (0, 1]");
+  if (on_map_coverage < relocalize_min_coverage) {
+    return fail("on_map_coverage must be at least relocalize_min_coverage: a kidnap search must be able to take "
+                "the place the view is expected on");
+  }
   if (!(relocalize_min_coverage > 0.0 && relocalize_min_coverage <= 1.0)) {
     return fail("relocalize_min_coverage must be in (0, 1]");
   }
@@ -177,8 +181,8 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   const Eigen::Matrix3d prior_camera_covariance =
       CameraCovariance(predicted, options_.vehicle_from_camera, predicted_covariance);
 
-  // A known kidnap (requested, or the view missing the map where the prediction says it is
-  // wholly on it, frame after frame), or a prediction too uncertain for the tracker's search
+  // A known kidnap (requested, or the view missing the map where the prediction and its
+  // uncertainty say it is on it, frame after frame), or a prediction too uncertain for the tracker's search
   // range: relocalize on the coarse map (design.md section 7).
   if (options_.relocalize_after_misses > 0 && unmatched_run_ >= options_.relocalize_after_misses) kidnapped_ = true;
   const double prior_sigma_px =
@@ -257,16 +261,25 @@ estimation::FrameVerdict Localizer::ClassifyMiss(const FrameOutcome& outcome, co
               " % of the predicted view is mapped (" + *reason + ")";
     return estimation::FrameVerdict::kOffMap;
   }
-  // The prediction's 3-sigma region: its position, and its yaw turning the view's corners.
+  // Evidence against the prior only if, wherever its 3-sigma region puts the camera, the view
+  // would have been as much on the map: the ends of the position ellipse's axes and the yaw
+  // turned either way.
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> position(prior_camera_covariance.topLeftCorner<2, 2>());
-  const double half_diagonal_mm = 0.5 * std::hypot(camera_.width_mm(), camera_.height_mm());
-  const double margin_mm = 3.0 * (std::sqrt(std::max(position.eigenvalues().maxCoeff(), 0.0)) +
-                                  std::sqrt(std::max(prior_camera_covariance(2, 2), 0.0)) * half_diagonal_mm);
-  if (MapCoverage(reference_, camera_, prior_camera, margin_mm, level) >= options_.on_map_coverage) {
-    ++unmatched_run_;
-  } else {
-    unmatched_run_ = 0;  // at the map's edge: the view may be off it
+  bool inside = true;
+  for (int k = 0; k < 6 && inside; ++k) {
+    Eigen::Vector3d shift = Eigen::Vector3d::Zero();
+    if (k < 4) {
+      const int axis = k / 2;
+      shift.head<2>() = (k % 2 == 0 ? 3.0 : -3.0) * std::sqrt(std::max(position.eigenvalues()(axis), 0.0)) *
+                        position.eigenvectors().col(axis);
+    } else {
+      shift.z() = (k == 4 ? 3.0 : -3.0) * std::sqrt(std::max(prior_camera_covariance(2, 2), 0.0));
+    }
+    const core::Pose2 moved(prior_camera.x_mm() + shift.x(), prior_camera.y_mm() + shift.y(),
+                            prior_camera.yaw_rad() + shift.z());
+    inside = MapCoverage(reference_, camera_, moved, 0.0, level) >= options_.on_map_coverage;
   }
+  unmatched_run_ = inside ? unmatched_run_ + 1 : 0;  // at the map's edge the view may be off it
   return estimation::FrameVerdict::kMissed;
 }
 

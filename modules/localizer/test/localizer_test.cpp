@@ -278,15 +278,15 @@ TEST_F(RepeatingDrive, StartNearOneCopyRelocalizesOntoIt) {
   EXPECT_LT(run.errors_mm.back(), 0.05);
 }
 
-// The repeating floor with a 256 mm band across the lane left unmapped (x 448 to 704 mm): a
-// vehicle leaves the map and comes back onto it, as on a lane nobody mapped yet. Copies of the
-// floor a period away lie on the map on both sides.
+// The repeating floor with a 512 mm band across the lane left unmapped (x 448 to 960 mm): a
+// vehicle leaves the map and comes back onto it, as on a lane nobody mapped yet. In the band
+// the nearest mapped copies of its view lie one and two periods behind it.
 class RepeatingExcursion : public Drive {
  protected:
   bool Repeating() const override { return true; }
   int MapCols() const override { return 20; }
   int MapRows() const override { return 8; }
-  bool Mapped(int col) const override { return col < 7 || col > 10; }
+  bool Mapped(int col) const override { return col < 7 || col > 14; }
 };
 
 TEST_F(RepeatingExcursion, LeavingTheMapIsOffMapAndNeverAWrongFix) {
@@ -303,9 +303,9 @@ TEST_F(RepeatingExcursion, LeavingTheMapIsOffMapAndNeverAWrongFix) {
   EXPECT_EQ(wrong, 0);
   EXPECT_GE(off_map, 5) << "the view wholly in the band is off the map";
   EXPECT_EQ(run.lock_losses, 0) << "off the map is not lost";
-  // Back on the map (the whole view past x = 704 mm): a fix within three frames, on the truth.
+  // Back on the map (the whole view past x = 960 mm): a fix within three frames, on the truth.
   std::size_t back = 0;
-  while (back < run.cameras.size() && run.cameras[back].x_mm() - 80.0 < 704.0) ++back;
+  while (back < run.cameras.size() && run.cameras[back].x_mm() - 80.0 < 960.0) ++back;
   ASSERT_LT(back + 3, run.cameras.size());
   std::size_t first = back;
   while (first < back + 3 && run.fix_errors_mm[first] < 0.0) ++first;

@@ -57,12 +57,14 @@ struct LocalizerOptions {
   float relocalize_min_coverage = 0.75F;
   /// A frame without a fix whose predicted view the map covers less than this share of is
   /// off the map (state and reason "off-map"): a miss is expected there, the filter
-  /// dead-reckons, and the lock is not lost.
-  double on_map_coverage = 0.98;
+  /// dead-reckons, and the lock is not lost. At or above it a fix is expected (the tracker
+  /// fixes views half on the map); keep it at least relocalize_min_coverage, so that a place a
+  /// kidnap search may have to find is one the search can take.
+  double on_map_coverage = 0.75;
   /// Evidence of a kidnap from the view itself: after this many frames in a row without a
-  /// fix (other than for want of texture) whose predicted view, grown by the prediction's
-  /// 3-sigma uncertainty, lies wholly on the map, the prior is wrong (a vehicle pushed aside
-  /// while switched off, a confidently wrong start), and relocalize_radius_mm is searched
+  /// fix (other than for want of texture) where the view would be on the map (on_map_coverage)
+  /// wherever the prediction's 3-sigma region puts it, the prior is wrong (a vehicle pushed
+  /// aside while switched off, a confidently wrong start), and relocalize_radius_mm is searched
   /// without it. Misses at the map's edge or off it are no such evidence. 0: only on request.
   int relocalize_after_misses = 5;
   /// A filter that is confidently wrong (its odometry dated a few ms off while braking, say)
@@ -173,8 +175,8 @@ class Localizer {
   Eigen::Matrix3d rejected_covariance_ = Eigen::Matrix3d::Zero();
   Eigen::Matrix3d rejected_prediction_covariance_ = Eigen::Matrix3d::Zero();  ///< the filter's, then
   double fix_speed_mm_per_s_ = 0.0;  ///< forward speed when the last fix was accepted
-  /// Consecutive frames without a fix whose prediction, with its uncertainty, lies wholly on
-  /// the map (frames without texture neither count nor break the run).
+  /// Consecutive frames without a fix whose prediction, with its uncertainty, lies on the map
+  /// (frames without texture neither count nor break the run).
   int unmatched_run_ = 0;
   bool kidnapped_ = false;
 };
