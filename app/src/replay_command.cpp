@@ -15,6 +15,7 @@
 #include "mosaicloc/core/log.hpp"
 #include "mosaicloc/dataset/dataset.hpp"
 #include "mosaicloc/dataset/evaluation.hpp"
+#include "mosaicloc/dataset/fixes.hpp"
 #include "mosaicloc/estimation/odometry.hpp"
 #include "localizer_config.hpp"
 #include "mosaicloc/dataset/trajectory.hpp"
@@ -72,6 +73,7 @@ struct ReplayArgs {
   std::optional<double> required_overlap;
   std::vector<double> start_offset;  // dx_mm, dy_mm, dyaw_deg in the start's vehicle frame
   bool prefetch = false;             // load tiles ahead on the prefetcher's threads, as `run` does
+  bool relocalize = false;           // the start is not to be trusted: relocalize without it
 };
 
 
@@ -99,17 +101,19 @@ class ReplayRecord {
     }
   }
 
-  /// A fix the PLC would receive (design.md section 6: status 1 tracking, 2 degraded, 3 lost).
-  void Fix(core::Timestamp time, const core::Pose2& fix, int status, double quality) {
-    ++fixes_;
-    fixes_csv_ +=
-        fmt::format("{},{:.4f},{:.4f},{:.7f},{},{}\n", time.nanoseconds(), fix.x_mm(), fix.y_mm(), fix.yaw_rad(),
-                    status, static_cast<int>(std::lround(1000.0 * std::clamp(quality, 0.0, 1.0))));
+  /// What the localizer reported for a frame (a row of fixes.csv); `view_mapped`: the share
+  /// of the true view the map covers there (mosaic mode with ground truth), for the returns.
+  void Report(const dataset::FrameReport& report, std::optional<double> view_mapped = std::nullopt) {
+    if (report.fixed) ++fixes_;
+    fixes_csv_ += dataset::FixesCsvRow(report);
+    reports_.push_back(report);
+    if (view_mapped) view_mapped_.push_back(*view_mapped);
   }
 
   /// Writes fixes.csv, metrics.json, estimate.tum and the plots, and prints the metrics.
   void Finish(const ReplayArgs& args, const GlobalOptions& global, const dataset::DatasetInfo& info,
-              double required_overlap, std::optional<std::int64_t> lock_losses, const std::string& title) {
+              double required_overlap, std::optional<std::int64_t> lock_losses, const std::string& title,
+              std::optional<std::int64_t> relocalizations = std::nullopt) {
     progress_.Finish();
     if (estimate_.empty()) {
       core::ThrowInvalidInput(args.dataset.string() + ": no frame falls within the encoder samples");
@@ -119,6 +123,23 @@ class ReplayRecord {
     metrics.fixes = fixes_;
     metrics.fix_rate = static_cast<double>(fixes_) / static_cast<double>(frames_);
     metrics.lock_losses = lock_losses;
+    metrics.relocalizations = relocalizations;
+    if (groundtruth_) {
+      // Every fix checked against the truth: a lock that never broke proves nothing if it held
+      // onto the wrong place.
+      const dataset::FixCheck check = dataset::CheckFixes(reports_, *groundtruth_);
+      metrics.wrong_fixes = check.wrong_fixes;
+      metrics.max_wrong_fix_mm = check.max_wrong_fix_mm.value_or(0.0);
+      metrics.off_map_frames = check.off_map_frames;
+      metrics.off_map_max_error_mm = check.off_map_max_error_mm;
+      if (view_mapped_.size() == reports_.size()) {
+        const dataset::ReentryCheck reentries =
+            dataset::CheckReentries(reports_, view_mapped_, *groundtruth_);
+        metrics.reentries = reentries.reentries;
+        metrics.reentry_frames_to_fix_max = reentries.frames_to_fix_max;
+        metrics.reentry_first_fix_error_max_mm = reentries.first_fix_error_max_mm;
+      }
+    }
     metrics.processing_fps = processing_s_ > 0.0 ? static_cast<double>(frames_) / processing_s_ : 0.0;
     std::sort(latency_ms_.begin(), latency_ms_.end());  // not empty: the estimate has a frame
     metrics.latency_p50_ms = dataset::Percentile(latency_ms_, 50.0);
@@ -140,7 +161,9 @@ class ReplayRecord {
   double processing_s_ = 0.0;
   std::int64_t frames_ = 0;
   std::int64_t fixes_ = 0;
-  std::string fixes_csv_ = "#timestamp_ns,x_mm,y_mm,yaw_rad,status,quality\n";
+  std::string fixes_csv_ = dataset::FixesCsvHeader();
+  std::vector<dataset::FrameReport> reports_;
+  std::vector<double> view_mapped_;
 };
 
 // Where the run starts (as a localizer is told at installation): the ground truth at `time`,
@@ -214,8 +237,15 @@ void RunDeadReckoning(const ReplayArgs& args, const GlobalOptions& global) {
     const auto pose = dataset::PoseAt(integrated, frame->time, std::chrono::milliseconds(100));
     record.Frame(frame->time, pose,
                  std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - frame_start).count());
+    if (pose) {
+      dataset::FrameReport report;
+      report.time = frame->time;
+      report.world_from_vehicle = *pose;
+      report.reason = "dead-reckoning";
+      record.Report(report);
+    }
   }
-  // Dead reckoning makes no visual fix: fixes.csv has its header only.
+  // Dead reckoning makes no visual fix: every row of fixes.csv has status 0 (none).
   record.Finish(args, global, info, args.required_overlap.value_or(0.5), std::nullopt, "dead reckoning");
 }
 
@@ -276,6 +306,7 @@ void RunMosaic(const ReplayArgs& args, const GlobalOptions& global) {
                        Eigen::Vector3d(config.start_sigma_mm * config.start_sigma_mm,
                                        config.start_sigma_mm * config.start_sigma_mm, start_sigma_rad * start_sigma_rad)
                            .asDiagonal());
+  if (args.relocalize) localizer.RequestRelocalization();
   std::int64_t rejected = 0;
   const auto feed = [&] {
     if (!localizer.AddEncoders(pending->time, pending->left_ticks, pending->right_ticks)) ++rejected;
@@ -294,9 +325,14 @@ void RunMosaic(const ReplayArgs& args, const GlobalOptions& global) {
     if (prefetcher && localizer.initialized()) {
       PredictTiles(*prefetcher, localizer.Latest(), info.camera.vehicle_from_camera);
     }
-    if (outcome.fixed) {
-      record.Fix(frame->time, outcome.fix_world_from_vehicle, static_cast<int>(outcome.lock), outcome.fix_quality);
-    } else {
+    std::optional<double> view_mapped;
+    if (groundtruth) {
+      const auto truth = dataset::PoseAt(*groundtruth, frame->time, std::chrono::milliseconds(100));
+      view_mapped = truth ? localizer::MapCoverage(reference, camera, *truth * info.camera.vehicle_from_camera, 0.0, 2)
+                          : 0.0;
+    }
+    record.Report(FrameReportOf(frame->time, outcome), view_mapped);
+    if (!outcome.fixed) {
       const core::Pose2& f = outcome.fix_world_from_vehicle;
       core::Log().debug("frame {}: no fix: {} (tracker: {:.4f}, {:.4f}, {:.6f}; estimate {:.4f}, {:.4f}, {:.6f})",
                         frame->time.nanoseconds(), outcome.reason, f.x_mm(), f.y_mm(), f.yaw_rad(),
@@ -310,7 +346,8 @@ void RunMosaic(const ReplayArgs& args, const GlobalOptions& global) {
   const Eigen::Vector2d scale = 100.0 * localizer.wheel_scale_error(), sigma = 100.0 * localizer.wheel_scale_sigma();
   core::Log().info("wheel scale errors learnt: left {:+.3f} % (sigma {:.3f}), right {:+.3f} % (sigma {:.3f})",
                    scale.x(), sigma.x(), scale.y(), sigma.y());
-  record.Finish(args, global, info, config.required_overlap, localizer.lock().losses(), "mosaic localization");
+  record.Finish(args, global, info, config.required_overlap, localizer.lock().losses(), "mosaic localization",
+                localizer.relocalizations());
 }
 
 // Frame-to-frame visual odometry with the tracker, no map: each frame is registered against
@@ -363,8 +400,16 @@ void RunVisualOdometry(const ReplayArgs& args, const GlobalOptions& global) {
     }
     record.Frame(frame->time, pose,
                  std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count());
-    // A registered frame is a relative fix: the chained pose, status 1.
-    if (registered) record.Fix(frame->time, pose, 1, quality);
+    // A registered frame is a relative fix: the chained pose, status 1; else the wheels'
+    // motion carried it, status 2.
+    dataset::FrameReport report;
+    report.time = frame->time;
+    report.world_from_vehicle = pose;
+    report.fixed = registered;
+    report.status = registered ? 1 : 2;
+    report.quality = quality;
+    report.reason = registered || previous.empty() ? "" : "not-registered";
+    record.Report(report);
     previous = frame->image;
     previous_time = frame->time;
   }
@@ -394,6 +439,10 @@ Action AddReplayCommand(CLI::App& app, const GlobalOptions& global) {
                       "frame (a kidnapped vehicle; relocalization must find it)")
       ->delimiter(',')
       ->expected(3);
+  command->add_flag("--relocalize", args->relocalize,
+                    "mosaic mode: the start pose is not to be trusted (the vehicle was moved while switched off, "
+                    "or the start is a guess): search the map around it and take the one place found, whatever "
+                    "the start's uncertainty says");
   command->add_flag("--prefetch", args->prefetch,
                     "mosaic mode: load the map's tiles ahead on threads of their own, as `run` does "
                     "(map.prefetch_horizon_s of the configuration); the estimates do not change");

@@ -1,5 +1,7 @@
 #include "report.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <optional>
@@ -30,6 +32,14 @@ dataset::Metrics WriteReport(const std::filesystem::path& directory, const datas
     keep(merged.fixes, metrics.fixes);
     keep(merged.fix_rate, metrics.fix_rate);
     keep(merged.lock_losses, metrics.lock_losses);
+    keep(merged.wrong_fixes, metrics.wrong_fixes);
+    keep(merged.max_wrong_fix_mm, metrics.max_wrong_fix_mm);
+    keep(merged.off_map_frames, metrics.off_map_frames);
+    keep(merged.off_map_max_error_mm, metrics.off_map_max_error_mm);
+    keep(merged.reentries, metrics.reentries);
+    keep(merged.reentry_frames_to_fix_max, metrics.reentry_frames_to_fix_max);
+    keep(merged.reentry_first_fix_error_max_mm, metrics.reentry_first_fix_error_max_mm);
+    keep(merged.relocalizations, metrics.relocalizations);
     keep(merged.processing_fps, metrics.processing_fps);
     keep(merged.latency_p50_ms, metrics.latency_p50_ms);
     keep(merged.latency_p99_ms, metrics.latency_p99_ms);
@@ -39,6 +49,18 @@ dataset::Metrics WriteReport(const std::filesystem::path& directory, const datas
   }
   dataset::WriteMetricsJson(directory / "metrics.json", metrics);
   return metrics;
+}
+
+dataset::FrameReport FrameReportOf(core::Timestamp time, const localizer::FrameOutcome& outcome) {
+  dataset::FrameReport report;
+  report.time = time;
+  report.fixed = outcome.fixed;
+  report.world_from_vehicle = outcome.fixed ? outcome.fix_world_from_vehicle : outcome.world_from_vehicle;
+  report.status = static_cast<int>(outcome.lock);
+  report.quality = outcome.fixed ? outcome.fix_quality : 0.0;
+  report.sigma_mm = std::sqrt(std::max(outcome.covariance(0, 0), outcome.covariance(1, 1)));
+  report.reason = outcome.ReasonWord();
+  return report;
 }
 
 void PrintMetrics(const std::filesystem::path& directory, const dataset::Metrics& metrics, bool json) {
@@ -63,6 +85,17 @@ void PrintMetrics(const std::filesystem::path& directory, const dataset::Metrics
   show("fixes", metrics.fixes, "");
   if (metrics.fix_rate) show("fix rate", std::optional<double>(100.0 * *metrics.fix_rate), "%");
   show("lock losses", metrics.lock_losses, "");
+  show("wrong fixes (> 1 mm)", metrics.wrong_fixes, "");
+  if (metrics.wrong_fixes && *metrics.wrong_fixes > 0) show("worst wrong fix", metrics.max_wrong_fix_mm, "mm");
+  if (metrics.off_map_frames && *metrics.off_map_frames > 0) {
+    show("off-map frames", metrics.off_map_frames, "");
+    show("off-map dead reckoning", metrics.off_map_max_error_mm, "mm max");
+  }
+  if (metrics.reentries && *metrics.reentries > 0) {
+    show("returns onto the map", metrics.reentries, "");
+    show("  frames to first fix", metrics.reentry_frames_to_fix_max, "max");
+    show("  first fix error", metrics.reentry_first_fix_error_max_mm, "mm max");
+  }
   show("position RMS", metrics.position_rms_mm, "mm");
   show("position p99", metrics.position_p99_mm, "mm");
   show("position max", metrics.position_max_mm, "mm");

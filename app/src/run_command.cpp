@@ -44,6 +44,7 @@
 #include "mosaicloc/mosaic/tile_cache.hpp"
 #include "mosaicloc/mosaic/tile_store.hpp"
 #include "mosaicloc/tracking/reference.hpp"
+#include "report.hpp"
 #include "run_config.hpp"
 
 namespace mosaicloc::app {
@@ -76,10 +77,11 @@ class Recorder {
 
   void Frame(core::Timestamp time, const cv::Mat& image) { Push(FrameItem{time, image}); }
   void Encoders(const dataset::EncoderSample& sample) { Push(sample); }
-  void Fix(core::Timestamp time, const core::Pose2& fix, int status, double quality) {
+  /// What the localizer reported for a frame: a row of fixes/data.csv.
+  void Report(const dataset::FrameReport& report) {
+    const std::string row = dataset::FixesCsvRow(report);
     const std::lock_guard lock(mutex_);
-    fixes_ += fmt::format("{},{:.4f},{:.4f},{:.7f},{},{}\n", time.nanoseconds(), fix.x_mm(), fix.y_mm(), fix.yaw_rad(),
-                          status, static_cast<int>(std::lround(1000.0 * std::clamp(quality, 0.0, 1.0))));
+    fixes_ += row;
   }
   /// Writes everything still queued and renames the dataset into place.
   void Commit() {
@@ -144,7 +146,7 @@ class Recorder {
   std::condition_variable wake_;
   std::deque<Item> queue_;
   bool closed_ = false;
-  std::string fixes_ = "#timestamp_ns,x_mm,y_mm,yaw_rad,status,quality\n";
+  std::string fixes_ = dataset::FixesCsvHeader();
   std::atomic<std::int64_t> frames_{0};
   std::exception_ptr error_;
   std::thread thread_;  // last: starts once everything above exists
@@ -323,7 +325,9 @@ class LiveRun {
     int status = state.fixed_once ? static_cast<int>(state.lock) : 0;
     if (status == 1 && !stats_.odometry_valid) status = 2;
     outputs.status = status;
-    outputs.quality = status == 0 || status == 3 ? 0 : static_cast<int>(std::lround(1000.0 * state.quality));
+    // Lost or off the map, the pose is dead reckoning: no visual quality to report.
+    const bool visual = status == 1 || status == 2;
+    outputs.quality = visual ? static_cast<int>(std::lround(1000.0 * state.quality)) : 0;
     return outputs;
   }
 
@@ -500,12 +504,9 @@ class LiveRun {
       if (recorder_) recorder_->Frame(frame->time, frame->image);
       const localizer::FrameOutcome outcome = localizer_->ProcessFrame(frame->time, frame->image);
       ++stats_.processed;
+      if (recorder_) recorder_->Report(FrameReportOf(frame->time, outcome));
       if (outcome.fixed) {
         ++stats_.fixes;
-        if (recorder_) {
-          recorder_->Fix(frame->time, outcome.fix_world_from_vehicle, static_cast<int>(outcome.lock),
-                         outcome.fix_quality);
-        }
       } else {
         core::Log().debug("run: frame {} not fixed: {}", frame->sequence, outcome.reason);
       }

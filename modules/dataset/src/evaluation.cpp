@@ -301,6 +301,8 @@ void WriteMetricsJson(const std::filesystem::path& file, const Metrics& metrics)
   json["fixes"] = ToJson(metrics.fixes);
   json["fix_rate"] = ToJson(metrics.fix_rate);
   json["lock_losses"] = ToJson(metrics.lock_losses);
+  json["wrong_fixes"] = ToJson(metrics.wrong_fixes);
+  json["max_wrong_fix_mm"] = ToJson(metrics.max_wrong_fix_mm);
   json["position_rms_mm"] = ToJson(metrics.position_rms_mm);
   json["position_p50_mm"] = ToJson(metrics.position_p50_mm);
   json["position_p99_mm"] = ToJson(metrics.position_p99_mm);
@@ -318,6 +320,12 @@ void WriteMetricsJson(const std::filesystem::path& file, const Metrics& metrics)
   json["path_length_m"] = ToJson(metrics.path_length_m);
   json["drift_percent"] = ToJson(metrics.drift_percent);
   json["repeatability_places"] = ToJson(metrics.repeatability_places);
+  json["off_map_frames"] = ToJson(metrics.off_map_frames);
+  json["off_map_max_error_mm"] = ToJson(metrics.off_map_max_error_mm);
+  json["reentries"] = ToJson(metrics.reentries);
+  json["reentry_frames_to_fix_max"] = ToJson(metrics.reentry_frames_to_fix_max);
+  json["reentry_first_fix_error_max_mm"] = ToJson(metrics.reentry_first_fix_error_max_mm);
+  json["relocalizations"] = ToJson(metrics.relocalizations);
   core::WriteFileAtomically(file, json.dump(2) + "\n");
 }
 

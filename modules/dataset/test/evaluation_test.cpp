@@ -286,6 +286,7 @@ TEST(Evaluate, LargeTrajectoryIsQuick) {
 
 const std::vector<std::string> kDesignKeys = {
     "frames",          "fixes",           "fix_rate",         "lock_losses",
+    "wrong_fixes",     "max_wrong_fix_mm",
     "position_rms_mm", "position_p50_mm", "position_p99_mm",  "position_max_mm",
     "heading_rms_deg", "heading_max_deg", "repeatability_mm", "processing_fps",
     "latency_p50_ms",  "latency_p99_ms",  "max_speed_mps",    "overlap_speed_limit_mps"};
@@ -304,7 +305,8 @@ TEST(MetricsJson, HasEveryDesignKeyWithNullsWhereUnknown) {
   ASSERT_TRUE(json.is_object());
   for (const std::string& key : kDesignKeys) EXPECT_TRUE(json.contains(key)) << key;
   for (const char* key : {"associated", "final_position_error_mm", "path_length_m", "drift_percent",
-                          "repeatability_places"}) {
+                          "repeatability_places", "off_map_frames", "off_map_max_error_mm", "reentries",
+                          "reentry_frames_to_fix_max", "reentry_first_fix_error_max_mm", "relocalizations"}) {
     EXPECT_TRUE(json.contains(key)) << key;
   }
   EXPECT_EQ(json["frames"].get<std::int64_t>(), 100);
@@ -312,8 +314,8 @@ TEST(MetricsJson, HasEveryDesignKeyWithNullsWhereUnknown) {
   EXPECT_DOUBLE_EQ(json["fix_rate"].get<double>(), 0.97);
   EXPECT_DOUBLE_EQ(json["position_max_mm"].get<double>(), 0.0);
   EXPECT_NEAR(json["max_speed_mps"].get<double>(), 0.3, 1e-9);
-  for (const char* key : {"lock_losses", "repeatability_mm", "processing_fps", "latency_p50_ms",
-                          "latency_p99_ms", "overlap_speed_limit_mps"}) {
+  for (const char* key : {"lock_losses", "wrong_fixes", "max_wrong_fix_mm", "repeatability_mm", "processing_fps",
+                          "latency_p50_ms", "latency_p99_ms", "overlap_speed_limit_mps"}) {
     EXPECT_TRUE(json[key].is_null()) << key;
   }
   // An empty Metrics is all nulls.

@@ -44,6 +44,8 @@ struct Metrics {
   std::optional<std::int64_t> fixes;        ///< visual fixes accepted (caller)
   std::optional<double> fix_rate;           ///< fixes / frames, 0..1 (caller)
   std::optional<std::int64_t> lock_losses;  ///< times the visual lock was lost (caller)
+  std::optional<std::int64_t> wrong_fixes;  ///< visual fixes more than 1 mm from the truth (caller, CheckFixes)
+  std::optional<double> max_wrong_fix_mm;   ///< the largest of those errors, 0 without one (caller)
   std::optional<double> position_rms_mm;    ///< RMS of position errors
   std::optional<double> position_p50_mm;    ///< median position error (percentile, see Evaluate)
   std::optional<double> position_p99_mm;    ///< 99th percentile of position errors
@@ -63,6 +65,15 @@ struct Metrics {
   std::optional<double> path_length_m;  ///< ground-truth path length over the compared span
   std::optional<double> drift_percent;  ///< 100 final_position_error / path_length
   std::optional<std::int64_t> repeatability_places;  ///< places visited at least twice
+  std::optional<std::int64_t> off_map_frames;        ///< frames reported off the map (caller)
+  std::optional<double> off_map_max_error_mm;  ///< largest dead-reckoning error while off the map (caller)
+  /// Returns onto the map (the true view wholly on it after some frames that were not), the
+  /// most frames any of them took to the first fix, and the largest error of those first
+  /// fixes (caller).
+  std::optional<std::int64_t> reentries;
+  std::optional<std::int64_t> reentry_frames_to_fix_max;
+  std::optional<double> reentry_first_fix_error_max_mm;
+  std::optional<std::int64_t> relocalizations;  ///< restarts of the filter from a fix (caller)
 };
 
 struct Evaluation {
