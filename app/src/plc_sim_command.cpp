@@ -133,7 +133,7 @@ void RunPlcSim(const PlcSimArgs& args, const GlobalOptions& global) {
 
   std::int64_t fixes = 0, requests = 0, answered = 0;
   std::vector<double> answer_ms, errors_mm, heading_errors_deg;
-  std::vector<std::int64_t> status_counts(4, 0);
+  std::vector<std::int64_t> status_counts(5, 0);  // none, tracking, degraded, lost, off-map
   std::string csv = "#time_s,x_mm,y_mm,yaw_rad,status,quality,request_echo,heartbeat,gt_x_mm,gt_y_mm,error_mm\n";
   core::Timestamp next_print = io::MonotonicNow() + std::chrono::seconds(1);
 
@@ -145,7 +145,7 @@ void RunPlcSim(const PlcSimArgs& args, const GlobalOptions& global) {
       }
       for (const ReceivedFix& r : batch) {
         ++fixes;
-        ++status_counts[static_cast<std::size_t>(std::clamp(r.fix.status, 0, 3))];
+        ++status_counts[static_cast<std::size_t>(std::clamp(r.fix.status, 0, 4))];
         if (!request_answered && request_time && r.fix.request_echo == Masked(request, map.fix_request_echo)) {
           request_answered = true;
           ++answered;

@@ -169,6 +169,7 @@ struct RunStats {
   std::atomic<std::int64_t> encoder_samples{0};
   std::atomic<std::int64_t> encoder_rejected{0};
   std::atomic<std::int64_t> requests{0};
+  std::atomic<std::int64_t> relocalize_requests{0};
   std::atomic<std::int64_t> answered{0};
   std::atomic<std::int64_t> fix_writes{0};
   std::atomic<std::int64_t> odometry_outages{0};
@@ -337,6 +338,8 @@ class LiveRun {
     const auto latency = core::FromSeconds(config_.encoder_latency_ms * 1e-3);
     io::HeartbeatMonitor heartbeat(core::FromSeconds(config_.heartbeat_timeout_ms * 1e-3));
     std::optional<std::uint32_t> request;
+    std::optional<std::uint32_t> relocalize_seen;
+    std::int64_t connects_seen = 0;
     std::uint32_t own_heartbeat = 0;
     core::Timestamp next_cycle = io::MonotonicNow();
     core::Timestamp next_fix = next_cycle;
@@ -403,6 +406,19 @@ class LiveRun {
       bool answer = false;
       core::Timestamp seen;
       if (read.ok()) {
+        // The PLC says the pose is unknown (the vehicle was moved): the tracking thread
+        // relocalizes without trusting the estimate. A reconnected PLC may have restarted
+        // with its counter at 0: its first value is taken as it is, not as a request.
+        const std::int64_t connects = link_->stats().connects;
+        if (connects != connects_seen) relocalize_seen.reset();
+        connects_seen = connects;
+        const std::uint32_t relocalize = read.value().relocalize_request;
+        if (relocalize_seen && relocalize != *relocalize_seen) {
+          relocalize_pending_ = true;
+          ++stats_.relocalize_requests;
+          core::Log().info("run: the PLC asks for a relocalization (request {})", relocalize);
+        }
+        relocalize_seen = relocalize;
         const std::uint32_t counter = read.value().fix_request;
         if (request && counter != *request) {
           answer = true;
@@ -502,6 +518,7 @@ class LiveRun {
         continue;
       }
       if (recorder_) recorder_->Frame(frame->time, frame->image);
+      if (relocalize_pending_.exchange(false)) localizer_->RequestRelocalization();
       const localizer::FrameOutcome outcome = localizer_->ProcessFrame(frame->time, frame->image);
       ++stats_.processed;
       if (recorder_) recorder_->Report(FrameReportOf(frame->time, outcome));
@@ -598,6 +615,7 @@ class LiveRun {
             {"fix_rate", processed > 0 ? static_cast<double>(stats_.fixes) / static_cast<double>(processed) : 0.0},
             {"lock_losses", localizer_->lock().losses()},
             {"relocalizations", localizer_->relocalizations()},
+            {"relocalize_requests", stats_.relocalize_requests.load()},
             {"wheel_scale_error", wheel_scale},
             {"latency_p50_ms", percentile(latency, 50.0)},
             {"latency_p99_ms", percentile(latency, 99.0)},
@@ -643,6 +661,7 @@ class LiveRun {
   bool camera_done_ = false;
   std::atomic<bool> stop_{false};
   std::atomic<bool> tracking_done_{false};
+  std::atomic<bool> relocalize_pending_{false};  // set by the PLC thread, taken by the tracking thread
   std::atomic<bool> failed_{false};
   std::exception_ptr error_;
 

@@ -35,6 +35,7 @@ void ReadRegisters(core::YamlMap* parent, core::YamlMap* registers, io::Register
     registers->Optional("word_order", &order, core::OneOf({"high_first", "low_first"}));
     const io::WordOrder word_order = order == "high_first" ? io::WordOrder::kHighFirst : io::WordOrder::kLowFirst;
     for (io::RegisterField* field : {&map->left_ticks, &map->right_ticks, &map->plc_heartbeat, &map->fix_request,
+                                     &map->relocalize_request,
                                      &map->fix_x, &map->fix_y, &map->fix_yaw, &map->fix_status, &map->fix_quality,
                                      &map->fix_request_echo, &map->heartbeat}) {
       field->word_order = word_order;
@@ -44,6 +45,7 @@ void ReadRegisters(core::YamlMap* parent, core::YamlMap* registers, io::Register
   ReadField(registers, "right_ticks", &map->right_ticks);
   ReadField(registers, "plc_heartbeat", &map->plc_heartbeat);
   ReadField(registers, "fix_request", &map->fix_request);
+  ReadField(registers, "relocalize_request", &map->relocalize_request);
   ReadField(registers, "fix_x", &map->fix_x);
   ReadField(registers, "fix_y", &map->fix_y);
   ReadField(registers, "fix_yaw", &map->fix_yaw);

@@ -68,6 +68,7 @@ TEST(RunConfig, DefaultFileEqualsCompiledDefaults) {
   ExpectSameField(r.right_ticks, s.right_ticks);
   ExpectSameField(r.plc_heartbeat, s.plc_heartbeat);
   ExpectSameField(r.fix_request, s.fix_request);
+  ExpectSameField(r.relocalize_request, s.relocalize_request);
   ExpectSameField(r.fix_x, s.fix_x);
   ExpectSameField(r.fix_y, s.fix_y);
   ExpectSameField(r.fix_yaw, s.fix_yaw);

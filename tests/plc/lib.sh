@@ -97,6 +97,8 @@ for l in open(run + "/groundtruth/data.tum"):
 times = [t for t, _, _ in truth]
 errors = []
 for r in rows(rec + "/fixes/data.csv"):
+    if r[6] != "1":  # a frame without a visual fix: the dead-reckoned estimate
+        continue
     k = recorded.index(int(r[0]))
     t = played[k]
     i = min(max(bisect.bisect_left(times, t), 1), len(truth) - 1)

@@ -106,6 +106,7 @@ class Plc:
         self.start = time.monotonic() + ((args.start_unix - wall_now) if args.start_unix > 0 else 0.0)
         self.heartbeat = 0
         self.request = 0
+        self.relocalize = 0
         self.request_time = None
         self.answered_request = 0
         self.fixes = []
@@ -123,20 +124,22 @@ class Plc:
         return (self.dataset_ns(monotonic) - self.data.origin) * 1e-9
 
     def inputs(self, now):
-        """The six input registers at monotonic time now."""
+        """The seven input registers at monotonic time now."""
         ns = self.dataset_ns(now)
         _, left, right = self.data.ticks_at(ns)
         t = self.dataset_s(now)
         if self.spike is not None and self.spike <= t < self.spike + 0.03:
             left, right = left + 1000000, right + 1000000
-        return words32(left, self.low_first) + words32(right, self.low_first) + [self.heartbeat & 0xFFFF,
-                                                                                  self.request & 0xFFFF]
+        return words32(left, self.low_first) + words32(right, self.low_first) + [
+            self.heartbeat & 0xFFFF, self.request & 0xFFFF, self.relocalize & 0xFFFF]
 
     def tick(self, now):
         """One PLC cycle (10 ms): heartbeat and fix requests."""
         t = self.dataset_s(now)
         if not (self.freeze and self.freeze[0] <= t < self.freeze[1]):
             self.heartbeat += 1
+        if self.args.relocalize_at is not None and t >= self.args.relocalize_at and self.relocalize == 0:
+            self.relocalize = 1  # the vehicle's pose is unknown: mosaicloc must relocalize
         if self.args.request_period_ms > 0 and now >= self.next_request:
             self.request += 1
             self.requests_sent += 1
@@ -181,8 +184,9 @@ class Plc:
         moving = [f for f in errors if f["speed_mps"] >= 0.05]
         out = {
             "fixes_received": len(fixes),
-            "status_counts": [sum(1 for f in fixes if f["status"] == s) for s in range(4)],
+            "status_counts": [sum(1 for f in fixes if f["status"] == s) for s in range(5)],
             "requests": self.requests_sent,
+            "relocalize_requests": self.relocalize,
             "answered": len(answers),
             "answer_p50_ms": answers[len(answers) // 2] if answers else None,
             "answer_max_ms": answers[-1] if answers else None,
@@ -279,6 +283,7 @@ def main():
     parser.add_argument("--freeze-heartbeat")
     parser.add_argument("--delay")
     parser.add_argument("--spike", type=float)
+    parser.add_argument("--relocalize-at", type=float, help="dataset seconds: ask mosaicloc to relocalize")
     parser.add_argument("--out", required=True)
     args = parser.parse_args()
     plc = Plc(args)

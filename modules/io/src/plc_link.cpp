@@ -159,6 +159,7 @@ PlcInputs InputDecoder::Decode(const std::uint16_t* words, int base) {
   inputs.right_ticks = Ticks(map_.right_ticks, &right_, at(map_.right_ticks));
   inputs.plc_heartbeat = static_cast<std::uint32_t>(at(map_.plc_heartbeat));
   inputs.fix_request = static_cast<std::uint32_t>(at(map_.fix_request));
+  inputs.relocalize_request = static_cast<std::uint32_t>(at(map_.relocalize_request));
   return inputs;
 }
 

@@ -23,7 +23,7 @@ std::string RegisterField::Describe() const {
 }
 
 std::vector<const RegisterField*> RegisterMap::Inputs() const {
-  return {&left_ticks, &right_ticks, &plc_heartbeat, &fix_request};
+  return {&left_ticks, &right_ticks, &plc_heartbeat, &fix_request, &relocalize_request};
 }
 
 std::vector<const RegisterField*> RegisterMap::Outputs() const {
@@ -51,7 +51,7 @@ bool RegisterMap::Check(std::string* why) const {
   }
   // Counters, heartbeats, status and quality are plain integers.
   for (const RegisterField* field :
-       {&plc_heartbeat, &fix_request, &fix_status, &fix_quality, &fix_request_echo, &heartbeat}) {
+       {&plc_heartbeat, &fix_request, &relocalize_request, &fix_status, &fix_quality, &fix_request_echo, &heartbeat}) {
     if (field->scale != 1.0) return fail(fmt::format("{}: scale must be 1 (it is a plain integer)", field->name));
   }
   if (fix_quality.MaxCount() < 1000) return fail("fix_quality: must hold 0-1000 (unsigned, or 32 bits)");

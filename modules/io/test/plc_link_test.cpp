@@ -147,6 +147,7 @@ TEST_P(ClientWordOrder, ReadsInputsAndWritesFixesAsThePlcSeesThem) {
   SetTicks(plc, 2, 123456789U, order);
   plc.Set(4, 77);
   plc.Set(5, 3);
+  plc.Set(6, 2);
   PlcLinkOptions options = ClientOptions(port);
   for (RegisterField* field : {&options.registers.left_ticks, &options.registers.right_ticks,
                                &options.registers.fix_x, &options.registers.fix_y, &options.registers.fix_yaw}) {
@@ -160,6 +161,7 @@ TEST_P(ClientWordOrder, ReadsInputsAndWritesFixesAsThePlcSeesThem) {
   EXPECT_EQ(inputs.value().right_ticks, 123456789);
   EXPECT_EQ(inputs.value().plc_heartbeat, 77U);
   EXPECT_EQ(inputs.value().fix_request, 3U);
+  EXPECT_EQ(inputs.value().relocalize_request, 2U);
   EXPECT_GE(inputs.value().time, before);
   EXPECT_LE(inputs.value().time, MonotonicNow());
 
@@ -230,7 +232,7 @@ TEST(PlcClientTest, PlcRestartIsSurvived) {
   // The PLC is gone: failures, counted, no throw.
   const auto down = link->Read();
   ASSERT_FALSE(down.ok());
-  EXPECT_NE(down.error().find("holding registers 0-5 (left_ticks, right_ticks, plc_heartbeat, fix_request)"),
+  EXPECT_NE(down.error().find("holding registers 0-6 (left_ticks, right_ticks, plc_heartbeat, fix_request, relocalize_request)"),
             std::string::npos)
       << down.error();
   EXPECT_EQ(link->stats().read_errors, 1);
@@ -401,6 +403,7 @@ TEST(PlcRtuTest, ClientAndServerOverAPseudoTerminalPair) {
     s.right_ticks.address = 102;
     s.plc_heartbeat.address = 106;
     s.fix_request.address = 107;
+    s.relocalize_request.address = 108;
     s.fix_x.address = 200;
     s.fix_y.address = 202;
     s.fix_yaw.address = 204;
@@ -418,6 +421,7 @@ TEST(PlcRtuTest, ClientAndServerOverAPseudoTerminalPair) {
     c.right_ticks.address = 202;
     c.plc_heartbeat.address = 206;
     c.fix_request.address = 207;
+    c.relocalize_request.address = 208;
     const auto served = OpenPlcLink(server);
     const auto polling = OpenPlcLink(client);
     ASSERT_TRUE(polling->Write(PlcOutputs{10.0, 20.0, 0.1, 1, 999, 5, 6}).ok()) << polling->stats().last_error;

@@ -115,14 +115,16 @@ TEST(RegisterSpanTest, GroupsNeighboursAndNamesThem) {
   const auto reads = GroupIntoSpans(map.Inputs(), 8);
   ASSERT_EQ(reads.size(), 1U);
   EXPECT_EQ(reads[0].address, 0);
-  EXPECT_EQ(reads[0].count, 6);
-  EXPECT_EQ(reads[0].Describe(), "holding registers 0-5 (left_ticks, right_ticks, plc_heartbeat, fix_request)");
+  EXPECT_EQ(reads[0].count, 7);
+  EXPECT_EQ(reads[0].Describe(),
+            "holding registers 0-6 (left_ticks, right_ticks, plc_heartbeat, fix_request, relocalize_request)");
 
   RegisterMap apart;
   apart.fix_request.address = 40;
+  apart.relocalize_request.address = 41;
   const auto split = GroupIntoSpans(apart.Inputs(), 8);
   ASSERT_EQ(split.size(), 2U);
-  EXPECT_EQ(split[1].Describe(), "holding register 40 (fix_request)");
+  EXPECT_EQ(split[1].Describe(), "holding registers 40-41 (fix_request, relocalize_request)");
   // Writes never cover a gap: a register between two fields belongs to somebody else.
   RegisterMap gap;
   gap.heartbeat.address = 111;

@@ -49,6 +49,7 @@ struct PlcInputs {
   std::int32_t right_ticks = 0;
   std::uint32_t plc_heartbeat = 0;
   std::uint32_t fix_request = 0;
+  std::uint32_t relocalize_request = 0;
   core::Duration round_trip{};   ///< client role: the read request's round trip
 };
 
@@ -57,7 +58,7 @@ struct PlcOutputs {
   double x_mm = 0.0;
   double y_mm = 0.0;
   double yaw_rad = 0.0;
-  int status = 0;            ///< 0 none, 1 tracking, 2 degraded, 3 lost
+  int status = 0;            ///< 0 none, 1 tracking, 2 degraded, 3 lost, 4 off-map
   int quality = 0;           ///< 0-1000
   std::uint32_t request_echo = 0;
   std::uint32_t heartbeat = 0;

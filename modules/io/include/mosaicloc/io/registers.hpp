@@ -39,6 +39,9 @@ struct RegisterMap {
   RegisterField right_ticks{"right_ticks", 2, 32, true, 1.0};
   RegisterField plc_heartbeat{"plc_heartbeat", 4, 16, false, 1.0};
   RegisterField fix_request{"fix_request", 5, 16, false, 1.0};
+  /// The PLC adds 1 when the vehicle's pose is unknown (moved while switched off, put down
+  /// elsewhere): mosaicloc relocalizes without trusting its estimate.
+  RegisterField relocalize_request{"relocalize_request", 6, 16, false, 1.0};
   // Outputs.
   RegisterField fix_x{"fix_x", 100, 32, true, 0.01};    ///< mm per count
   RegisterField fix_y{"fix_y", 102, 32, true, 0.01};    ///< mm per count
@@ -60,7 +63,7 @@ struct RegisterSpan {
   int address = 0;
   int count = 0;
   std::vector<const RegisterField*> fields;
-  /// "holding registers 0-5 (left_ticks, right_ticks, plc_heartbeat, fix_request)".
+  /// "holding registers 0-6 (left_ticks, right_ticks, plc_heartbeat, fix_request, relocalize_request)".
   std::string Describe() const;
 };
 
