@@ -1,14 +1,21 @@
 #!/usr/bin/env bash
-# The localization target table: for each floor (procedural concrete and the real textures
-# of ../shared/data) and each speed (half and three times the overlap speed limit at 30 Hz),
-# map the floor with a slow 30 m run, drive it with other noise and with wheels 2 % and 2.5 %
-# larger than calibrated (and the simulator's slip), and replay with the mosaic, with dead
-# reckoning only and with frame-to-frame visual odometry only.
-# Usage: benchmarks/localization_table.sh [MOSAICLOC] [WORK_DIR]   (prints a table)
+# The localization target tables, on procedural concrete and the real textures of
+# ../shared/data, with wheels 2 % and 2.5 % larger than calibrated (and the simulator's slip).
+#  straight: for each speed (half and three times the overlap speed limit at 30 Hz), map the
+#    floor with a slow 30 m run, drive it with other noise, and replay with the mosaic, with
+#    dead reckoning only and with frame-to-frame visual odometry only.
+#  excursion: map a network of lanes in one slow lap, drive two laps that take lanes the map
+#    does not have (1.5 m/s and 7.2 m/s asked; the route's turns cap the speed), and replay
+#    with the mosaic: wrong fixes, the frames off the map and the returns onto it.
+# Every row counts wrong fixes (more than 1 mm from the truth): a lock never lost proves
+# nothing if it held onto the wrong place.
+# Usage: benchmarks/localization_table.sh [MOSAICLOC] [WORK_DIR] [TABLES]   (prints the tables;
+#        TABLES: "straight excursion", the default, or either)
 set -euo pipefail
 HERE="$(cd "$(dirname "$0")/.." && pwd)"
 MOSAICLOC=${1:-$HERE/build/release/app/mosaicloc}
 WORK=${2:-$(mktemp -d)}
+TABLES=${3:-straight excursion}
 TEXTURES=${MOSAICLOC_SHARED_DATA:-$HERE/../shared/data}/textures
 mkdir -p "$WORK"
 printf 'route: {straight_length_m: 30.0, max_accel_mps2: 3.0}\n' > "$WORK/route.yaml"
@@ -20,7 +27,8 @@ for t in asphalt_02_2048.jpg brick_floor_1024.png; do
   [ -f "$TEXTURES/$t" ] && floors+=("$TEXTURES/$t")
 done
 
-printf '%-12s %6s %-16s %8s %6s %10s %10s %10s %9s %9s\n' floor "m/s" mode "fix %" losses "rms mm" "max mm" "head° rms" "p50 ms" "p99 ms"
+if [[ " $TABLES " == *" straight "* ]]; then
+printf '%-12s %6s %-16s %8s %6s %6s %10s %10s %10s %9s %9s\n' floor "m/s" mode "fix %" losses wrong "rms mm" "max mm" "head° rms" "p50 ms" "p99 ms"
 for floor in "${floors[@]}"; do
   name=$(basename "$floor"); name=${name%%_*}; name=${name%%.*}
   "$MOSAICLOC" -q simulate --out "$WORK/$name-map" --overwrite --config "$WORK/route.yaml" --floor "$floor" \
@@ -38,12 +46,65 @@ for floor in "${floors[@]}"; do
 import json, sys
 m = json.load(open(sys.argv[1]))
 f = lambda v, fmt: "n/a" if v is None else fmt % v
-print("%-12s %6s %-16s %8s %6s %10s %10s %10s %9s %9s" % (
+print("%-12s %6s %-16s %8s %6s %6s %10s %10s %10s %9s %9s" % (
     sys.argv[2], sys.argv[3], sys.argv[4], f(None if m["fix_rate"] is None else 100 * m["fix_rate"], "%.1f"),
-    f(m["lock_losses"], "%d"), f(m["position_rms_mm"], "%.4f"), f(m["position_max_mm"], "%.4f"),
+    f(m["lock_losses"], "%d"), f(m["wrong_fixes"], "%d"), f(m["position_rms_mm"], "%.4f"), f(m["position_max_mm"], "%.4f"),
     f(m["heading_rms_deg"], "%.4f"), f(m["latency_p50_ms"], "%.2f"), f(m["latency_p99_ms"], "%.2f")))
 PY
     done
   done
 done
-echo "overlap speed limit at 30 Hz with beta = 0.5: 2.4 m/s; datasets and reports in $WORK"
+echo "overlap speed limit at 30 Hz with beta = 0.5: 2.4 m/s"
+fi
+
+if [[ " $TABLES " == *" excursion "* ]]; then
+printf 'route: {network_scale: 0.5}\n' > "$WORK/network.yaml"
+printf 'route: {network_scale: 0.5}\nencoders: {left_radius_error: 0.02, right_radius_error: 0.025}\n' \
+  > "$WORK/network-drive.yaml"
+echo
+printf '%-12s %6s %8s %6s %6s %9s %8s %9s %7s %7s %10s %10s %9s\n' floor "top m/s" "fix %" losses wrong \
+  "worst mm" "off-map" "DR max mm" returns "to fix" "1st fix mm" "fix rms mm" "p99 ms"
+for floor in "${floors[@]}"; do
+  name=$(basename "$floor"); name=${name%%_*}; name=${name%%.*}
+  "$MOSAICLOC" -q simulate --out "$WORK/$name-network-map" --overwrite --config "$WORK/network.yaml" --floor "$floor" \
+    --route network --laps 1 --speed-mps 0.5 --seed 81 >/dev/null
+  "$MOSAICLOC" -q map build --dataset "$WORK/$name-network-map" --out "$WORK/$name-network.mosaic" --overwrite >/dev/null
+  for speed in 1.5 7.2; do
+    run="$WORK/$name-network-$speed"
+    "$MOSAICLOC" -q simulate --out "$run" --overwrite --config "$WORK/network-drive.yaml" --floor "$floor" \
+      --route network --laps 2 --speed-mps "$speed" --seed 82 >/dev/null
+    "$MOSAICLOC" -q replay --dataset "$run" --map "$WORK/$name-network.mosaic" --out "$run-mosaic" >/dev/null
+    python3 - "$run-mosaic" "$run/groundtruth/data.tum" "$name" <<'PY'
+import bisect, json, math, sys
+report, truth_file, name = sys.argv[1:4]
+m = json.load(open(report + "/metrics.json"))
+truth = []
+for line in open(truth_file):
+    if not line.startswith("#") and line.strip():
+        t, x, y = (float(v) for v in line.split()[:3])
+        truth.append((round(t * 1e9), x * 1000.0, y * 1000.0))
+times = [t for t, _, _ in truth]
+errors = []
+for line in open(report + "/fixes.csv"):
+    f = line.split(",")
+    if line.startswith("#") or f[6] != "1":
+        continue
+    ns, x, y = int(f[0]), float(f[1]), float(f[2])
+    i = min(max(bisect.bisect_left(times, ns), 1), len(truth) - 1)
+    (t0, x0, y0), (t1, x1, y1) = truth[i - 1], truth[i]
+    a = (ns - t0) / (t1 - t0)
+    errors.append(math.hypot(x - (x0 + a * (x1 - x0)), y - (y0 + a * (y1 - y0))))
+fix_rms = math.sqrt(sum(e * e for e in errors) / len(errors)) if errors else float("nan")
+f = lambda v, fmt: "n/a" if v is None else fmt % v
+print("%-12s %6s %8s %6s %6s %9s %8s %9s %7s %7s %10s %10s %9s" % (
+    name, f(m["max_speed_mps"], "%.2f"), f(100 * m["fix_rate"], "%.1f"), f(m["lock_losses"], "%d"),
+    f(m["wrong_fixes"], "%d"), f(m["max_wrong_fix_mm"], "%.1f"), f(m["off_map_frames"], "%d"),
+    f(m["off_map_max_error_mm"], "%.2f"), f(m["reentries"], "%d"), f(m["reentry_frames_to_fix_max"], "%d"),
+    f(m["reentry_first_fix_error_max_mm"], "%.4f"), "%.4f" % fix_rms, f(m["latency_p99_ms"], "%.2f")))
+PY
+  done
+done
+echo "excursion: 'to fix' and '1st fix mm' are the most frames from a return onto the map to the first fix and"
+echo "the largest error of those first fixes; 'DR max mm' the worst dead-reckoning error off the map"
+fi
+echo "datasets and reports in $WORK"

@@ -1,5 +1,5 @@
 # The main job on real textures: map a floor with a slow run, drive it faster with other
-# noise and wheel errors, localize against the map. Error bounds of design.md section 7,
+# noise and wheel errors, localize against the map. Error bounds of design.md section 8,
 # no lock loss, and on the repeating brick floor no confident wrong fix.
 source "$(dirname "$0")/lib.sh"
 TEXTURES="${MOSAICLOC_SHARED_DATA:-}/textures"
