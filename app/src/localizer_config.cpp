@@ -64,6 +64,7 @@ void ReadLocalizerConfig(const YAML::Node& node, const std::string& file_name, L
   refine.Optional("passes", &o.tracker.refine_passes, IntegerInRange(0, 5));
   refine.Optional("min_zncc", &o.tracker.min_zncc, InRange(-0.99, 0.99));
   refine.Optional("visp_pyramid_levels", &o.tracker.refine.visp_pyramid_levels, IntegerInRange(1, 4));
+  refine.Optional("min_mapped_fraction", &o.tracker.refine.min_mapped_fraction, InRange(0.01, 1.0));
   refine.Finish();
 
   core::YamlMap solver = root.OptionalMap("solver");
