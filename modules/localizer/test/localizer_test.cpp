@@ -99,7 +99,8 @@ class Drive : public ::testing::Test {
   // `slip_mm`: from 0.5 s on, both wheels count that much more travel than was driven (a
   // wheel slip the odometry model does not expect).
   Run Localize(double seconds, double speed_mps, const Pose2& start_error, double start_sigma_mm = 1.0,
-               double slip_mm = 0.0, int reanchor_after = LocalizerOptions{}.reanchor_after_rejections) {
+               double slip_mm = 0.0, int reanchor_after = LocalizerOptions{}.reanchor_after_rejections,
+               bool relocalize = false) {
     const camera::IdealCamera camera{camera::IdealCameraOptions{}};
     sim::ImagingOptions imaging;
     const sim::Imager imager(*floor_, camera, imaging, 7);
@@ -116,6 +117,7 @@ class Drive : public ::testing::Test {
                          Eigen::Vector3d(start_sigma_mm * start_sigma_mm, start_sigma_mm * start_sigma_mm, 1e-4)
                              .asDiagonal());
     localizer.AddEncoders(Timestamp(), 0, 0);
+    if (relocalize) localizer.RequestRelocalization();
     Run run;
     int encoder_step = 0;
     for (int frame = 1; frame < static_cast<int>(seconds * 30.0); ++frame) {
@@ -229,6 +231,47 @@ TEST_F(Drive, KidnappedStartWithAConfidentPriorRelocalizesWithinTenFrames) {
     EXPECT_LT(run.errors_mm[i], 0.1) << "frame " << i + 1;
   }
   EXPECT_LT(run.errors_mm.back(), 0.05);
+}
+
+// A start 100 mm off that claims 20 mm: the place the search finds lies five sigmas from the
+// prediction, outside its gate, and is not taken however well it matches. The misses where the
+// view must be on the map are then evidence of a kidnap, and after five of them the search
+// without the prior takes the place.
+TEST_F(Drive, PlaceOutsideThePriorsGateIsTakenOnlyOnEvidenceOfAKidnap) {
+  const Run run = Localize(1.0, 0.3, Pose2(100.0, 0.0, 0.0), 20.0);
+  ASSERT_GE(run.first_fix_frame, 1) << (run.reasons.empty() ? std::string() : run.reasons.front());
+  EXPECT_GE(run.first_fix_frame, 6) << "a place outside the gate was taken before the evidence";
+  EXPECT_LE(run.first_fix_frame, 10);
+  ASSERT_FALSE(run.reasons.empty());
+  EXPECT_NE(run.reasons.front().find("none within the prediction's uncertainty"), std::string::npos)
+      << run.reasons.front();
+  EXPECT_EQ(run.relocalizations, 1);
+  for (std::size_t i = 0; i < run.fix_errors_mm.size(); ++i) EXPECT_LT(run.fix_errors_mm[i], 0.1) << "frame " << i + 1;
+}
+
+// The same start off the map, but known to be untrustworthy (the vehicle was moved): the
+// request drops the prior at once, and the first frame is fixed where the vehicle is.
+TEST_F(Drive, RequestedRelocalizationIgnoresTheConfidentPrior) {
+  const Run without = Localize(0.5, 0.3, Pose2(0.0, 300.0, 0.0));
+  EXPECT_EQ(without.fixes, 0) << "the prior puts the view off the map: nothing to search for";
+  const Run run = Localize(0.5, 0.3, Pose2(0.0, 300.0, 0.0), 1.0, 0.0, LocalizerOptions{}.reanchor_after_rejections,
+                           /*relocalize=*/true);
+  EXPECT_EQ(run.first_fix_frame, 1) << (run.reasons.empty() ? std::string() : run.reasons.front());
+  EXPECT_EQ(run.relocalizations, 1);
+  EXPECT_LT(run.errors_mm.back(), 0.05);
+}
+
+TEST_F(Drive, MapCoverageIsTheShareOfTheViewOnTheMap) {
+  const camera::IdealCamera camera{camera::IdealCameraOptions{}};  // 160 x 120 mm
+  // The map covers x 0..896, y -384..0.
+  EXPECT_DOUBLE_EQ(MapCoverage(*reference_, camera, Pose2(400.0, -200.0, 0.0), 0.0, 2), 1.0);
+  EXPECT_NEAR(MapCoverage(*reference_, camera, Pose2(896.0, -200.0, 0.0), 0.0, 2), 0.5, 0.03) << "half over the end";
+  EXPECT_NEAR(MapCoverage(*reference_, camera, Pose2(896.0, -200.0, 0.0), 0.0, 0), 0.5, 0.01) << "level 0";
+  EXPECT_DOUBLE_EQ(MapCoverage(*reference_, camera, Pose2(400.0, 2000.0, 0.3), 0.0, 2), 0.0);
+  // Grown by 100 mm on every side the region (y -280..40) reaches 40 mm past y = 0: 280 of 320 mm mapped.
+  EXPECT_NEAR(MapCoverage(*reference_, camera, Pose2(400.0, -120.0, 0.0), 100.0, 2), 280.0 / 320.0, 0.03);
+  // Turned a quarter, the view is 120 mm wide along x: 60 mm past the end is half of it.
+  EXPECT_NEAR(MapCoverage(*reference_, camera, Pose2(896.0, -200.0, 0.5 * std::numbers::pi), 0.0, 2), 0.5, 0.03);
 }
 
 // A 3 mm slip puts the odometry off by far more than the filter believes: every fix is
