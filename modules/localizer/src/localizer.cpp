@@ -181,9 +181,9 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   const Eigen::Matrix3d prior_camera_covariance =
       CameraCovariance(predicted, options_.vehicle_from_camera, predicted_covariance);
 
-  // A known kidnap (requested, or the view missing the map where the prediction and its
-  // uncertainty say it is on it, frame after frame), or a prediction too uncertain for the tracker's search
-  // range: relocalize on the coarse map (design.md section 7).
+  // A known kidnap (requested, or the view missing the map frame after frame where the
+  // prediction and its uncertainty say it is on it), or a prediction too uncertain for the
+  // tracker's search range: relocalize on the coarse map (design.md section 7).
   if (options_.relocalize_after_misses > 0 && unmatched_run_ >= options_.relocalize_after_misses) kidnapped_ = true;
   const double prior_sigma_px =
       std::sqrt(std::max(prior_camera_covariance(0, 0), prior_camera_covariance(1, 1))) / camera_.mm_per_px();
