@@ -1,5 +1,6 @@
 #include "commands.hpp"
 #include "mosaicloc/dataset/trajectory.hpp"
+#include "mosaicloc/runtime/report.hpp"
 #include "report.hpp"
 
 namespace mosaicloc::app {
@@ -19,7 +20,7 @@ Action AddEvaluateCommand(CLI::App& app, const GlobalOptions& global) {
     const dataset::Trajectory estimate = dataset::ReadTum(args->estimate);
     const dataset::Trajectory groundtruth = dataset::ReadTum(args->groundtruth);
     const dataset::Metrics metrics =
-        WriteReport(args->out, estimate, groundtruth, dataset::Metrics{}, args->estimate.filename().string());
+        runtime::WriteReport(args->out, estimate, groundtruth, dataset::Metrics{}, args->estimate.filename().string());
     PrintMetrics(args->out, metrics, global.json);
   };
 }

@@ -123,21 +123,4 @@ LocalizerConfig LoadLocalizerConfig(const std::filesystem::path& file) {
   return config;
 }
 
-mosaic::PrefetchOptions PrefetchOptionsFor(const LocalizerConfig& config, int width_px, int height_px,
-                                           double mm_per_px) {
-  mosaic::PrefetchOptions prefetch;
-  prefetch.horizon_s = config.prefetch_horizon_s;
-  prefetch.view_radius_mm = 0.5 * std::hypot(width_px, height_px) * mm_per_px + 30.0;
-  prefetch.min_turn_radius_mm = config.prefetch_turn_radius_mm;
-  return prefetch;
-}
-
-void PredictTiles(mosaic::TilePrefetcher& prefetcher, const estimation::MotionState& motion,
-                  const core::Pose2& vehicle_from_camera) {
-  const double heading = motion.world_from_vehicle.yaw_rad();
-  prefetcher.Predict(motion.world_from_vehicle * vehicle_from_camera,
-                     motion.forward_speed_mm_per_s * Eigen::Vector2d(std::cos(heading), std::sin(heading)),
-                     motion.yaw_rate_rad_per_s);
-}
-
 }  // namespace mosaicloc::app

@@ -4,24 +4,9 @@
 #include <optional>
 #include <string>
 
-#include "mosaicloc/core/timestamp.hpp"
 #include "mosaicloc/dataset/evaluation.hpp"
-#include "mosaicloc/dataset/fixes.hpp"
-#include "mosaicloc/dataset/trajectory.hpp"
-#include "mosaicloc/localizer/localizer.hpp"
 
 namespace mosaicloc::app {
-
-/// Writes a report directory (design.md section 4): estimate.tum, and when ground truth is
-/// given metrics.json and the PNG plots. `metrics` carries what the caller knows (frames,
-/// fixes, timing); the evaluation fills the accuracy figures. Returns the final metrics.
-dataset::Metrics WriteReport(const std::filesystem::path& directory, const dataset::Trajectory& estimate,
-                             const std::optional<dataset::Trajectory>& groundtruth, dataset::Metrics metrics,
-                             const std::string& title);
-
-/// The row of fixes.csv for a localized frame: the visual fix when one was accepted, else
-/// the filter's estimate, with the lock state as the PLC receives it.
-dataset::FrameReport FrameReportOf(core::Timestamp time, const localizer::FrameOutcome& outcome);
 
 /// Prints the headline figures, or the whole metrics as JSON.
 void PrintMetrics(const std::filesystem::path& directory, const dataset::Metrics& metrics, bool json);

@@ -44,7 +44,9 @@
 #include "mosaicloc/mosaic/tile_cache.hpp"
 #include "mosaicloc/mosaic/tile_store.hpp"
 #include "mosaicloc/tracking/reference.hpp"
-#include "report.hpp"
+#include "mosaicloc/runtime/map_session.hpp"
+#include "mosaicloc/runtime/report.hpp"
+#include "mosaicloc/runtime/settings.hpp"
 #include "run_config.hpp"
 
 namespace mosaicloc::app {
@@ -187,28 +189,15 @@ class LiveRun {
           const dataset::CameraInfo& camera, const dataset::VehicleInfo& vehicle,
           const std::filesystem::path& record)
       : config_(config), global_(global), source_(std::move(source)), camera_info_(camera) {
-    store_ = mosaic::TileStore::Open(config.map, /*writable=*/false);
-    if (std::abs(store_->grid().mm_per_px - camera.mm_per_px) > 1e-9) {
-      core::ThrowInvalidInput(fmt::format("{}: map resolution {} mm/px differs from the camera's {} mm/px",
-                                          config.map.string(), store_->grid().mm_per_px, camera.mm_per_px));
-    }
-    cache_ = std::make_unique<mosaic::TileCache>(*store_, config.localizer.cache_budget_mib << 20);
-    renderer_ = std::make_unique<mosaic::MapRenderer>(*cache_);
-    reference_ = std::make_unique<tracking::MapReference>(*renderer_, 0);
-    if (config.localizer.prefetch_horizon_s > 0.0) {
-      prefetcher_ = std::make_unique<mosaic::TilePrefetcher>(
-          *cache_, PrefetchOptionsFor(config.localizer, camera.width_px, camera.height_px, camera.mm_per_px));
-    }
-    localizer::LocalizerOptions options = config.localizer.localizer;
-    options.odometry.left_wheel_radius_mm = vehicle.left_wheel_radius_mm;
-    options.odometry.right_wheel_radius_mm = vehicle.right_wheel_radius_mm;
-    options.odometry.track_width_mm = vehicle.track_width_mm;
-    options.odometry.ticks_per_revolution = vehicle.ticks_per_revolution;
-    options.vehicle_from_camera = camera.vehicle_from_camera;
-    options.odometry_timing_sigma_ms = config.encoder_timing_sigma_ms;
+    runtime::MapSessionOptions map_options;
+    map_options.cache_budget_bytes = config.localizer.cache_budget_mib << 20;
+    map_options.camera_mm_per_px = camera.mm_per_px;
+    if (config.localizer.prefetch_horizon_s > 0.0) map_options.prefetch = runtime::PrefetchOptionsFor(config.localizer, camera);
+    map_ = std::make_unique<runtime::MapSession>(config.map, map_options);
     localizer_ = std::make_unique<localizer::Localizer>(
-        camera::IdealCamera(camera::IdealCameraOptions{camera.width_px, camera.height_px, camera.mm_per_px}), options,
-        *reference_);
+        camera::IdealCamera(camera::IdealCameraOptions{camera.width_px, camera.height_px, camera.mm_per_px}),
+        runtime::LocalizerOptionsFor(config.localizer.localizer, camera, vehicle, config.encoder_timing_sigma_ms),
+        map_->reference());
     link_ = io::OpenPlcLink(config.plc);
     if (!record.empty()) {
       dataset::DatasetInfo info;
@@ -227,12 +216,9 @@ class LiveRun {
   // Runs until the source ends, a signal arrives, or the duration passes. Returns the
   // summary as JSON.
   nlohmann::json Run(double duration_s) {
-    const double sigma_rad = config_.start_sigma_deg * std::numbers::pi / 180.0;
     started_ = io::MonotonicNow();
     localizer_->Initialize(started_, config_.start,
-                           Eigen::Vector3d(config_.start_sigma_mm * config_.start_sigma_mm,
-                                           config_.start_sigma_mm * config_.start_sigma_mm, sigma_rad * sigma_rad)
-                               .asDiagonal());
+                           runtime::StartCovariance(config_.start_sigma_mm, config_.start_sigma_deg));
     Publish(false, 0.0);
     core::Log().info("run: camera {}; PLC {}; map {}", source_->Describe(), config_.plc.Describe(), config_.map.string());
 
@@ -466,9 +452,9 @@ class LiveRun {
     // a prediction every 30 ms is all the loaders need: from frames, or from odometry alone
     // when frames stop.
     const Clock::time_point now = Clock::now();
-    if (prefetcher_ && localizer_->initialized() && now - last_prediction_ >= std::chrono::milliseconds(30)) {
+    if (map_->prefetcher() && localizer_->initialized() && now - last_prediction_ >= std::chrono::milliseconds(30)) {
       last_prediction_ = now;
-      PredictTiles(*prefetcher_, motion, camera_info_.vehicle_from_camera);
+      runtime::PredictTiles(*map_->prefetcher(), motion, camera_info_.vehicle_from_camera);
     }
     const std::lock_guard lock(published_mutex_);
     published_.motion = motion;
@@ -521,7 +507,7 @@ class LiveRun {
       if (relocalize_pending_.exchange(false)) localizer_->RequestRelocalization();
       const localizer::FrameOutcome outcome = localizer_->ProcessFrame(frame->time, frame->image);
       ++stats_.processed;
-      if (recorder_) recorder_->Report(FrameReportOf(frame->time, outcome));
+      if (recorder_) recorder_->Report(runtime::FrameReportOf(frame->time, outcome));
       if (outcome.fixed) {
         ++stats_.fixes;
       } else {
@@ -643,12 +629,8 @@ class LiveRun {
   const GlobalOptions& global_;
   std::unique_ptr<io::FrameSource> source_;
   dataset::CameraInfo camera_info_;
-  std::unique_ptr<mosaic::TileStore> store_;
-  std::unique_ptr<mosaic::TileCache> cache_;
-  std::unique_ptr<mosaic::TilePrefetcher> prefetcher_;  // after cache_: stops before the cache goes
+  std::unique_ptr<runtime::MapSession> map_;  // before the localizer, which renders from it
   Clock::time_point last_prediction_{};  // of the prefetcher; Publish runs on the tracking thread
-  std::unique_ptr<mosaic::MapRenderer> renderer_;
-  std::unique_ptr<tracking::MapReference> reference_;
   std::unique_ptr<localizer::Localizer> localizer_;
   std::unique_ptr<io::PlcLink> link_;
   std::unique_ptr<Recorder> recorder_;

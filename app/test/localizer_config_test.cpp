@@ -37,6 +37,7 @@ TEST(LocalizerConfig, DefaultFileEqualsCompiledDefaults) {
   EXPECT_EQ(a.refine_passes, b.refine_passes);
   EXPECT_EQ(a.min_zncc, b.min_zncc);
   EXPECT_EQ(a.refine.visp_pyramid_levels, b.refine.visp_pyramid_levels);
+  EXPECT_EQ(a.refine.min_mapped_fraction, b.refine.min_mapped_fraction);
   EXPECT_EQ(a.solver.loss, b.solver.loss);
   EXPECT_EQ(a.solver.loss_scale_mm, b.solver.loss_scale_mm);
   EXPECT_EQ(a.solver.outlier_threshold_mm, b.solver.outlier_threshold_mm);
@@ -53,6 +54,7 @@ TEST(LocalizerConfig, DefaultFileEqualsCompiledDefaults) {
   EXPECT_EQ(l.lock.regain_after_fixes, m.lock.regain_after_fixes);
   EXPECT_EQ(l.lock.lost_above_sigma_mm, m.lock.lost_above_sigma_mm);
   EXPECT_EQ(l.relocalize_after_misses, m.relocalize_after_misses);
+  EXPECT_EQ(l.on_map_coverage, m.on_map_coverage);
   EXPECT_EQ(l.filter.wheel_scale_sigma, m.filter.wheel_scale_sigma);
   EXPECT_EQ(l.filter.wheel_scale_walk_per_sqrt_m, m.filter.wheel_scale_walk_per_sqrt_m);
   EXPECT_EQ(loaded.start_sigma_mm, compiled.start_sigma_mm);
@@ -76,6 +78,22 @@ TEST(LocalizerConfig, EveryProblemIsReportedWithFileLineAndKey) {
     EXPECT_NE(message.find("did you mean 'method'"), std::string::npos) << message;
     EXPECT_NE(message.find("lost_after_misses must be at least degraded_after_misses"), std::string::npos) << message;
   }
+}
+
+// Off the map must mean less mapped than a relocalized place may be: a lower share is refused
+// with the file, line and key.
+TEST(LocalizerConfig, OnMapCoverageBelowTheRelocalizationShareIsRefused) {
+  LocalizerConfig config;
+  try {
+    ReadLocalizerConfig(YAML::Load("lock:\n  on_map_coverage: 0.5\n"), "site.yaml", &config);
+    FAIL() << "expected an error";
+  } catch (const core::Error& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("site.yaml:2"), std::string::npos) << message;
+    EXPECT_NE(message.find("on_map_coverage"), std::string::npos) << message;
+  }
+  ReadLocalizerConfig(YAML::Load("lock:\n  on_map_coverage: 0.9\n"), "site.yaml", &config);
+  EXPECT_EQ(config.localizer.on_map_coverage, 0.9);
 }
 
 }  // namespace

@@ -1,0 +1,58 @@
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <string>
+
+#include <Eigen/Core>
+
+#include "mosaicloc/core/pose2.hpp"
+#include "mosaicloc/dataset/evaluation.hpp"
+#include "mosaicloc/runtime/settings.hpp"
+
+namespace mosaicloc::runtime {
+
+enum class ReplayMode {
+  kMosaic,          ///< localize against the map (the product)
+  kDeadReckoning,   ///< wheel odometry alone, from the start pose
+  kVisualOdometry,  ///< frame-to-frame registration chained without a map
+};
+
+struct ReplayOptions {
+  std::filesystem::path dataset;
+  std::filesystem::path map;  ///< kMosaic only
+  std::filesystem::path out;  ///< the report directory
+  ReplayMode mode = ReplayMode::kMosaic;
+  LocalizationSettings settings;
+  /// kMosaic: start this far from the true start, in the start's vehicle frame (a kidnapped
+  /// vehicle; relocalization must find it).
+  std::optional<core::Pose2> start_offset;
+  /// kMosaic: the start is not to be trusted; relocalize without it.
+  bool relocalize = false;
+  /// kMosaic: load the map's tiles ahead on the prefetcher's threads, as a live run does;
+  /// the estimates do not change, the processing times are the tracking thread's.
+  bool prefetch = false;
+};
+
+/// What a replay did; the report directory holds the rest.
+struct ReplaySummary {
+  std::filesystem::path report;
+  dataset::Metrics metrics;
+  std::int64_t encoder_samples_rejected = 0;
+  // kMosaic only:
+  std::int64_t tiles_loaded = 0;
+  std::int64_t relocalizations = 0;
+  Eigen::Vector2d wheel_scale_error = Eigen::Vector2d::Zero();  ///< learnt (left, right), 0.02 = 2 %
+  Eigen::Vector2d wheel_scale_sigma = Eigen::Vector2d::Zero();
+};
+
+/// Replays a dataset in `options.mode` and writes the report (design.md section 4): a
+/// deterministic run of what `run` does live, one thread, frames processed once the encoder
+/// sample after them is in (each fix late, as on a vehicle). `progress` (may be empty) is
+/// told the share of the dataset done, 0..1. Throws core::Error (invalid input) naming the
+/// file or setting at fault.
+ReplaySummary Replay(const ReplayOptions& options, const std::function<void(double)>& progress = {});
+
+}  // namespace mosaicloc::runtime

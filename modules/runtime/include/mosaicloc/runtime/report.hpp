@@ -1,0 +1,27 @@
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <string>
+
+#include "mosaicloc/core/timestamp.hpp"
+#include "mosaicloc/dataset/evaluation.hpp"
+#include "mosaicloc/dataset/fixes.hpp"
+#include "mosaicloc/dataset/trajectory.hpp"
+#include "mosaicloc/localizer/localizer.hpp"
+
+namespace mosaicloc::runtime {
+
+/// Writes a report directory (design.md section 4): estimate.tum, and when ground truth is
+/// given metrics.json and the PNG plots. `metrics` carries what the caller knows (frames,
+/// fixes, timing, wrong fixes); the evaluation fills the accuracy figures. Returns the final
+/// metrics.
+dataset::Metrics WriteReport(const std::filesystem::path& directory, const dataset::Trajectory& estimate,
+                             const std::optional<dataset::Trajectory>& groundtruth, dataset::Metrics metrics,
+                             const std::string& title);
+
+/// The row of fixes.csv for a localized frame: the visual fix when one was accepted, else
+/// the filter's estimate, with the lock state as the PLC receives it.
+dataset::FrameReport FrameReportOf(core::Timestamp time, const localizer::FrameOutcome& outcome);
+
+}  // namespace mosaicloc::runtime

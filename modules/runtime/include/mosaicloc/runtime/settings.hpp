@@ -1,0 +1,45 @@
+#pragma once
+
+#include <cstddef>
+
+#include "mosaicloc/core/pose2.hpp"
+#include "mosaicloc/dataset/dataset.hpp"
+#include "mosaicloc/estimation/pose_filter.hpp"
+#include "mosaicloc/localizer/localizer.hpp"
+#include "mosaicloc/mosaic/prefetcher.hpp"
+
+namespace mosaicloc::runtime {
+
+/// What a localization job takes besides its inputs: the localizer's tuning and the map
+/// cache (config/default/localizer.yaml gives every key, its unit and default). The vehicle's
+/// geometry and vehicle_from_camera come from the dataset or the run's vehicle, never from
+/// here (LocalizerOptionsFor).
+struct LocalizationSettings {
+  localizer::LocalizerOptions localizer;
+  std::size_t cache_budget_mib = 256;
+  double prefetch_horizon_s = 1.0;  ///< how far ahead the prefetcher loads the map's tiles (0: not at all)
+  double prefetch_turn_radius_mm = 500.0;  ///< tightest turn whose branches are also loaded (0: none)
+  double start_sigma_mm = 1.0;     ///< uncertainty of the starting pose given to the filter
+  double start_sigma_deg = 0.5;
+  double required_overlap = 0.5;   ///< beta of the overlap speed limit
+};
+
+/// The localizer options for one camera on one vehicle: the configured tuning and odometry
+/// error model, the vehicle's wheel geometry, the camera's mounting, and the encoder time
+/// stamps' uncertainty (0 for exact clocks).
+localizer::LocalizerOptions LocalizerOptionsFor(const localizer::LocalizerOptions& configured,
+                                                const dataset::CameraInfo& camera, const dataset::VehicleInfo& vehicle,
+                                                double encoder_timing_sigma_ms);
+
+/// The prefetcher's options: the configured horizon and turns, and the camera's footprint
+/// (its half diagonal) with the tracker's search margin around it.
+mosaic::PrefetchOptions PrefetchOptionsFor(const LocalizationSettings& settings, const dataset::CameraInfo& camera);
+
+/// Asks `prefetcher` for the tiles along the path the motion state predicts for the camera.
+void PredictTiles(mosaic::TilePrefetcher& prefetcher, const estimation::MotionState& motion,
+                  const core::Pose2& vehicle_from_camera);
+
+/// The starting pose's covariance from the settings' start uncertainty.
+Eigen::Matrix3d StartCovariance(double start_sigma_mm, double start_sigma_deg);
+
+}  // namespace mosaicloc::runtime

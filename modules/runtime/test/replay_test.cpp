@@ -1,0 +1,151 @@
+#include "mosaicloc/runtime/replay.hpp"
+
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "mosaicloc/core/error.hpp"
+#include "mosaicloc/dataset/dataset.hpp"
+#include "mosaicloc/dataset/fixes.hpp"
+#include "mosaicloc/mosaic/builder.hpp"
+#include "mosaicloc/mosaic/tile_store.hpp"
+#include "mosaicloc/runtime/map_session.hpp"
+#include "mosaicloc/sim/simulator.hpp"
+#include "mosaicloc/test/test_support.hpp"
+
+namespace mosaicloc::runtime {
+namespace {
+
+// A 1.5 m straight run over procedural concrete, mapped at its true poses at 0.5 m/s and
+// driven again at 1.2 m/s with other noise and wheels 2 % larger than calibrated.
+class ReplayTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    scratch_ = new test::ScratchDir();
+    sim::SimulatorOptions options;
+    options.route.name = "straight";
+    options.route.straight_length_m = 1.5;
+    options.laps = 1;
+    options.route.speed_mps = 0.5;
+    options.seed = 5;
+    sim::Simulate(options, scratch_->path() / "map-run", false);
+    options.route.speed_mps = 1.2;
+    options.seed = 6;
+    options.encoders.left_radius_error = 0.02;
+    options.encoders.right_radius_error = 0.02;
+    sim::Simulate(options, scratch_->path() / "drive", false);
+
+    const dataset::DatasetReader reader(scratch_->path() / "map-run");
+    const dataset::Trajectory truth = reader.GroundTruth();
+    mosaic::MapBuilder builder(mosaic::MapGrid{}, mosaic::Blend::kFeather);
+    auto frames = reader.Frames();
+    while (const auto frame = frames.Next()) {
+      const auto pose = dataset::PoseAt(truth, frame->time, std::chrono::milliseconds(100));
+      if (pose) builder.AddFrame(frame->image, *pose * reader.info().camera.vehicle_from_camera, 0.25);
+    }
+    auto store = mosaic::TileStore::Create(scratch_->path() / "floor.mosaic", mosaic::MapGrid{});
+    builder.Write(*store);
+  }
+  static void TearDownTestSuite() {
+    delete scratch_;
+    scratch_ = nullptr;
+  }
+
+  static ReplayOptions Options(ReplayMode mode, const std::string& out) {
+    ReplayOptions options;
+    options.dataset = scratch_->path() / "drive";
+    options.map = scratch_->path() / "floor.mosaic";
+    options.out = scratch_->path() / out;
+    options.mode = mode;
+    return options;
+  }
+
+  static std::vector<dataset::FrameReport> Fixes(const ReplaySummary& summary) {
+    return dataset::ReadFixesCsv(summary.report / "fixes.csv");
+  }
+
+  static test::ScratchDir* scratch_;
+};
+test::ScratchDir* ReplayTest::scratch_ = nullptr;
+
+TEST_F(ReplayTest, MosaicLocalizesEveryFrameWithoutAWrongFix) {
+  std::vector<double> progress;
+  const ReplaySummary summary =
+      Replay(Options(ReplayMode::kMosaic, "mosaic"), [&progress](double f) { progress.push_back(f); });
+  const dataset::Metrics& m = summary.metrics;
+  ASSERT_TRUE(m.frames && m.fix_rate && m.wrong_fixes && m.position_rms_mm && m.lock_losses);
+  EXPECT_GE(*m.fix_rate, 0.98);
+  EXPECT_EQ(*m.wrong_fixes, 0);
+  EXPECT_EQ(*m.lock_losses, 0);
+  EXPECT_LT(*m.position_rms_mm, 0.02);
+  EXPECT_GT(summary.tiles_loaded, 0);
+  EXPECT_NEAR(summary.wheel_scale_error.x(), 0.02, 0.01) << "the filter learns the wheels' scale error";
+  const std::vector<dataset::FrameReport> rows = Fixes(summary);
+  EXPECT_EQ(static_cast<std::int64_t>(rows.size()), *m.frames) << "a row per frame";
+  ASSERT_FALSE(progress.empty());
+  EXPECT_LE(progress.back(), 1.0);
+  for (const char* file : {"estimate.tum", "metrics.json", "trajectory.png"}) {
+    EXPECT_TRUE(std::filesystem::exists(summary.report / file)) << file;
+  }
+}
+
+TEST_F(ReplayTest, PrefetchingChangesWhereTilesLoadNotTheEstimate) {
+  const ReplaySummary plain = Replay(Options(ReplayMode::kMosaic, "plain"));
+  ReplayOptions options = Options(ReplayMode::kMosaic, "prefetch");
+  options.prefetch = true;
+  const ReplaySummary prefetched = Replay(options);
+  EXPECT_EQ(test::ReadFile(plain.report / "fixes.csv"), test::ReadFile(prefetched.report / "fixes.csv"));
+  EXPECT_EQ(test::ReadFile(plain.report / "estimate.tum"), test::ReadFile(prefetched.report / "estimate.tum"));
+  options.settings.prefetch_horizon_s = 0.0;
+  EXPECT_THROW(Replay(options), core::Error);
+}
+
+TEST_F(ReplayTest, BaselinesMakeNoMapFix) {
+  const ReplaySummary dead = Replay(Options(ReplayMode::kDeadReckoning, "dead"));
+  ASSERT_TRUE(dead.metrics.fixes && dead.metrics.position_rms_mm);
+  EXPECT_EQ(*dead.metrics.fixes, 0);
+  EXPECT_GT(*dead.metrics.position_rms_mm, 1.0) << "2 % wheel error over 1.5 m";
+  for (const dataset::FrameReport& row : Fixes(dead)) {
+    EXPECT_EQ(row.status, 0);
+    EXPECT_EQ(row.reason, "dead-reckoning");
+  }
+  const ReplaySummary vo = Replay(Options(ReplayMode::kVisualOdometry, "vo"));
+  ASSERT_TRUE(vo.metrics.fix_rate);
+  EXPECT_GE(*vo.metrics.fix_rate, 0.9) << "consecutive frames overlap at 1.2 m/s";
+}
+
+TEST_F(ReplayTest, AStartOffTheMapRelocalizesOnlyWhenAsked) {
+  ReplayOptions options = Options(ReplayMode::kMosaic, "off");
+  options.start_offset = core::Pose2(0.0, 300.0, 0.0);
+  const ReplaySummary stays = Replay(options);
+  EXPECT_EQ(*stays.metrics.fixes, 0);
+  EXPECT_EQ(*stays.metrics.off_map_frames, *stays.metrics.frames) << "the prior says off the map";
+  options.out = scratch_->path() / "asked";
+  options.relocalize = true;
+  const ReplaySummary asked = Replay(options);
+  EXPECT_GE(*asked.metrics.fix_rate, 0.95);
+  EXPECT_EQ(*asked.metrics.wrong_fixes, 0);
+  EXPECT_EQ(asked.relocalizations, 1);
+}
+
+TEST(MapSession, RefusesAMapOfAnotherResolutionNamingIt) {
+  test::ScratchDir scratch;
+  mosaic::MapGrid grid;
+  grid.mm_per_px = 0.5;
+  mosaic::TileStore::Create(scratch.path() / "coarse.mosaic", grid);
+  MapSessionOptions options;
+  options.camera_mm_per_px = 0.25;
+  try {
+    MapSession session(scratch.path() / "coarse.mosaic", options);
+    ADD_FAILURE() << "no error";
+  } catch (const core::Error& error) {
+    EXPECT_EQ(error.kind(), core::ErrorKind::kInvalidInput);
+    EXPECT_NE(std::string(error.what()).find("coarse.mosaic: map resolution 0.5 mm/px differs from the camera's 0.25"),
+              std::string::npos)
+        << error.what();
+  }
+}
+
+}  // namespace
+}  // namespace mosaicloc::runtime
