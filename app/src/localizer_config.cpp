@@ -26,6 +26,7 @@ void ReadLocalizerConfig(const YAML::Node& node, const std::string& file_name, L
   templates.Optional("border_px", &o.tracker.templates.border_px, IntegerInRange(1, 256));
   templates.Optional("min_texture", &o.tracker.templates.min_texture, InRange(0.0, 1e6));
   templates.Optional("spares", &o.tracker.spare_templates, IntegerInRange(0, 64));
+  templates.Optional("edge_count", &o.edge_templates, IntegerInRange(0, 64));
   templates.Finish();
 
   core::YamlMap search = root.OptionalMap("search");

@@ -23,6 +23,7 @@ TEST(LocalizerConfig, DefaultFileEqualsCompiledDefaults) {
   EXPECT_EQ(a.templates.border_px, b.templates.border_px);
   EXPECT_EQ(a.templates.min_texture, b.templates.min_texture);
   EXPECT_EQ(a.spare_templates, b.spare_templates);
+  EXPECT_EQ(loaded.localizer.edge_templates, compiled.localizer.edge_templates);
   EXPECT_EQ(a.search_sigmas, b.search_sigmas);
   EXPECT_EQ(a.min_search_px, b.min_search_px);
   EXPECT_EQ(a.max_search_px, b.max_search_px);

@@ -28,6 +28,19 @@ Eigen::Matrix3d ComposeJacobian(const core::Pose2& a, const core::Pose2& b) {
   return j;
 }
 
+// The tracker for views partly off the map: edge_templates instead of the count.
+tracking::TrackerOptions EdgeTrackerOptions(const LocalizerOptions& options) {
+  tracking::TrackerOptions edge = options.tracker;
+  if (options.edge_templates > 0) edge.templates.count = options.edge_templates;
+  return edge;
+}
+
+// A template of the registration fell (partly) off the map.
+bool PartlyOffTheMap(const tracking::TrackResult& track) {
+  return std::any_of(track.templates.begin(), track.templates.end(),
+                     [](const tracking::TemplateReport& t) { return t.off_map; });
+}
+
 }  // namespace
 
 bool LocalizerOptions::Check(std::string* why) const {
@@ -47,6 +60,7 @@ bool LocalizerOptions::Check(std::string* why) const {
     return fail("reanchor_after_rejections must be 0 (never) or >= 2");
   }
   if (relocalize_after_misses < 0) return fail("relocalize_after_misses must be >= 0");
+  if (edge_templates < 0 || edge_templates > 64) return fail("edge_templates must be in [0, 64]");
   if (!(on_map_coverage > 0.0 && on_map_coverage <= 1.0)) return fail("on_map_coverage must be in (0, 1]");
   if (on_map_coverage < relocalize_min_coverage) {
     return fail("on_map_coverage must be at least relocalize_min_coverage: a kidnap search must be able to take "
@@ -116,6 +130,7 @@ Localizer::Localizer(const camera::IdealCamera& camera, const LocalizerOptions& 
       options_(options),
       reference_(reference),
       tracker_(camera, options.tracker),
+      edge_tracker_(camera, EdgeTrackerOptions(options)),
       odometry_(options.odometry),
       lock_(options.lock) {
   std::string why;
@@ -194,6 +209,9 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   } else {
     outcome.track = tracker_.Track(frame, prior_camera, prior_camera_covariance, reference_);
   }
+  if (outcome.track.ok() && options_.edge_templates > 0 && PartlyOffTheMap(outcome.track)) {
+    outcome.track = AtTheEdge(frame, std::move(outcome.track));
+  }
   if (outcome.track.ok()) {
     const core::Pose2 fix = outcome.track.world_from_camera * options_.vehicle_from_camera.Inverse();
     // The floors are errors of the camera's pose (map and rectification errors move what the
@@ -243,6 +261,16 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   const double sigma_mm = std::sqrt(std::max(outcome.covariance(0, 0), outcome.covariance(1, 1)));
   outcome.lock = lock_.Update(verdict, sigma_mm, outcome.reason);
   return outcome;
+}
+
+tracking::TrackResult Localizer::AtTheEdge(const cv::Mat& frame, tracking::TrackResult found) const {
+  // Around the place found, to a pixel or two: the search windows stay small, so the extra
+  // templates cost about as much as the refinement of the first ones.
+  const double sigma_mm = 0.5 * camera_.mm_per_px();
+  const Eigen::Matrix3d around = Eigen::Vector3d(sigma_mm * sigma_mm, sigma_mm * sigma_mm, 1e-6).asDiagonal();
+  tracking::TrackResult precise = edge_tracker_.Track(frame, found.world_from_camera, around, reference_);
+  if (!precise.ok() || precise.inliers < found.inliers) return found;
+  return precise;
 }
 
 estimation::FrameVerdict Localizer::ClassifyMiss(const FrameOutcome& outcome, const core::Pose2& prior_camera,

@@ -158,6 +158,7 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
         if (static_cast<double>(known) < options_.min_window_mapped * static_cast<double>(mask.total()) ||
             footprint_mapped < options_.refine.min_mapped_fraction) {
           report.rejected = "off map";
+          report.off_map = true;
           ++off_map;
           result.templates.push_back(std::move(report));
           continue;
@@ -221,6 +222,7 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
       report.refined = RefineTemplate(frame, report.spot.rect, reference, frame_to_raster, options_.refine);
       if (!report.refined.ok()) {
         report.rejected = std::string("refinement ") + ToString(report.refined.failure);
+        report.off_map = report.refined.failure == RefineFailure::kOffMap;
         return;
       }
       if (report.refined.zncc < options_.min_zncc) {

@@ -67,6 +67,13 @@ struct LocalizerOptions {
   /// aside while switched off, a confidently wrong start), and relocalize_radius_mm is searched
   /// without it. Misses at the map's edge or off it are no such evidence. 0: only on request.
   int relocalize_after_misses = 5;
+  /// A view partly off the map (a template's place was unmapped: at a lane's edge, coming back
+  /// onto the map) is registered from templates that all lie on one side of it, where the yaw,
+  /// and with it the vehicle's origin a lever arm away, is less well held; the first fix back
+  /// on the map, with an uncertain prediction, stands on it alone. The place such a frame's
+  /// registration found is registered again around it, in small search windows, with
+  /// edge_templates templates (spread mode) instead of tracker.templates.count. 0: never.
+  int edge_templates = 16;
   /// A filter that is confidently wrong (its odometry dated a few ms off while braking, say)
   /// rejects every fix at its gate, however well they agree. After this many consecutive
   /// rejected fixes that are off the prediction by the same amount (within their
@@ -153,6 +160,9 @@ class Localizer {
   // that is evidence against the prior, or a miss that is neither.
   estimation::FrameVerdict ClassifyMiss(const FrameOutcome& outcome, const core::Pose2& prior_camera,
                                         const Eigen::Matrix3d& prior_camera_covariance, std::string* reason);
+  // A registration of a view partly off the map, registered again around itself with more
+  // templates; the one with more inliers.
+  tracking::TrackResult AtTheEdge(const cv::Mat& frame, tracking::TrackResult found) const;
   // Restarts the filter from a fix (a relocalization or a re-anchoring) and says so.
   void Restart(core::Timestamp time, const core::Pose2& fix, const Eigen::Matrix3d& fix_covariance,
                FrameOutcome* outcome);
@@ -164,6 +174,7 @@ class Localizer {
   LocalizerOptions options_;
   const tracking::ReferenceRaster& reference_;
   tracking::Tracker tracker_;
+  tracking::Tracker edge_tracker_;  ///< with edge_templates, for views partly off the map
   estimation::DiffDriveOdometry odometry_;
   std::optional<estimation::PoseFilter> filter_;
   estimation::LockMonitor lock_;

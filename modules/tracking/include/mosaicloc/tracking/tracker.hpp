@@ -60,6 +60,7 @@ struct TemplateReport {
   SearchPeak coarse;
   RefinedMatch refined;
   bool inlier = false;
+  bool off_map = false;  ///< rejected because its place on the map is (partly) unmapped
   std::string rejected;  ///< empty when used
 };
 
