@@ -44,6 +44,7 @@
 #include "mosaicloc/mosaic/tile_cache.hpp"
 #include "mosaicloc/mosaic/tile_store.hpp"
 #include "mosaicloc/tracking/reference.hpp"
+#include "mosaicloc/runtime/encoder_stamper.hpp"
 #include "mosaicloc/runtime/map_session.hpp"
 #include "mosaicloc/runtime/report.hpp"
 #include "mosaicloc/runtime/settings.hpp"
@@ -330,12 +331,12 @@ class LiveRun {
     core::Timestamp next_cycle = io::MonotonicNow();
     core::Timestamp next_fix = next_cycle;
     std::string invalid_reason = "no reading yet";
-    const auto stationary_after = core::FromSeconds(config_.stationary_after_ms * 1e-3);
-    const auto counter_period = core::FromSeconds(config_.counter_period_ms * 1e-3);
-    const bool polling = config_.plc.role == "client";
-    bool have_ticks = false;  // (not an optional pair: GCC 12 warns wrongly about it)
-    std::pair<std::int32_t, std::int32_t> last_ticks{0, 0};
-    core::Timestamp last_read, last_forwarded;
+    runtime::EncoderStamperOptions stamping;
+    stamping.polling = config_.plc.role == "client";
+    stamping.counter_period = core::FromSeconds(config_.counter_period_ms * 1e-3);
+    stamping.stationary_after = core::FromSeconds(config_.stationary_after_ms * 1e-3);
+    stamping.latency = latency;
+    runtime::EncoderStamper stamper(stamping);
     while (SleepUntil(next_cycle, stop_)) {
       const core::Timestamp now = io::MonotonicNow();
       next_cycle = next_cycle + cycle;
@@ -360,33 +361,15 @@ class LiveRun {
         if (stats_.odometry_outages > 0) core::Log().info("PLC: odometry valid again");
         stats_.odometry_valid = true;
       }
-      if (valid && read.value().fresh) {
-        // When did the counters take these values? Polling: since the previous read, within
-        // the PLC's last counter period (CountersChangedAt); unchanged counters are only
-        // passed on once they have stood still for stationary_after. Served: when the PLC
-        // wrote them.
-        const io::PlcInputs& in = read.value();
-        const std::pair<std::int32_t, std::int32_t> ticks{in.left_ticks, in.right_ticks};
-        std::optional<core::Timestamp> stamp;
-        if (!polling || !have_ticks) {
-          stamp = in.time;
-        } else if (ticks != last_ticks) {
-          stamp = io::CountersChangedAt(last_read, in.time, counter_period);
-        } else if (in.time - counter_period - last_forwarded >= stationary_after) {
-          stamp = in.time - counter_period;
-        }
-        last_ticks = ticks;
-        have_ticks = true;
-        last_read = in.time;
-        if (stamp) {
-          last_forwarded = *stamp;
-          const dataset::EncoderSample sample{*stamp - latency, in.left_ticks, in.right_ticks};
-          PushEncoders(Encoder{false, sample});
-          if (recorder_) recorder_->Encoders(sample);
+      if (valid) {
+        // When the counters took these values (runtime::EncoderStamper).
+        if (const std::optional<dataset::EncoderSample> sample = stamper.Take(read.value())) {
+          PushEncoders(Encoder{false, *sample});
+          if (recorder_) recorder_->Encoders(*sample);
           ++stats_.encoder_samples;
         }
-      } else if (!valid) {
-        have_ticks = false;
+      } else {
+        stamper.Forget();
       }
 
       bool answer = false;
