@@ -74,33 +74,16 @@ for floor in "${floors[@]}"; do
     "$MOSAICLOC" -q simulate --out "$run" --overwrite --config "$WORK/network-drive.yaml" --floor "$floor" \
       --route network --laps 2 --speed-mps "$speed" --seed 82 >/dev/null
     "$MOSAICLOC" -q replay --dataset "$run" --map "$WORK/$name-network.mosaic" --out "$run-mosaic" >/dev/null
-    python3 - "$run-mosaic" "$run/groundtruth/data.tum" "$name" <<'PY'
-import bisect, json, math, sys
-report, truth_file, name = sys.argv[1:4]
+    python3 - "$run-mosaic" "$name" <<'PY'
+import json, sys
+report, name = sys.argv[1:3]
 m = json.load(open(report + "/metrics.json"))
-truth = []
-for line in open(truth_file):
-    if not line.startswith("#") and line.strip():
-        t, x, y = (float(v) for v in line.split()[:3])
-        truth.append((round(t * 1e9), x * 1000.0, y * 1000.0))
-times = [t for t, _, _ in truth]
-errors = []
-for line in open(report + "/fixes.csv"):
-    f = line.split(",")
-    if line.startswith("#") or f[6] != "1":
-        continue
-    ns, x, y = int(f[0]), float(f[1]), float(f[2])
-    i = min(max(bisect.bisect_left(times, ns), 1), len(truth) - 1)
-    (t0, x0, y0), (t1, x1, y1) = truth[i - 1], truth[i]
-    a = (ns - t0) / (t1 - t0)
-    errors.append(math.hypot(x - (x0 + a * (x1 - x0)), y - (y0 + a * (y1 - y0))))
-fix_rms = math.sqrt(sum(e * e for e in errors) / len(errors)) if errors else float("nan")
 f = lambda v, fmt: "n/a" if v is None else fmt % v
 print("%-12s %6s %8s %6s %6s %9s %8s %9s %7s %7s %10s %10s %9s" % (
     name, f(m["max_speed_mps"], "%.2f"), f(100 * m["fix_rate"], "%.1f"), f(m["lock_losses"], "%d"),
     f(m["wrong_fixes"], "%d"), f(m["max_wrong_fix_mm"], "%.1f"), f(m["off_map_frames"], "%d"),
     f(m["off_map_max_error_mm"], "%.2f"), f(m["reentries"], "%d"), f(m["reentry_frames_to_fix_max"], "%d"),
-    f(m["reentry_first_fix_error_max_mm"], "%.4f"), "%.4f" % fix_rms, f(m["latency_p99_ms"], "%.2f")))
+    f(m["reentry_first_fix_error_max_mm"], "%.4f"), f(m["fix_error_rms_mm"], "%.4f"), f(m["latency_p99_ms"], "%.2f")))
 PY
   done
 done

@@ -320,6 +320,7 @@ void WriteMetricsJson(const std::filesystem::path& file, const Metrics& metrics)
   json["path_length_m"] = ToJson(metrics.path_length_m);
   json["drift_percent"] = ToJson(metrics.drift_percent);
   json["repeatability_places"] = ToJson(metrics.repeatability_places);
+  json["fix_error_rms_mm"] = ToJson(metrics.fix_error_rms_mm);
   json["off_map_frames"] = ToJson(metrics.off_map_frames);
   json["off_map_max_error_mm"] = ToJson(metrics.off_map_max_error_mm);
   json["reentries"] = ToJson(metrics.reentries);

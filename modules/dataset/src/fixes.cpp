@@ -100,6 +100,7 @@ std::vector<FrameReport> ReadFixesCsv(const std::filesystem::path& file) {
 
 FixCheck CheckFixes(const std::vector<FrameReport>& reports, const Trajectory& groundtruth, double wrong_above_mm) {
   FixCheck check;
+  double sum_sq = 0.0;
   for (const FrameReport& r : reports) {
     if (r.status == 4) ++check.off_map_frames;
     const std::optional<core::Pose2> truth = PoseAt(groundtruth, r.time, std::chrono::milliseconds(100));
@@ -108,12 +109,14 @@ FixCheck CheckFixes(const std::vector<FrameReport>& reports, const Trajectory& g
     if (r.status == 4) check.off_map_max_error_mm = std::max(check.off_map_max_error_mm.value_or(0.0), error_mm);
     if (!r.fixed) continue;
     ++check.checked_fixes;
+    sum_sq += error_mm * error_mm;
     check.max_fix_error_mm = std::max(check.max_fix_error_mm.value_or(0.0), error_mm);
     if (error_mm > wrong_above_mm) {
       ++check.wrong_fixes;
       check.max_wrong_fix_mm = std::max(check.max_wrong_fix_mm.value_or(0.0), error_mm);
     }
   }
+  if (check.checked_fixes > 0) check.fix_error_rms_mm = std::sqrt(sum_sq / static_cast<double>(check.checked_fixes));
   return check;
 }
 

@@ -305,7 +305,7 @@ TEST(MetricsJson, HasEveryDesignKeyWithNullsWhereUnknown) {
   ASSERT_TRUE(json.is_object());
   for (const std::string& key : kDesignKeys) EXPECT_TRUE(json.contains(key)) << key;
   for (const char* key : {"associated", "final_position_error_mm", "path_length_m", "drift_percent",
-                          "repeatability_places", "off_map_frames", "off_map_max_error_mm", "reentries",
+                          "repeatability_places", "fix_error_rms_mm", "off_map_frames", "off_map_max_error_mm", "reentries",
                           "reentry_frames_to_fix_max", "reentry_first_fix_error_max_mm", "relocalizations"}) {
     EXPECT_TRUE(json.contains(key)) << key;
   }

@@ -1,5 +1,6 @@
 #include "mosaicloc/dataset/fixes.hpp"
 
+#include <cmath>
 #include <fstream>
 #include <string>
 #include <vector>
@@ -94,6 +95,7 @@ TEST(CheckFixes, CountsFixesOffTheTruthAndMeasuresDeadReckoningOffTheMap) {
   EXPECT_EQ(clean.wrong_fixes, 0);
   EXPECT_FALSE(clean.max_wrong_fix_mm.has_value());
   EXPECT_NEAR(*clean.max_fix_error_mm, 0.5, 1e-6);
+  EXPECT_NEAR(*clean.fix_error_rms_mm, std::sqrt(0.5 * (0.0005 * 0.0005 + 0.5 * 0.5)), 1e-6);
 }
 
 TEST(CheckReentries, CountsFramesFromTheReturnToTheFirstFix) {

@@ -96,6 +96,7 @@ class ReplayRecord {
       const dataset::FixCheck check = dataset::CheckFixes(reports_, *groundtruth_);
       metrics.wrong_fixes = check.wrong_fixes;
       metrics.max_wrong_fix_mm = check.max_wrong_fix_mm.value_or(0.0);
+      metrics.fix_error_rms_mm = check.fix_error_rms_mm;
       metrics.off_map_frames = check.off_map_frames;
       metrics.off_map_max_error_mm = check.off_map_max_error_mm;
       if (view_mapped_.size() == reports_.size()) {

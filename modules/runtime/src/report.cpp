@@ -29,6 +29,7 @@ dataset::Metrics WriteReport(const std::filesystem::path& directory, const datas
     keep(merged.lock_losses, metrics.lock_losses);
     keep(merged.wrong_fixes, metrics.wrong_fixes);
     keep(merged.max_wrong_fix_mm, metrics.max_wrong_fix_mm);
+    keep(merged.fix_error_rms_mm, metrics.fix_error_rms_mm);
     keep(merged.off_map_frames, metrics.off_map_frames);
     keep(merged.off_map_max_error_mm, metrics.off_map_max_error_mm);
     keep(merged.reentries, metrics.reentries);

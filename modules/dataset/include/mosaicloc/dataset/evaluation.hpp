@@ -65,6 +65,7 @@ struct Metrics {
   std::optional<double> path_length_m;  ///< ground-truth path length over the compared span
   std::optional<double> drift_percent;  ///< 100 final_position_error / path_length
   std::optional<std::int64_t> repeatability_places;  ///< places visited at least twice
+  std::optional<double> fix_error_rms_mm;  ///< RMS error of the visual fixes themselves (caller)
   std::optional<std::int64_t> off_map_frames;        ///< frames reported off the map (caller)
   std::optional<double> off_map_max_error_mm;  ///< largest dead-reckoning error while off the map (caller)
   /// Returns onto the map (the true view wholly on it after some frames that were not), the

@@ -42,6 +42,7 @@ struct FixCheck {
   std::int64_t wrong_fixes = 0;
   std::optional<double> max_wrong_fix_mm;  ///< the largest error of a wrong fix; empty without one
   std::optional<double> max_fix_error_mm;  ///< the largest error of any checked fix
+  std::optional<double> fix_error_rms_mm;  ///< RMS error of the checked fixes
   std::int64_t off_map_frames = 0;         ///< frames reported off-map (status 4)
   std::optional<double> off_map_max_error_mm;  ///< largest estimate error while off-map
 };
