@@ -20,7 +20,8 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
-#include "live_sources.hpp"
+#include "mosaicloc/runtime/live_sources.hpp"
+#include "sim_config.hpp"
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/file.hpp"
 #include "mosaicloc/core/log.hpp"
@@ -63,14 +64,14 @@ std::uint32_t Masked(std::uint32_t value, const io::RegisterField& field) {
 void RunPlcSim(const PlcSimArgs& args, const GlobalOptions& global) {
   io::RegisterMap map;
   if (!args.config.empty()) ReadRegisterMap(core::LoadYamlFile(args.config), args.config.string(), &map);
-  std::unique_ptr<SimulatedDrive> drive;
-  if (args.simulate) drive = std::make_unique<SimulatedDrive>(*args.simulate);
+  std::unique_ptr<runtime::SimulatedDrive> drive;
+  if (args.simulate) drive = std::make_unique<runtime::SimulatedDrive>(SimulatorConfigOrDefaults(*args.simulate));
   const std::filesystem::path played = drive ? drive->directory() : args.dataset;
   if (played.empty()) core::ThrowInvalidInput("plc-sim: give --dataset DIR or --simulate [YAML]");
   const dataset::DatasetReader reader(played);
   const std::optional<dataset::Trajectory> groundtruth =
       reader.HasGroundTruth() ? std::optional<dataset::Trajectory>(reader.GroundTruth()) : std::nullopt;
-  const Playback playback = Playback::Of(reader, args.start_unix_s);
+  const runtime::Playback playback = runtime::Playback::Of(reader, args.start_unix_s);
 
   std::vector<const io::RegisterField*> fields = map.Inputs();
   const std::vector<const io::RegisterField*> outputs = map.Outputs();

@@ -30,7 +30,8 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
-#include "live_sources.hpp"
+#include "mosaicloc/runtime/live_sources.hpp"
+#include "sim_config.hpp"
 #include "mosaicloc/camera/ideal_camera.hpp"
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/log.hpp"
@@ -337,7 +338,7 @@ class LiveRun {
     stamping.stationary_after = core::FromSeconds(config_.stationary_after_ms * 1e-3);
     stamping.latency = latency;
     runtime::EncoderStamper stamper(stamping);
-    while (SleepUntil(next_cycle, stop_)) {
+    while (runtime::SleepUntil(next_cycle, stop_)) {
       const core::Timestamp now = io::MonotonicNow();
       next_cycle = next_cycle + cycle;
       if (next_cycle < now) next_cycle = now + cycle;  // fell behind: do not burst
@@ -647,11 +648,13 @@ void Run(const RunArgs& args, const GlobalOptions& global) {
   std::unique_ptr<io::FrameSource> source;
   dataset::CameraInfo camera = config.camera;
   dataset::VehicleInfo vehicle = config.vehicle;
-  std::unique_ptr<SimulatedDrive> drive;
-  if (config.camera_source == "simulator") drive = std::make_unique<SimulatedDrive>(config.simulator_config);
+  std::unique_ptr<runtime::SimulatedDrive> drive;
+  if (config.camera_source == "simulator") {
+    drive = std::make_unique<runtime::SimulatedDrive>(SimulatorConfigOrDefaults(config.simulator_config));
+  }
   if (config.camera_source == "dataset" || drive) {
     // A recording (or a simulated drive) carries its own camera and vehicle calibration.
-    auto played = std::make_unique<DatasetFrameSource>(drive ? drive->directory() : config.dataset,
+    auto played = std::make_unique<runtime::DatasetFrameSource>(drive ? drive->directory() : config.dataset,
                                                        config.dataset_start_unix_s);
     camera = played->info().camera;
     vehicle = played->info().vehicle;
@@ -665,7 +668,7 @@ void Run(const RunArgs& args, const GlobalOptions& global) {
     camera.width_px = ideal.width_px;
     camera.height_px = ideal.height_px;
     camera.mm_per_px = ideal.mm_per_px;
-    source = std::make_unique<RectifyingFrameSource>(std::move(source), *config.ground_calibration);
+    source = std::make_unique<runtime::RectifyingFrameSource>(std::move(source), *config.ground_calibration);
   }
   LiveRun run(config, global, std::move(source), camera, vehicle, args.record);
   g_signal = 0;

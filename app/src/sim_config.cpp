@@ -1,6 +1,7 @@
 #include "sim_config.hpp"
 
 #include "mosaicloc/core/error.hpp"
+#include "mosaicloc/core/log.hpp"
 #include "mosaicloc/core/yaml.hpp"
 
 namespace mosaicloc::app {
@@ -106,6 +107,12 @@ sim::SimulatorOptions LoadSimulatorConfig(const std::filesystem::path& file) {
   sim::SimulatorOptions options;
   ReadSimulatorConfig(core::LoadYamlFile(file), file.string(), &options);
   return options;
+}
+
+sim::SimulatorOptions SimulatorConfigOrDefaults(const std::filesystem::path& file) {
+  if (file.empty()) return sim::SimulatorOptions{};
+  core::Log().info("the simulated drive of {}", file.string());
+  return LoadSimulatorConfig(file);
 }
 
 }  // namespace mosaicloc::app

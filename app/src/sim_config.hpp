@@ -13,6 +13,8 @@ namespace mosaicloc::app {
 /// and default). Keys left out keep their defaults; unknown keys, wrong types and values
 /// out of range are all reported at once as core::Error naming file, line and key.
 sim::SimulatorOptions LoadSimulatorConfig(const std::filesystem::path& file);
+/// The same, or the defaults for an empty path.
+sim::SimulatorOptions SimulatorConfigOrDefaults(const std::filesystem::path& file);
 
 /// Applies a configuration document to options (the part of LoadSimulatorConfig that does
 /// not touch the file system), for tests.

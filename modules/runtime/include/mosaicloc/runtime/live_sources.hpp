@@ -9,8 +9,9 @@
 #include "mosaicloc/core/timestamp.hpp"
 #include "mosaicloc/dataset/dataset.hpp"
 #include "mosaicloc/io/frame_source.hpp"
+#include "mosaicloc/sim/simulator.hpp"
 
-namespace mosaicloc::app {
+namespace mosaicloc::runtime {
 
 /// How a recording is played in real time: dataset time `origin` (the earlier of its first
 /// frame and first encoder sample) happens at `start` on the monotonic clock. The camera
@@ -36,9 +37,7 @@ bool SleepUntil(core::Timestamp when, const std::atomic<bool>& stop);
 /// drive, frames on one side and encoder counts on the other.
 class SimulatedDrive {
  public:
-  /// config: a simulator configuration (config/default/simulator.yaml), or empty for the
-  /// defaults.
-  explicit SimulatedDrive(const std::filesystem::path& config);
+  explicit SimulatedDrive(const sim::SimulatorOptions& options);
   ~SimulatedDrive();
   SimulatedDrive(const SimulatedDrive&) = delete;
   SimulatedDrive& operator=(const SimulatedDrive&) = delete;
@@ -85,4 +84,4 @@ class RectifyingFrameSource final : public io::FrameSource {
   camera::Rectifier rectifier_;
 };
 
-}  // namespace mosaicloc::app
+}  // namespace mosaicloc::runtime

@@ -1,4 +1,4 @@
-#include "live_sources.hpp"
+#include "mosaicloc/runtime/live_sources.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -12,9 +12,8 @@
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/log.hpp"
 #include "mosaicloc/io/plc_link.hpp"
-#include "sim_config.hpp"
 
-namespace mosaicloc::app {
+namespace mosaicloc::runtime {
 
 Playback Playback::Of(const dataset::DatasetReader& reader, double start_unix_s) {
   auto frames = reader.Frames();
@@ -45,11 +44,9 @@ bool SleepUntil(core::Timestamp when, const std::atomic<bool>& stop) {
   return false;
 }
 
-SimulatedDrive::SimulatedDrive(const std::filesystem::path& config) {
-  const sim::SimulatorOptions options = config.empty() ? sim::SimulatorOptions{} : LoadSimulatorConfig(config);
+SimulatedDrive::SimulatedDrive(const sim::SimulatorOptions& options) {
   directory_ = std::filesystem::temp_directory_path() / fmt::format("mosaicloc-drive-{}", getpid());
-  core::Log().info("simulating the drive{} into {}", config.empty() ? "" : " of " + config.string(),
-                   directory_.string());
+  core::Log().info("simulating the drive into {}", directory_.string());
   sim::Simulate(options, directory_, /*overwrite=*/true);
 }
 
@@ -101,4 +98,4 @@ std::string RectifyingFrameSource::Describe() const {
                      ideal.mm_per_px);
 }
 
-}  // namespace mosaicloc::app
+}  // namespace mosaicloc::runtime
