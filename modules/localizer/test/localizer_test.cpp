@@ -88,6 +88,7 @@ class Drive : public ::testing::Test {
     std::vector<double> fix_errors_mm;  ///< per frame: the accepted fix's error, -1 without one
     std::vector<estimation::LockState> states;
     std::vector<Pose2> cameras;  ///< the true camera pose of each frame
+    std::vector<int> inliers;    ///< per frame: the templates the accepted fix rests on, 0 without one
     std::int64_t relocalizations = 0;
     int misses = 0;  ///< frames without a fix
     estimation::LockState last_state = estimation::LockState::kTracking;
@@ -104,7 +105,7 @@ class Drive : public ::testing::Test {
     const camera::IdealCamera camera{camera::IdealCameraOptions{}};
     sim::ImagingOptions imaging;
     const sim::Imager imager(*floor_, camera, imaging, 7);
-    LocalizerOptions options;
+    LocalizerOptions options = options_;
     options.vehicle_from_camera = Pose2(200.0, 0.0, 0.0);
     options.reanchor_after_rejections = reanchor_after;
     Localizer localizer(camera, options, *reference_);
@@ -143,6 +144,7 @@ class Drive : public ::testing::Test {
       run.last_state = outcome.lock;
       run.states.push_back(outcome.lock);
       run.cameras.push_back(camera_pose);
+      run.inliers.push_back(outcome.fixed ? outcome.track.inliers : 0);
       run.fix_errors_mm.push_back(outcome.fixed ? Distance(outcome.fix_world_from_vehicle, truth) : -1.0);
       if (!outcome.fixed && run.words.size() < 5) run.words.push_back(outcome.ReasonWord());
       if (!outcome.fixed && run.reasons.size() < 5) {
@@ -166,6 +168,7 @@ class Drive : public ::testing::Test {
     return run;
   }
 
+  LocalizerOptions options_;  ///< what Localize starts from (tests may change it first)
   test::ScratchDir scratch_;
   std::unique_ptr<sim::Floor> floor_;
   std::unique_ptr<mosaic::TileStore> store_;
@@ -355,6 +358,28 @@ TEST_F(RepeatingExcursion, LeavingTheMapIsOffMapAndNeverAWrongFix) {
   ASSERT_LT(first, back + 3) << "no fix within three frames of the return";
   EXPECT_LT(run.fix_errors_mm[first], 0.02);
   EXPECT_LT(run.errors_mm.back(), 0.05);
+}
+
+// Coming back onto the map the view is half off it and its templates all lie on one side; the
+// place found is registered again with 16 templates, so the first fix rests on more of them
+// than the four a frame is registered with otherwise.
+TEST_F(RepeatingExcursion, AViewPartlyOffTheMapIsRegisteredAgainWithMoreTemplates) {
+  const auto first_fix_back = [](const Run& run) {
+    std::size_t i = 0;
+    while (i < run.cameras.size() && run.cameras[i].x_mm() + 80.0 < 960.0) ++i;  // still wholly in the band
+    while (i < run.inliers.size() && run.inliers[i] == 0) ++i;
+    return i;
+  };
+  options_.edge_templates = 0;
+  const Run four = Localize(1.6, 0.5, Pose2());
+  options_.edge_templates = 16;
+  const Run sixteen = Localize(1.6, 0.5, Pose2());
+  const std::size_t a = first_fix_back(four), b = first_fix_back(sixteen);
+  ASSERT_LT(a, four.inliers.size());
+  ASSERT_LT(b, sixteen.inliers.size());
+  EXPECT_LE(four.inliers[a], 4);
+  EXPECT_GT(sixteen.inliers[b], 4);
+  EXPECT_LT(sixteen.fix_errors_mm[b], 0.02);
 }
 
 tracking::TrackResult Verified(double x_mm, double zncc) {
