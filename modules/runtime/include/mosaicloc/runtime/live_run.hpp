@@ -1,0 +1,101 @@
+#pragma once
+
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "mosaicloc/camera/ground.hpp"
+#include "mosaicloc/core/pose2.hpp"
+#include "mosaicloc/dataset/dataset.hpp"
+#include "mosaicloc/io/frame_source.hpp"
+#include "mosaicloc/io/plc_link.hpp"
+#include "mosaicloc/io/v4l2_camera.hpp"
+#include "mosaicloc/runtime/settings.hpp"
+
+namespace mosaicloc::runtime {
+
+/// The live run's settings (config/default/run.yaml gives every key, its unit and default).
+struct LiveRunOptions {
+  std::filesystem::path map;                 ///< resolved against the config file's folder
+  std::string camera_source = "v4l2";        ///< "v4l2", "dataset" or "simulator"
+  dataset::CameraInfo camera;                ///< ideal image geometry and mounting
+  dataset::VehicleInfo vehicle;
+  io::V4l2Options v4l2;
+  std::filesystem::path dataset;             ///< camera_source dataset: the recording to play
+  /// When the recording starts playing, seconds since the Unix epoch (wall clock), so a PLC
+  /// simulator playing the same recording's encoders can be started in step; 0 = at once.
+  double dataset_start_unix_s = 0.0;
+  /// camera_source simulator: the simulator configuration (empty: its defaults); played like
+  /// a recording, starting at dataset_start_unix_s.
+  std::filesystem::path simulator_config;
+  /// Ground-plane calibration of a real camera (`mosaicloc calibrate ground`). When given,
+  /// the source delivers raw images (a V4L2 camera at the calibration's raw size, or a raw
+  /// recording) and every frame is rectified into the ideal image it describes before it
+  /// enters the pipeline.
+  std::filesystem::path ground;
+  std::optional<camera::GroundCalibration> ground_calibration;
+
+  io::PlcLinkOptions plc;
+  /// Poll and output period. Faster than the PLC updates its counters, so a change is seen
+  /// soon after it happens: an encoder sample is stamped at the middle of the poll interval
+  /// in which its counters changed.
+  double plc_cycle_ms = 5.0;
+  double fix_period_ms = 100.0;              ///< periodic fix writes; 0 = only on request
+  double heartbeat_timeout_ms = 500.0;       ///< PLC heartbeat frozen this long = stale; 0 = not watched
+  /// Age of the counters when read (about half the PLC's own update period), subtracted from
+  /// their time stamps.
+  double encoder_latency_ms = 0.0;
+  /// What is left of the time-stamp error after that, ms (the filter widens its prediction by
+  /// speed times this along the heading).
+  double encoder_timing_sigma_ms = 3.0;
+  /// Counters unchanged this long mean the vehicle stands still: a sample goes to odometry
+  /// anyway, so the filter keeps up with the clock.
+  double stationary_after_ms = 50.0;
+  /// How often the PLC updates the counter registers, ms. Unchanged counters only say the
+  /// vehicle stood still until one update period before they were read.
+  double counter_period_ms = 10.0;
+
+  core::Pose2 start;                         ///< where the vehicle is when the run starts
+  double start_sigma_mm = 5.0;
+  double start_sigma_deg = 1.0;
+  /// A frame waits at most this long for the encoder sample that follows it.
+  double max_encoder_wait_ms = 100.0;
+
+  LocalizationSettings localizer;
+};
+
+/// The live system: a camera source, the PLC link and the localizer over the map, on threads
+/// of their own (design.md section 1), until the source ends, the duration passes or a stop
+/// is asked for. Optionally records what it saw as a dataset, committed on a clean stop only.
+class LiveRun {
+ public:
+  /// The status of the last second, every second (JSON: t_s, lock, fixes_per_s, frames_per_s,
+  /// latency_p50_ms, plc, plc_round_trip_ms, plc_errors, requests, answered, x_mm, y_mm, yaw_deg).
+  using StatusCallback = std::function<void(const nlohmann::json& status)>;
+  /// Polled every 20 ms: a reason to stop (a signal came), or nothing.
+  using StopCallback = std::function<std::optional<std::string>()>;
+
+  /// `camera` and `vehicle`: the ideal image and the wheels the frames and counters come from.
+  /// `record`: a new dataset directory, or empty. Throws core::Error naming the map, the
+  /// device or the link on a bad start.
+  LiveRun(const LiveRunOptions& options, std::unique_ptr<io::FrameSource> source, const dataset::CameraInfo& camera,
+          const dataset::VehicleInfo& vehicle, const std::filesystem::path& record);
+  ~LiveRun();
+  LiveRun(const LiveRun&) = delete;
+  LiveRun& operator=(const LiveRun&) = delete;
+
+  /// Runs for `duration_s` (0: until the source ends or a stop); the summary (stopped, frames,
+  /// fixes, fix_rate, lock_losses, relocalizations, the PLC link's counters, ...). Rethrows
+  /// what stopped a thread.
+  nlohmann::json Run(double duration_s, const StatusCallback& status = {}, const StopCallback& stop_requested = {});
+
+ private:
+  class Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace mosaicloc::runtime

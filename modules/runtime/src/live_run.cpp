@@ -1,0 +1,626 @@
+#include "mosaicloc/runtime/live_run.hpp"
+
+// The live run (mosaicloc run). Four threads share the work (design.md section 1):
+//   camera    - takes frames from the source into a short queue (oldest dropped when full);
+//   PLC link  - every cycle reads the encoder counters, heartbeat and fix request, and writes
+//               the fix: on request (echoing its counter) and periodically. Reading and
+//               writing share one thread because a libmodbus context is not thread safe, and
+//               so a request seen in a cycle is answered in the same cycle;
+//   tracking  - owns the localizer: feeds it the encoder samples, registers each frame once
+//               the odometry has passed its time, and publishes the latest state;
+//   main      - reports a status line every second, stops when asked, shuts down.
+// With --record, a fifth thread writes what the run saw as a dataset.
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <deque>
+#include <exception>
+#include <mutex>
+#include <numbers>
+#include <thread>
+#include <variant>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "mosaicloc/camera/ideal_camera.hpp"
+#include "mosaicloc/core/error.hpp"
+#include "mosaicloc/core/log.hpp"
+#include "mosaicloc/dataset/evaluation.hpp"
+#include "mosaicloc/dataset/fixes.hpp"
+#include "mosaicloc/localizer/localizer.hpp"
+#include "mosaicloc/runtime/encoder_stamper.hpp"
+#include "mosaicloc/runtime/live_sources.hpp"
+#include "mosaicloc/runtime/map_session.hpp"
+#include "mosaicloc/runtime/report.hpp"
+
+namespace mosaicloc::runtime {
+// The live run's parts, named rather than file-local: LiveRun::Impl holds them.
+namespace live_run_detail {
+
+using Clock = std::chrono::steady_clock;
+
+double Ms(core::Duration d) { return std::chrono::duration<double, std::milli>(d).count(); }
+
+// Writes what the run saw as a dataset (design.md section 4), on a thread of its own so PNG
+// encoding never delays tracking. Committed on a clean shutdown only: an interrupted
+// recording leaves nothing behind.
+class Recorder {
+ public:
+  Recorder(const std::filesystem::path& directory, const dataset::DatasetInfo& info)
+      : writer_(directory, info, /*overwrite=*/false), thread_([this] { Work(); }) {}
+  ~Recorder() { Close(); }
+  Recorder(const Recorder&) = delete;
+  Recorder& operator=(const Recorder&) = delete;
+
+  void Frame(core::Timestamp time, const cv::Mat& image) { Push(FrameItem{time, image}); }
+  void Encoders(const dataset::EncoderSample& sample) { Push(sample); }
+  /// What the localizer reported for a frame: a row of fixes/data.csv.
+  void Report(const dataset::FrameReport& report) {
+    const std::string row = dataset::FixesCsvRow(report);
+    const std::lock_guard lock(mutex_);
+    fixes_ += row;
+  }
+  /// Writes everything still queued and renames the dataset into place.
+  void Commit() {
+    Close();
+    if (error_) std::rethrow_exception(error_);
+    writer_.AddFile("fixes/data.csv", fixes_);
+    writer_.Commit();
+  }
+  std::int64_t frames() const { return frames_; }
+
+ private:
+  struct FrameItem {
+    core::Timestamp time;
+    cv::Mat image;
+  };
+  using Item = std::variant<FrameItem, dataset::EncoderSample>;
+
+  void Push(Item item) {
+    {
+      const std::lock_guard lock(mutex_);
+      if (closed_) return;
+      queue_.push_back(std::move(item));
+    }
+    wake_.notify_one();
+  }
+
+  void Close() {
+    {
+      const std::lock_guard lock(mutex_);
+      closed_ = true;
+    }
+    wake_.notify_one();
+    if (thread_.joinable()) thread_.join();
+  }
+
+  void Work() {
+    std::unique_lock lock(mutex_);
+    while (true) {
+      wake_.wait(lock, [this] { return closed_ || !queue_.empty(); });
+      if (queue_.empty()) return;
+      Item item = std::move(queue_.front());
+      queue_.pop_front();
+      lock.unlock();
+      try {
+        if (error_ == nullptr) {
+          if (auto* frame = std::get_if<FrameItem>(&item)) {
+            writer_.AddEncodedFrame(frame->time, dataset::DatasetWriter::EncodeFrame(frame->image));
+            ++frames_;
+          } else {
+            writer_.AddEncoderSample(std::get<dataset::EncoderSample>(item));
+          }
+        }
+      } catch (...) {
+        error_ = std::current_exception();
+      }
+      lock.lock();
+    }
+  }
+
+  dataset::DatasetWriter writer_;
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  std::deque<Item> queue_;
+  bool closed_ = false;
+  std::string fixes_ = dataset::FixesCsvHeader();
+  std::atomic<std::int64_t> frames_{0};
+  std::exception_ptr error_;
+  std::thread thread_;  // last: starts once everything above exists
+};
+
+// What the tracking thread publishes for the PLC thread and the status line.
+struct Published {
+  estimation::MotionState motion;
+  estimation::LockState lock = estimation::LockState::kLost;
+  bool fixed_once = false;
+  double quality = 0.0;
+};
+
+// Counters for the status line and the summary; each written by one thread.
+struct RunStats {
+  std::atomic<std::int64_t> frames{0};
+  std::atomic<std::int64_t> frames_dropped{0};
+  std::atomic<std::int64_t> processed{0};
+  std::atomic<std::int64_t> fixes{0};
+  std::atomic<std::int64_t> encoder_samples{0};
+  std::atomic<std::int64_t> encoder_rejected{0};
+  std::atomic<std::int64_t> requests{0};
+  std::atomic<std::int64_t> relocalize_requests{0};
+  std::atomic<std::int64_t> answered{0};
+  std::atomic<std::int64_t> fix_writes{0};
+  std::atomic<std::int64_t> odometry_outages{0};
+  std::atomic<bool> odometry_valid{false};
+  std::atomic<bool> heartbeat_stale{false};
+  std::mutex mutex;                     // guards the lists below
+  std::vector<double> frame_latency_ms;  // capture to fix, every processed frame
+  std::vector<double> answer_ms;         // request seen to answer written
+  io::PlcLinkStats link;
+};
+
+}  // namespace live_run_detail
+
+using live_run_detail::Clock;
+using live_run_detail::Ms;
+using live_run_detail::Published;
+using live_run_detail::Recorder;
+using live_run_detail::RunStats;
+
+class LiveRun::Impl {
+ public:
+  Impl(const LiveRunOptions& config, std::unique_ptr<io::FrameSource> source, const dataset::CameraInfo& camera,
+       const dataset::VehicleInfo& vehicle, const std::filesystem::path& record)
+      : config_(config), source_(std::move(source)), camera_info_(camera) {
+    runtime::MapSessionOptions map_options;
+    map_options.cache_budget_bytes = config.localizer.cache_budget_mib << 20;
+    map_options.camera_mm_per_px = camera.mm_per_px;
+    if (config.localizer.prefetch_horizon_s > 0.0) map_options.prefetch = runtime::PrefetchOptionsFor(config.localizer, camera);
+    map_ = std::make_unique<runtime::MapSession>(config.map, map_options);
+    localizer_ = std::make_unique<localizer::Localizer>(
+        camera::IdealCamera(camera::IdealCameraOptions{camera.width_px, camera.height_px, camera.mm_per_px}),
+        runtime::LocalizerOptionsFor(config.localizer.localizer, camera, vehicle, config.encoder_timing_sigma_ms),
+        map_->reference());
+    link_ = io::OpenPlcLink(config.plc);
+    if (!record.empty()) {
+      dataset::DatasetInfo info;
+      info.camera = camera;
+      info.vehicle = vehicle;
+      info.provenance["recorded_by"] = "mosaicloc run";
+      info.provenance["source"] = source_->Describe();
+      info.provenance["plc"] = config.plc.Describe();
+      info.provenance["encoder_timing_sigma_ms"] = fmt::format("{}", config.encoder_timing_sigma_ms);
+      info.provenance["start_pose"] = fmt::format("{:.3f},{:.3f},{:.5f}", config.start.x_mm(), config.start.y_mm(),
+                                                  config.start.yaw_rad() * 180.0 / std::numbers::pi);
+      recorder_ = std::make_unique<Recorder>(record, info);
+    }
+  }
+
+  // Runs until the source ends, a signal arrives, or the duration passes. Returns the
+  // summary as JSON.
+  nlohmann::json Run(double duration_s, const StatusCallback& status, const StopCallback& stop_requested) {
+    started_ = io::MonotonicNow();
+    localizer_->Initialize(started_, config_.start,
+                           runtime::StartCovariance(config_.start_sigma_mm, config_.start_sigma_deg));
+    Publish(false, 0.0);
+    core::Log().info("run: camera {}; PLC {}; map {}", source_->Describe(), config_.plc.Describe(), config_.map.string());
+
+    std::thread camera([this] { Guard("camera", [this] { CameraLoop(); }); });
+    std::thread plc([this] { Guard("PLC link", [this] { PlcLoop(); }); });
+    std::thread tracking([this] { Guard("tracking", [this] { TrackingLoop(); }); });
+
+    const Clock::time_point begin = Clock::now();
+    Clock::time_point next_status = begin + std::chrono::seconds(1);
+    std::string why = "the camera source ended";
+    while (true) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      if (stop_requested) {
+        if (std::optional<std::string> reason = stop_requested()) {
+          why = std::move(*reason);
+          break;
+        }
+      }
+      if (tracking_done_) break;
+      if (failed_) {
+        why = "a thread failed";
+        break;
+      }
+      if (duration_s > 0.0 && Clock::now() - begin >= std::chrono::duration<double>(duration_s)) {
+        why = fmt::format("ran for {:g} s", duration_s);
+        break;
+      }
+      if (Clock::now() >= next_status) {
+        if (status) status(Status());
+        next_status += std::chrono::seconds(1);
+      }
+    }
+    core::Log().info("run: stopping: {}", why);
+    stop_ = true;
+    source_->Stop();
+    wake_.notify_all();
+    camera.join();
+    tracking.join();
+    plc.join();
+    if (error_) std::rethrow_exception(error_);
+    if (recorder_) recorder_->Commit();
+    return Summary(why);
+  }
+
+ private:
+  template <typename Body>
+  void Guard(const char* name, Body body) {
+    try {
+      body();
+    } catch (...) {
+      const std::lock_guard lock(mutex_);
+      if (!error_) error_ = std::current_exception();
+      core::Log().error("run: the {} thread stopped on an error", name);
+      failed_ = true;
+    }
+  }
+
+  void CameraLoop() {
+    while (!stop_) {
+      std::optional<io::CapturedFrame> frame = source_->Next();
+      if (!frame) break;
+      ++stats_.frames;
+      {
+        const std::lock_guard lock(mutex_);
+        if (frames_.size() >= kFrameQueue) {
+          frames_.pop_front();
+          ++stats_.frames_dropped;
+        }
+        frames_.push_back(std::move(*frame));
+      }
+      wake_.notify_one();
+    }
+    {
+      const std::lock_guard lock(mutex_);
+      camera_done_ = true;
+    }
+    wake_.notify_one();
+  }
+
+  // The fix the PLC receives now: the latest state moved on to this instant by the system
+  // model. Status 0 until the first visual fix; degraded while odometry is invalid.
+  io::PlcOutputs Outputs(core::Timestamp now) {
+    Published state;
+    {
+      const std::lock_guard lock(published_mutex_);
+      state = published_;
+    }
+    io::PlcOutputs outputs;
+    const core::Pose2 pose = state.motion.PoseAt(now);
+    outputs.x_mm = pose.x_mm();
+    outputs.y_mm = pose.y_mm();
+    outputs.yaw_rad = pose.yaw_rad();
+    int status = state.fixed_once ? static_cast<int>(state.lock) : 0;
+    if (status == 1 && !stats_.odometry_valid) status = 2;
+    outputs.status = status;
+    // Lost or off the map, the pose is dead reckoning: no visual quality to report.
+    const bool visual = status == 1 || status == 2;
+    outputs.quality = visual ? static_cast<int>(std::lround(1000.0 * state.quality)) : 0;
+    return outputs;
+  }
+
+  void PlcLoop() {
+    const auto cycle = core::FromSeconds(config_.plc_cycle_ms * 1e-3);
+    const auto fix_period = core::FromSeconds(config_.fix_period_ms * 1e-3);
+    const auto latency = core::FromSeconds(config_.encoder_latency_ms * 1e-3);
+    io::HeartbeatMonitor heartbeat(core::FromSeconds(config_.heartbeat_timeout_ms * 1e-3));
+    std::optional<std::uint32_t> request;
+    std::optional<std::uint32_t> relocalize_seen;
+    std::int64_t connects_seen = 0;
+    std::uint32_t own_heartbeat = 0;
+    core::Timestamp next_cycle = io::MonotonicNow();
+    core::Timestamp next_fix = next_cycle;
+    std::string invalid_reason = "no reading yet";
+    runtime::EncoderStamperOptions stamping;
+    stamping.polling = config_.plc.role == "client";
+    stamping.counter_period = core::FromSeconds(config_.counter_period_ms * 1e-3);
+    stamping.stationary_after = core::FromSeconds(config_.stationary_after_ms * 1e-3);
+    stamping.latency = latency;
+    runtime::EncoderStamper stamper(stamping);
+    while (runtime::SleepUntil(next_cycle, stop_)) {
+      const core::Timestamp now = io::MonotonicNow();
+      next_cycle = next_cycle + cycle;
+      if (next_cycle < now) next_cycle = now + cycle;  // fell behind: do not burst
+
+      const core::Result<io::PlcInputs> read = link_->Read();
+      bool valid = read.ok();
+      if (!valid) {
+        invalid_reason = read.error();
+      } else if (heartbeat.Update(now, read.value().plc_heartbeat)) {
+        valid = false;
+        invalid_reason = fmt::format("the PLC heartbeat ({}) has not changed for {:g} ms",
+                                     config_.plc.registers.plc_heartbeat.Describe(), config_.heartbeat_timeout_ms);
+      }
+      stats_.heartbeat_stale = read.ok() && !valid;
+      if (!valid && stats_.odometry_valid) {
+        core::Log().warn("PLC: odometry invalid: {}", invalid_reason);
+        stats_.odometry_valid = false;
+        ++stats_.odometry_outages;
+        PushEncoders(Encoder{true, {}});
+      } else if (valid && !stats_.odometry_valid) {
+        if (stats_.odometry_outages > 0) core::Log().info("PLC: odometry valid again");
+        stats_.odometry_valid = true;
+      }
+      if (valid) {
+        // When the counters took these values (runtime::EncoderStamper).
+        if (const std::optional<dataset::EncoderSample> sample = stamper.Take(read.value())) {
+          PushEncoders(Encoder{false, *sample});
+          if (recorder_) recorder_->Encoders(*sample);
+          ++stats_.encoder_samples;
+        }
+      } else {
+        stamper.Forget();
+      }
+
+      bool answer = false;
+      core::Timestamp seen;
+      if (read.ok()) {
+        // The PLC says the pose is unknown (the vehicle was moved): the tracking thread
+        // relocalizes without trusting the estimate. A reconnected PLC may have restarted
+        // with its counter at 0: its first value is taken as it is, not as a request.
+        const std::int64_t connects = link_->stats().connects;
+        if (connects != connects_seen) relocalize_seen.reset();
+        connects_seen = connects;
+        const std::uint32_t relocalize = read.value().relocalize_request;
+        if (relocalize_seen && relocalize != *relocalize_seen) {
+          relocalize_pending_ = true;
+          ++stats_.relocalize_requests;
+          core::Log().info("run: the PLC asks for a relocalization (request {})", relocalize);
+        }
+        relocalize_seen = relocalize;
+        const std::uint32_t counter = read.value().fix_request;
+        if (request && counter != *request) {
+          answer = true;
+          seen = now;
+          ++stats_.requests;
+        }
+        request = counter;
+      }
+      const bool due = config_.fix_period_ms > 0.0 && now >= next_fix;
+      if ((answer || due) && request) {
+        io::PlcOutputs outputs = Outputs(io::MonotonicNow());
+        outputs.request_echo = *request;
+        outputs.heartbeat = ++own_heartbeat;
+        if (link_->Write(outputs).ok()) {
+          ++stats_.fix_writes;
+          if (answer) {
+            ++stats_.answered;
+            const std::lock_guard lock(stats_.mutex);
+            stats_.answer_ms.push_back(Ms(io::MonotonicNow() - seen));
+          }
+        }
+        if (due) next_fix = now + fix_period;
+      }
+      const std::lock_guard lock(stats_.mutex);
+      stats_.link = link_->stats();
+    }
+  }
+
+  struct Encoder {
+    bool suspend = false;  // odometry became invalid here
+    dataset::EncoderSample sample;
+  };
+
+  void PushEncoders(Encoder encoder) {
+    {
+      const std::lock_guard lock(mutex_);
+      encoders_.push_back(encoder);
+    }
+    wake_.notify_one();
+  }
+
+  void Publish(bool fixed, double quality) {
+    const estimation::MotionState motion = localizer_->Latest();
+    // Each prediction replans the prefetch. Encoder batches come several times a frame, and
+    // a prediction every 30 ms is all the loaders need: from frames, or from odometry alone
+    // when frames stop.
+    const Clock::time_point now = Clock::now();
+    if (map_->prefetcher() && localizer_->initialized() && now - last_prediction_ >= std::chrono::milliseconds(30)) {
+      last_prediction_ = now;
+      runtime::PredictTiles(*map_->prefetcher(), motion, camera_info_.vehicle_from_camera);
+    }
+    const std::lock_guard lock(published_mutex_);
+    published_.motion = motion;
+    published_.lock = localizer_->lock().state();
+    if (fixed) {
+      published_.fixed_once = true;
+      published_.quality = quality;
+    }
+  }
+
+  void TrackingLoop() {
+    const auto max_wait = core::FromSeconds(config_.max_encoder_wait_ms * 1e-3);
+    std::optional<core::Timestamp> latest_encoder;
+    std::vector<Encoder> encoders;
+    while (true) {
+      std::optional<io::CapturedFrame> frame;
+      {
+        std::unique_lock lock(mutex_);
+        wake_.wait_for(lock, std::chrono::milliseconds(10), [this] {
+          return stop_ || camera_done_ || !encoders_.empty() || !frames_.empty();
+        });
+        encoders.assign(encoders_.begin(), encoders_.end());
+        encoders_.clear();
+        if (!encoders.empty() && !encoders.back().suspend) latest_encoder = encoders.back().sample.time;
+        if (!frames_.empty()) {
+          const io::CapturedFrame& next = frames_.front();
+          // The frame's fix goes in at its own time once the odometry has passed it; without
+          // odometry it waits at most max_wait (then the filter coasts to it).
+          const bool odometry_past = latest_encoder && *latest_encoder >= next.time;
+          if (odometry_past || io::MonotonicNow() - next.time >= max_wait || !stats_.odometry_valid || stop_) {
+            frame = std::move(frames_.front());
+            frames_.pop_front();
+          }
+        }
+        if (!frame && encoders.empty() && (stop_ || (camera_done_ && frames_.empty()))) break;
+      }
+      for (const Encoder& e : encoders) {
+        if (e.suspend) {
+          localizer_->SuspendOdometry();
+        } else if (!localizer_->AddEncoders(e.sample.time, e.sample.left_ticks, e.sample.right_ticks)) {
+          ++stats_.encoder_rejected;
+          core::Log().warn("run: encoder sample rejected (ticks {}, {})", e.sample.left_ticks, e.sample.right_ticks);
+        }
+      }
+      if (!frame) {
+        if (!encoders.empty()) Publish(false, 0.0);
+        continue;
+      }
+      if (recorder_) recorder_->Frame(frame->time, frame->image);
+      if (relocalize_pending_.exchange(false)) localizer_->RequestRelocalization();
+      const localizer::FrameOutcome outcome = localizer_->ProcessFrame(frame->time, frame->image);
+      ++stats_.processed;
+      if (recorder_) recorder_->Report(runtime::FrameReportOf(frame->time, outcome));
+      if (outcome.fixed) {
+        ++stats_.fixes;
+      } else {
+        core::Log().debug("run: frame {} not fixed: {}", frame->sequence, outcome.reason);
+      }
+      Publish(outcome.fixed, outcome.fix_quality);
+      const std::lock_guard lock(stats_.mutex);
+      stats_.frame_latency_ms.push_back(Ms(io::MonotonicNow() - frame->time));
+    }
+    tracking_done_ = true;
+  }
+
+  // The status line of the last second (LiveRun::Run).
+  nlohmann::json Status() {
+    Published state;
+    {
+      const std::lock_guard lock(published_mutex_);
+      state = published_;
+    }
+    const std::int64_t frames = stats_.processed, fixes = stats_.fixes;
+    const std::int64_t new_frames = frames - status_frames_, new_fixes = fixes - status_fixes_;
+    status_frames_ = frames;
+    status_fixes_ = fixes;
+    std::vector<double> latencies;
+    io::PlcLinkStats link;
+    {
+      const std::lock_guard lock(stats_.mutex);
+      latencies.assign(stats_.frame_latency_ms.begin() + static_cast<std::ptrdiff_t>(status_latency_index_),
+                       stats_.frame_latency_ms.end());
+      status_latency_index_ = stats_.frame_latency_ms.size();
+      link = stats_.link;
+    }
+    std::sort(latencies.begin(), latencies.end());
+    const double latency = latencies.empty() ? 0.0 : dataset::Percentile(latencies, 50.0);
+    const std::string plc = !link.connected                ? "down"
+                            : stats_.heartbeat_stale       ? "stale"
+                            : stats_.odometry_valid        ? "ok"
+                                                           : "waiting";
+    const core::Pose2 pose = state.motion.PoseAt(io::MonotonicNow());
+    const double elapsed = core::ToSeconds(io::MonotonicNow() - started_);
+    const std::int64_t errors = link.read_errors + link.write_errors + link.connect_failures;
+    return {{"t_s", elapsed},
+            {"lock", state.fixed_once ? estimation::ToString(state.lock) : "none"},
+            {"fixes_per_s", new_fixes},
+            {"frames_per_s", new_frames},
+            {"latency_p50_ms", latency},
+            {"plc", plc},
+            {"plc_round_trip_ms", link.last_round_trip_ms},
+            {"plc_errors", errors},
+            {"requests", stats_.requests.load()},
+            {"answered", stats_.answered.load()},
+            {"x_mm", pose.x_mm()},
+            {"y_mm", pose.y_mm()},
+            {"yaw_deg", pose.yaw_rad() * 180.0 / std::numbers::pi}};
+  }
+
+  nlohmann::json Summary(const std::string& why) {
+    const std::lock_guard lock(stats_.mutex);
+    std::vector<double> latency = stats_.frame_latency_ms;
+    std::vector<double> answers = stats_.answer_ms;
+    std::sort(latency.begin(), latency.end());
+    std::sort(answers.begin(), answers.end());
+    const auto percentile = [](const std::vector<double>& v, double p) -> nlohmann::json {
+      if (v.empty()) return nullptr;
+      return dataset::Percentile(v, p);
+    };
+    const io::PlcLinkStats& link = stats_.link;
+    const std::int64_t processed = stats_.processed;
+    nlohmann::json wheel_scale = nullptr;
+    if (localizer_->initialized()) {
+      const Eigen::Vector2d k = localizer_->wheel_scale_error();
+      wheel_scale = nlohmann::json::array({k.x(), k.y()});
+    }
+    return {{"stopped", why},
+            {"frames", stats_.frames.load()},
+            {"frames_dropped", stats_.frames_dropped.load() + source_->dropped()},
+            {"frames_processed", processed},
+            {"fixes", stats_.fixes.load()},
+            {"fix_rate", processed > 0 ? static_cast<double>(stats_.fixes) / static_cast<double>(processed) : 0.0},
+            {"lock_losses", localizer_->lock().losses()},
+            {"relocalizations", localizer_->relocalizations()},
+            {"relocalize_requests", stats_.relocalize_requests.load()},
+            {"wheel_scale_error", wheel_scale},
+            {"latency_p50_ms", percentile(latency, 50.0)},
+            {"latency_p99_ms", percentile(latency, 99.0)},
+            {"encoder_samples", stats_.encoder_samples.load()},
+            {"encoder_rejected", stats_.encoder_rejected.load()},
+            {"odometry_outages", stats_.odometry_outages.load()},
+            {"fix_writes", stats_.fix_writes.load()},
+            {"requests", stats_.requests.load()},
+            {"answered", stats_.answered.load()},
+            {"answer_p50_ms", percentile(answers, 50.0)},
+            {"answer_max_ms", answers.empty() ? nlohmann::json(nullptr) : nlohmann::json(answers.back())},
+            {"plc_reads", link.reads},
+            {"plc_read_errors", link.read_errors},
+            {"plc_writes", link.writes},
+            {"plc_write_errors", link.write_errors},
+            {"plc_timeouts", link.timeouts},
+            {"plc_connects", link.connects},
+            {"plc_connect_failures", link.connect_failures},
+            {"recorded_frames", recorder_ ? nlohmann::json(recorder_->frames()) : nlohmann::json(nullptr)}};
+  }
+
+  static constexpr std::size_t kFrameQueue = 4;
+
+  LiveRunOptions config_;
+  std::unique_ptr<io::FrameSource> source_;
+  dataset::CameraInfo camera_info_;
+  std::unique_ptr<runtime::MapSession> map_;  // before the localizer, which renders from it
+  Clock::time_point last_prediction_{};  // of the prefetcher; Publish runs on the tracking thread
+  std::unique_ptr<localizer::Localizer> localizer_;
+  std::unique_ptr<io::PlcLink> link_;
+  std::unique_ptr<Recorder> recorder_;
+  core::Timestamp started_;
+
+  std::mutex mutex_;  // guards the queues and camera_done_
+  std::condition_variable wake_;
+  std::deque<io::CapturedFrame> frames_;
+  std::deque<Encoder> encoders_;
+  bool camera_done_ = false;
+  std::atomic<bool> stop_{false};
+  std::atomic<bool> tracking_done_{false};
+  std::atomic<bool> relocalize_pending_{false};  // set by the PLC thread, taken by the tracking thread
+  std::atomic<bool> failed_{false};
+  std::exception_ptr error_;
+
+  std::mutex published_mutex_;
+  Published published_;
+  RunStats stats_;
+  std::int64_t status_frames_ = 0;
+  std::int64_t status_fixes_ = 0;
+  std::size_t status_latency_index_ = 0;
+};
+
+LiveRun::LiveRun(const LiveRunOptions& options, std::unique_ptr<io::FrameSource> source,
+                 const dataset::CameraInfo& camera, const dataset::VehicleInfo& vehicle,
+                 const std::filesystem::path& record)
+    : impl_(std::make_unique<Impl>(options, std::move(source), camera, vehicle, record)) {}
+
+LiveRun::~LiveRun() = default;
+
+nlohmann::json LiveRun::Run(double duration_s, const StatusCallback& status, const StopCallback& stop_requested) {
+  return impl_->Run(duration_s, status, stop_requested);
+}
+
+}  // namespace mosaicloc::runtime
