@@ -12,6 +12,7 @@
 
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/yaml.hpp"
+#include "text_fields.hpp"
 
 namespace mosaicloc::dataset {
 namespace fs = std::filesystem;
@@ -24,31 +25,10 @@ constexpr const char* kGroundTruth = "groundtruth/data.tum";
 constexpr const char* kFramesHeader = "#timestamp_ns,filename";
 constexpr const char* kEncodersHeader = "#timestamp_ns,left_ticks,right_ticks";
 
-[[noreturn]] void LineError(const fs::path& file, int line, const std::string& reason) {
-  core::ThrowInvalidInput(file.string() + ":" + std::to_string(line) + ": " + reason);
-}
-
-std::string Trim(std::string_view text) {
-  const auto begin = text.find_first_not_of(" \t\r");
-  if (begin == std::string_view::npos) return "";
-  const auto end = text.find_last_not_of(" \t\r");
-  return std::string(text.substr(begin, end - begin + 1));
-}
-
-std::vector<std::string> SplitCsv(const std::string& line) {
-  std::vector<std::string> fields;
-  std::string field;
-  std::istringstream in(line);
-  while (std::getline(in, field, ',')) fields.push_back(Trim(field));
-  if (!line.empty() && line.back() == ',') fields.emplace_back();
-  return fields;
-}
-
-bool ParseInt64(const std::string& text, std::int64_t* value) {
-  const char* end = text.data() + text.size();
-  const auto [ptr, ec] = std::from_chars(text.data(), end, *value);
-  return ec == std::errc() && ptr == end && !text.empty();
-}
+using detail::LineError;
+using detail::ParseInt64;
+using detail::SplitCsv;
+using detail::Trim;
 
 // Reads the next non-empty line; returns false at the end of the file.
 bool NextLine(std::ifstream& in, int* line_number, std::string* line) {

@@ -9,22 +9,12 @@
 #include <fmt/format.h>
 
 #include "mosaicloc/core/error.hpp"
+#include "text_fields.hpp"
 
 namespace mosaicloc::dataset {
 namespace {
 
 constexpr int kFields = 9;
-
-std::vector<std::string> Split(const std::string& line) {
-  std::vector<std::string> fields;
-  std::size_t start = 0;
-  while (true) {
-    const std::size_t comma = line.find(',', start);
-    fields.push_back(line.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
-    if (comma == std::string::npos) return fields;
-    start = comma + 1;
-  }
-}
 
 }  // namespace
 
@@ -47,51 +37,42 @@ std::vector<FrameReport> ReadFixesCsv(const std::filesystem::path& file) {
   std::vector<FrameReport> reports;
   std::string line;
   int number = 0;
-  const auto fail = [&](const std::string& why) {
-    core::ThrowInvalidInput(file.string() + ":" + std::to_string(number) + ": " + why);
-  };
   const auto number_of = [&](const std::string& text, const char* name) {
-    std::size_t used = 0;
-    double value = 0.0;
-    try {
-      value = std::stod(text, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used == 0 || used != text.size() || !std::isfinite(value)) fail(std::string(name) + " '" + text + "' is not a number");
-    return value;
+    const std::optional<double> value = detail::ParseDouble(text);
+    if (!value || !std::isfinite(*value)) detail::LineError(file, number, std::string(name) + " '" + text + "' is not a number");
+    return *value;
   };
-  const auto integer_of = [&](const std::string& text, const char* name, long long lo, long long hi) {
-    std::size_t used = 0;
-    long long value = 0;
-    try {
-      value = std::stoll(text, &used);
-    } catch (const std::exception&) {
-      used = 0;
+  const auto integer_of = [&](const std::string& text, const char* name, std::int64_t lo, std::int64_t hi) {
+    std::int64_t value = 0;
+    if (!detail::ParseInt64(text, &value)) {
+      detail::LineError(file, number, std::string(name) + " '" + text + "' is not an integer");
     }
-    if (used == 0 || used != text.size()) fail(std::string(name) + " '" + text + "' is not an integer");
-    if (value < lo || value > hi) fail(std::string(name) + " " + text + " is outside [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+    if (value < lo || value > hi) {
+      detail::LineError(file, number, std::string(name) + " " + text + " is outside [" + std::to_string(lo) + ", " +
+                                          std::to_string(hi) + "]");
+    }
     return value;
   };
   while (std::getline(in, line)) {
     ++number;
     if (!line.empty() && line.back() == '\r') line.pop_back();
     if (line.empty() || line.front() == '#') continue;
-    const std::vector<std::string> f = Split(line);
+    const std::vector<std::string> f = detail::SplitCsv(line);
     if (static_cast<int>(f.size()) != kFields) {
-      fail(std::to_string(f.size()) + " fields, " + std::to_string(kFields) +
-           " expected (timestamp_ns,x_mm,y_mm,yaw_rad,status,quality,fix,sigma_mm,reason)");
+      detail::LineError(file, number,
+                        std::to_string(f.size()) + " fields, " + std::to_string(kFields) +
+                            " expected (timestamp_ns,x_mm,y_mm,yaw_rad,status,quality,fix,sigma_mm,reason)");
     }
     FrameReport r;
-    r.time = core::Timestamp::FromNanoseconds(integer_of(f[0], "timestamp_ns", std::numeric_limits<long long>::min(),
-                                                          std::numeric_limits<long long>::max()));
-    if (!reports.empty() && r.time <= reports.back().time) fail("timestamp_ns does not increase");
+    r.time = core::Timestamp::FromNanoseconds(integer_of(f[0], "timestamp_ns", std::numeric_limits<std::int64_t>::min(),
+                                                          std::numeric_limits<std::int64_t>::max()));
+    if (!reports.empty() && r.time <= reports.back().time) detail::LineError(file, number, "timestamp_ns does not increase");
     r.world_from_vehicle = core::Pose2(number_of(f[1], "x_mm"), number_of(f[2], "y_mm"), number_of(f[3], "yaw_rad"));
     r.status = static_cast<int>(integer_of(f[4], "status", 0, 4));
     r.quality = static_cast<double>(integer_of(f[5], "quality", 0, 1000)) / 1000.0;
     r.fixed = integer_of(f[6], "fix", 0, 1) == 1;
     r.sigma_mm = number_of(f[7], "sigma_mm");
-    if (r.sigma_mm < 0.0) fail("sigma_mm is negative");
+    if (r.sigma_mm < 0.0) detail::LineError(file, number, "sigma_mm is negative");
     r.reason = f[8];
     reports.push_back(std::move(r));
   }

@@ -18,6 +18,7 @@
 
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/file.hpp"
+#include "text_fields.hpp"
 
 namespace mosaicloc::dataset {
 
@@ -29,17 +30,9 @@ constexpr int kFieldCount = 8;
 constexpr std::array<const char*, kFieldCount> kFieldNames = {"timestamp_s", "x_m", "y_m", "z_m",
                                                               "qx",          "qy",  "qz",  "qw"};
 
-bool IsDigit(char c) { return c >= '0' && c <= '9'; }
+using detail::ParseDouble;
 
-std::optional<double> ParseDouble(std::string_view text) {
-  if (text.size() > 1 && text.front() == '+' && (IsDigit(text[1]) || text[1] == '.')) {
-    text.remove_prefix(1);
-  }
-  double value = 0.0;
-  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (ec != std::errc() || end != text.data() + text.size()) return std::nullopt;
-  return value;
-}
+bool IsDigit(char c) { return c >= '0' && c <= '9'; }
 
 std::vector<std::string_view> SplitFields(std::string_view line) {
   std::vector<std::string_view> fields;

@@ -243,12 +243,17 @@ TEST(PoseFilter, LateFixCorrectsTheScalesAsAnOnTimeFix) {
   EXPECT_LT((on_time.covariance() - late.covariance()).norm(), 1e-12);
 }
 
-TEST(LockMonitor, DegradesLosesAndRegainsWithHysteresis) {
+// Degraded after 2 misses, lost after 4, tracking again after 3 fixes.
+LockOptions ShortLockOptions() {
   LockOptions options;
   options.degraded_after_misses = 2;
   options.lost_after_misses = 4;
   options.regain_after_fixes = 3;
-  LockMonitor lock(options);
+  return options;
+}
+
+TEST(LockMonitor, DegradesLosesAndRegainsWithHysteresis) {
+  LockMonitor lock(ShortLockOptions());
   constexpr FrameVerdict kFixed = FrameVerdict::kFixed, kMissed = FrameVerdict::kMissed;
   EXPECT_EQ(lock.Update(kMissed, 0.1, "no texture"), LockState::kTracking);
   EXPECT_EQ(lock.Update(kMissed, 0.1), LockState::kDegraded);
@@ -271,11 +276,7 @@ TEST(LockMonitor, DegradesLosesAndRegainsWithHysteresis) {
 // the dead reckoning, the state says off-map and no loss is counted. Back on the map, the
 // lock counts misses and fixes again from degraded.
 TEST(LockMonitor, OffTheMapIsAStateOfItsOwnAndNoLoss) {
-  LockOptions options;
-  options.degraded_after_misses = 2;
-  options.lost_after_misses = 4;
-  options.regain_after_fixes = 3;
-  LockMonitor lock(options);
+  LockMonitor lock(ShortLockOptions());
   for (int i = 0; i < 100; ++i) EXPECT_EQ(lock.Update(FrameVerdict::kOffMap, 0.1 * i, "off-map"), LockState::kOffMap);
   EXPECT_EQ(lock.losses(), 0);
   EXPECT_EQ(lock.last_reason(), "off-map");

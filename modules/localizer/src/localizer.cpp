@@ -35,6 +35,47 @@ tracking::TrackerOptions EdgeTrackerOptions(const LocalizerOptions& options) {
   return edge;
 }
 
+// `reference` halved up to `levels` times (fewer where the map has no coarser level).
+struct CoarseLevel {
+  std::unique_ptr<const tracking::ReferenceRaster> owner;  ///< the coarser raster, if any
+  const tracking::ReferenceRaster* raster = nullptr;
+  int halvings = 0;
+};
+CoarseLevel Coarsen(const tracking::ReferenceRaster& reference, int levels) {
+  CoarseLevel coarse;
+  coarse.raster = &reference;
+  for (; coarse.halvings < levels; ++coarse.halvings) {
+    std::unique_ptr<const tracking::ReferenceRaster> next = coarse.raster->Coarser();
+    if (!next) break;
+    coarse.owner = std::move(next);
+    coarse.raster = coarse.owner.get();
+  }
+  return coarse;
+}
+
+// MapCoverage on a raster already at the level to sample.
+double CoverageOn(const tracking::ReferenceRaster& raster, const camera::IdealCamera& camera,
+                  const core::Pose2& world_from_camera, double margin_mm) {
+  // A grid over the footprint in the frame's orientation, one sample per raster pixel.
+  const double step_mm = raster.mm_per_px();
+  const double half_w = 0.5 * camera.width_mm() + margin_mm;
+  const double half_h = 0.5 * camera.height_mm() + margin_mm;
+  const int cols = std::max(1, static_cast<int>(std::ceil(2.0 * half_w / step_mm)));
+  const int rows = std::max(1, static_cast<int>(std::ceil(2.0 * half_h / step_mm)));
+  // Grid pixel (i, j) -> camera floor point (-half_w + (i + 0.5) w / cols, half_h - ...).
+  Eigen::Matrix<double, 2, 3> grid_to_camera;
+  grid_to_camera << 2.0 * half_w / cols, 0.0, -half_w + half_w / cols, 0.0, -2.0 * half_h / rows,
+      half_h - half_h / rows;
+  const double c = std::cos(world_from_camera.yaw_rad()), s = std::sin(world_from_camera.yaw_rad());
+  Eigen::Matrix<double, 2, 3> camera_to_world;
+  camera_to_world << c, -s, world_from_camera.x_mm(), s, c, world_from_camera.y_mm();
+  const Eigen::Matrix<double, 2, 3> grid_to_raster =
+      tracking::ComposeAffine(raster.WorldToRaster(), tracking::ComposeAffine(camera_to_world, grid_to_camera));
+  cv::Mat mask;
+  tracking::RenderWindow(raster, grid_to_raster, cv::Point(0, 0), cv::Size(cols, rows), &mask);
+  return static_cast<double>(cv::countNonZero(mask)) / static_cast<double>(mask.total());
+}
+
 // A template of the registration fell (partly) off the map.
 bool PartlyOffTheMap(const tracking::TrackResult& track) {
   return std::any_of(track.templates.begin(), track.templates.end(),
@@ -281,8 +322,8 @@ estimation::FrameVerdict Localizer::ClassifyMiss(const FrameOutcome& outcome, co
     ++unmatched_run_;
     return estimation::FrameVerdict::kMissed;
   }
-  const int level = std::min(2, options_.relocalize_level);
-  const double seen = MapCoverage(reference_, camera_, prior_camera, 0.0, level);
+  const CoarseLevel coarse = Coarsen(reference_, std::min(2, options_.relocalize_level));
+  const double seen = CoverageOn(*coarse.raster, camera_, prior_camera, 0.0);
   if (seen < options_.on_map_coverage) {
     unmatched_run_ = 0;
     *reason = "off-map: " + std::to_string(static_cast<int>(std::floor(100.0 * seen))) +
@@ -305,7 +346,7 @@ estimation::FrameVerdict Localizer::ClassifyMiss(const FrameOutcome& outcome, co
     }
     const core::Pose2 moved(prior_camera.x_mm() + shift.x(), prior_camera.y_mm() + shift.y(),
                             prior_camera.yaw_rad() + shift.z());
-    inside = MapCoverage(reference_, camera_, moved, 0.0, level) >= options_.on_map_coverage;
+    inside = CoverageOn(*coarse.raster, camera_, moved, 0.0) >= options_.on_map_coverage;
   }
   unmatched_run_ = inside ? unmatched_run_ + 1 : 0;  // at the map's edge the view may be off it
   return estimation::FrameVerdict::kMissed;
@@ -346,15 +387,9 @@ tracking::TrackResult Localizer::Relocalize(const cv::Mat& frame, const core::Po
   none.failure = tracking::TrackFailure::kNoMatch;
   none.reason = "relocalization found no verified place";
   // The coarse level of the map, and the frame averaged down to it.
-  std::unique_ptr<const tracking::ReferenceRaster> coarse;
-  const tracking::ReferenceRaster* level = &reference_;
-  int k = 0;
-  for (; k < options_.relocalize_level; ++k) {
-    std::unique_ptr<const tracking::ReferenceRaster> next = level->Coarser();
-    if (!next) break;
-    coarse = std::move(next);
-    level = coarse.get();
-  }
+  const CoarseLevel coarse = Coarsen(reference_, options_.relocalize_level);
+  const tracking::ReferenceRaster* level = coarse.raster;
+  const int k = coarse.halvings;
   if (k == 0) return none;
   const int scale = 1 << k;
   cv::Mat small = frame;
@@ -449,33 +484,8 @@ tracking::TrackResult Localizer::Relocalize(const cv::Mat& frame, const core::Po
 
 double MapCoverage(const tracking::ReferenceRaster& reference, const camera::IdealCamera& camera,
                    const core::Pose2& world_from_camera, double margin_mm, int level) {
-  std::unique_ptr<const tracking::ReferenceRaster> coarse;
-  const tracking::ReferenceRaster* raster = &reference;
-  int k = 0;
-  for (; k < level; ++k) {
-    std::unique_ptr<const tracking::ReferenceRaster> next = raster->Coarser();
-    if (!next) break;
-    coarse = std::move(next);
-    raster = coarse.get();
-  }
-  // A grid over the footprint in the frame's orientation, one sample per coarse pixel.
-  const double step_mm = raster->mm_per_px();
-  const double half_w = 0.5 * camera.width_mm() + margin_mm;
-  const double half_h = 0.5 * camera.height_mm() + margin_mm;
-  const int cols = std::max(1, static_cast<int>(std::ceil(2.0 * half_w / step_mm)));
-  const int rows = std::max(1, static_cast<int>(std::ceil(2.0 * half_h / step_mm)));
-  // Grid pixel (i, j) -> camera floor point (-half_w + (i + 0.5) w / cols, half_h - ...).
-  Eigen::Matrix<double, 2, 3> grid_to_camera;
-  grid_to_camera << 2.0 * half_w / cols, 0.0, -half_w + half_w / cols, 0.0, -2.0 * half_h / rows,
-      half_h - half_h / rows;
-  const double c = std::cos(world_from_camera.yaw_rad()), s = std::sin(world_from_camera.yaw_rad());
-  Eigen::Matrix<double, 2, 3> camera_to_world;
-  camera_to_world << c, -s, world_from_camera.x_mm(), s, c, world_from_camera.y_mm();
-  const Eigen::Matrix<double, 2, 3> grid_to_raster =
-      tracking::ComposeAffine(raster->WorldToRaster(), tracking::ComposeAffine(camera_to_world, grid_to_camera));
-  cv::Mat mask;
-  tracking::RenderWindow(*raster, grid_to_raster, cv::Point(0, 0), cv::Size(cols, rows), &mask);
-  return static_cast<double>(cv::countNonZero(mask)) / static_cast<double>(mask.total());
+  const CoarseLevel coarse = Coarsen(reference, level);
+  return CoverageOn(*coarse.raster, camera, world_from_camera, margin_mm);
 }
 
 }  // namespace mosaicloc::localizer
