@@ -4,36 +4,27 @@
 #include <glob.h>
 
 #include <algorithm>
-#include <chrono>
-#include <array>
-#include <deque>
-#include <optional>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
+#include <optional>
 
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "commands.hpp"
+#include "mosaicloc/calibration/board_detection.hpp"
+#include "mosaicloc/calibration/ground.hpp"
+#include "mosaicloc/calibration/intrinsics.hpp"
+#include "mosaicloc/calibration/vehicle_drive.hpp"
 #include "mosaicloc/camera/board.hpp"
-#include "mosaicloc/camera/flat_field.hpp"
-#include "mosaicloc/camera/ground.hpp"
-#include "mosaicloc/camera/intrinsics.hpp"
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/file.hpp"
-#include "mosaicloc/camera/vehicle_calibration.hpp"
-#include "mosaicloc/core/log.hpp"
-#include "mosaicloc/core/yaml.hpp"
-#include "mosaicloc/dataset/dataset.hpp"
 #include "mosaicloc/sim/calibration_drive.hpp"
-#include "mosaicloc/dataset/trajectory.hpp"
-#include "mosaicloc/sim/raw_imaging.hpp"
+#include "mosaicloc/sim/raw_recordings.hpp"
 #include "mosaicloc/sim/simulator.hpp"
-#include "sim_config.hpp"
-#include "mosaicloc/tracking/tracker.hpp"
 #include "progress.hpp"
+#include "sim_config.hpp"
 
 namespace mosaicloc::app {
 namespace {
@@ -67,9 +58,9 @@ void WritePng(const std::filesystem::path& file, const cv::Mat& image) {
 }
 
 // Detects the board in every image, all of the same size.
-std::vector<camera::BoardView> DetectAll(const std::vector<std::filesystem::path>& files,
+std::vector<calibration::BoardView> DetectAll(const std::vector<std::filesystem::path>& files,
                                          const camera::BoardSpec& board, int* width, int* height) {
-  std::vector<camera::BoardView> views;
+  std::vector<calibration::BoardView> views;
   for (const std::filesystem::path& file : files) {
     const cv::Mat image = ReadGrey(file);
     if (views.empty()) {
@@ -80,16 +71,16 @@ std::vector<camera::BoardView> DetectAll(const std::vector<std::filesystem::path
                               " differs from the first image's " + std::to_string(*width) + "x" +
                               std::to_string(*height));
     }
-    camera::BoardView view;
+    calibration::BoardView view;
     view.name = file.filename().string();
-    if (const auto detection = camera::DetectBoard(image, board)) view.detection = *detection;
+    if (const auto detection = calibration::DetectBoard(image, board)) view.detection = *detection;
     views.push_back(std::move(view));
   }
   return views;
 }
 
-nlohmann::json IntrinsicsJson(const camera::IntrinsicsEstimate& e) {
-  const camera::Intrinsics& k = e.intrinsics;
+nlohmann::json IntrinsicsJson(const calibration::IntrinsicsEstimate& e) {
+  const calibration::Intrinsics& k = e.intrinsics;
   return {{"fx_px", k.fx_px}, {"fy_px", k.fy_px}, {"cx_px", k.cx_px}, {"cy_px", k.cy_px},
           {"kud", k.kud},     {"kdu", k.kdu},     {"rms_px", e.rms_px}};
 }
@@ -132,20 +123,20 @@ void RunIntrinsics(const IntrinsicsArgs& args, const GlobalOptions& global) {
   const camera::BoardSpec board = camera::ParseBoardSpec(args.board);
   const std::vector<std::filesystem::path> files = Glob(args.images);
   int width = 0, height = 0;
-  const std::vector<camera::BoardView> views = DetectAll(files, board, &width, &height);
+  const std::vector<calibration::BoardView> views = DetectAll(files, board, &width, &height);
   if (std::none_of(views.begin(), views.end(), [](const auto& v) { return !v.detection.points_px.empty(); })) {
     core::ThrowInvalidInput("board " + board.ToString() + " not found in any of the " + std::to_string(files.size()) +
                             " images matching '" + args.images + "'");
   }
-  const camera::IntrinsicsResult result = camera::CalibrateIntrinsics(views, board, width, height, {});
-  camera::WriteVispCameraXml(args.out, result.visp.intrinsics, args.camera_name,
+  const calibration::IntrinsicsResult result = calibration::CalibrateIntrinsics(views, board, width, height, {});
+  calibration::WriteVispCameraXml(args.out, result.visp.intrinsics, args.camera_name,
                              "mosaicloc calibrate intrinsics, board " + board.ToString() + ", " +
                                  std::to_string(result.used.size()) + " images, RMS " +
                                  std::to_string(result.visp.rms_px) + " px");
   if (global.json) {
     nlohmann::json images = nlohmann::json::array();
     std::size_t used_index = 0;
-    for (const camera::ViewReport& view : result.views) {
+    for (const calibration::ViewReport& view : result.views) {
       nlohmann::json entry = {{"image", view.name}, {"used", view.used}};
       if (view.used) {
         entry["visp_rms_px"] = result.visp.view_rms_px[used_index];
@@ -167,7 +158,7 @@ void RunIntrinsics(const IntrinsicsArgs& args, const GlobalOptions& global) {
               board.ToString().c_str(), width, height);
   std::printf("  %-28s %12s %12s\n", "image", "ViSP rms px", "OpenCV rms px");
   std::size_t used_index = 0;
-  for (const camera::ViewReport& view : result.views) {
+  for (const calibration::ViewReport& view : result.views) {
     if (view.used) {
       std::printf("  %-28s %12.4f %12.4f\n", view.name.c_str(), result.visp.view_rms_px[used_index],
                   result.opencv.view_rms_px[used_index]);
@@ -176,8 +167,8 @@ void RunIntrinsics(const IntrinsicsArgs& args, const GlobalOptions& global) {
       std::printf("  %-28s rejected: %s\n", view.name.c_str(), view.rejected_because.c_str());
     }
   }
-  const camera::Intrinsics& v = result.visp.intrinsics;
-  const camera::Intrinsics& o = result.opencv.intrinsics;
+  const calibration::Intrinsics& v = result.visp.intrinsics;
+  const calibration::Intrinsics& o = result.opencv.intrinsics;
   std::printf("  %-10s %14s %14s\n", "", "ViSP", "OpenCV");
   std::printf("  %-10s %14.3f %14.3f\n", "fx px", v.fx_px, o.fx_px);
   std::printf("  %-10s %14.3f %14.3f\n", "fy px", v.fy_px, o.fy_px);
@@ -197,28 +188,28 @@ struct GroundArgs {
   std::filesystem::path intrinsics;
   std::string camera_name;
   std::filesystem::path out;
-  camera::GroundOptions options;
+  calibration::GroundOptions options;
 };
 
 void RunGround(const GroundArgs& args, const GlobalOptions& global) {
   const camera::BoardSpec board = camera::ParseBoardSpec(args.board);
-  const camera::Intrinsics intrinsics = camera::ReadVispCameraXml(args.intrinsics, args.camera_name);
+  const calibration::Intrinsics intrinsics = calibration::ReadVispCameraXml(args.intrinsics, args.camera_name);
   std::string why;
   if (!args.options.Check(&why)) core::ThrowInvalidInput(why);
   const std::vector<std::filesystem::path> files = Glob(args.images);
   int width = 0, height = 0;
-  const std::vector<camera::BoardView> views = DetectAll(files, board, &width, &height);
+  const std::vector<calibration::BoardView> views = DetectAll(files, board, &width, &height);
   if (width != intrinsics.width_px || height != intrinsics.height_px) {
     core::ThrowInvalidInput(files.front().string() + ": images are " + std::to_string(width) + "x" +
                             std::to_string(height) + " but " + args.intrinsics.string() + " is for " +
                             std::to_string(intrinsics.width_px) + "x" + std::to_string(intrinsics.height_px));
   }
-  const camera::GroundResult result = camera::CalibrateGround(views, board, intrinsics, args.options);
-  camera::WriteGroundCalibration(args.out, result.calibration,
+  const calibration::GroundResult result = calibration::CalibrateGround(views, board, intrinsics, args.options);
+  calibration::WriteGroundCalibration(args.out, result.calibration,
                                  "mosaicloc calibrate ground, board " + board.ToString() + ", " +
                                      std::to_string(views.size()) + " images, intrinsics " +
                                      args.intrinsics.filename().string());
-  const camera::GroundCalibration& c = result.calibration;
+  const calibration::GroundCalibration& c = result.calibration;
   if (global.json) {
     nlohmann::json images = nlohmann::json::array();
     for (const auto& view : result.views) {
@@ -267,7 +258,7 @@ struct RectifyArgs {
 };
 
 void RunRectify(const RectifyArgs& args, const GlobalOptions& global) {
-  const camera::Rectifier rectifier(camera::ReadGroundCalibration(args.ground));
+  const calibration::Rectifier rectifier(calibration::ReadGroundCalibration(args.ground));
   const std::vector<std::filesystem::path> files = Glob(args.images);
   std::vector<cv::Mat> rectified;
   for (const std::filesystem::path& file : files) {
@@ -292,7 +283,7 @@ void RunRectify(const RectifyArgs& args, const GlobalOptions& global) {
 
 void RunVerify(const RectifyArgs& args, const GlobalOptions& global) {
   const camera::BoardSpec board = camera::ParseBoardSpec(args.board);
-  const camera::Rectifier rectifier(camera::ReadGroundCalibration(args.ground));
+  const calibration::Rectifier rectifier(calibration::ReadGroundCalibration(args.ground));
   const std::vector<std::filesystem::path> files = Glob(args.images);
   nlohmann::json images = nlohmann::json::array();
   double worst_scale = 0.0;
@@ -302,9 +293,9 @@ void RunVerify(const RectifyArgs& args, const GlobalOptions& global) {
     if (!rectifier.Rectify(ReadGrey(file), &ideal)) {
       core::ThrowInvalidInput(file.string() + ": not the calibrated raw size");
     }
-    const auto detection = camera::DetectBoard(ideal, board);
+    const auto detection = calibration::DetectBoard(ideal, board);
     if (!detection) core::ThrowInvalidInput(file.string() + ": board " + board.ToString() + " not found once rectified");
-    const camera::IdealBoardMeasurement m = camera::MeasureIdealBoard(*detection, board, rectifier.calibration().ideal);
+    const calibration::IdealBoardMeasurement m = calibration::MeasureIdealBoard(*detection, board, rectifier.calibration().ideal);
     worst_scale = std::max(worst_scale, std::abs(m.scale_error));
     images.push_back({{"image", file.filename().string()},
                       {"scale_error_percent", 100.0 * m.scale_error},
@@ -335,54 +326,21 @@ struct SimulateArgs {
 };
 
 void RunSimulate(const SimulateArgs& args, const GlobalOptions& global) {
-  const camera::BoardSpec board = camera::ParseBoardSpec(args.board);
-  const camera::BoardSpec floor_board = camera::ParseBoardSpec(args.floor_board);
-  const camera::RealCameraOptions truth = sim::CalibrationTruthCamera();
-  const std::vector<sim::BoardShot> shots =
-      sim::RenderIntrinsicsShots(truth, board, args.shots, 0.42, sim::RawImagingOptions{}, args.seed);
-  // The floor board in the four quadrants of the view, so the fitted plane spans the image.
-  const camera::RealCamera mounted(truth);
-  const std::vector<core::Pose2> placements = {
-      {-62.0, -42.0, 0.05}, {-18.0, -42.0, -0.05}, {-62.0, -8.0, 0.0}, {-18.0, -8.0, 0.05}, {-42.0, -30.0, -0.08}};
-  const double scale = floor_board.pitch_mm / 10.0;
-  // 16 x 16 samples per pixel: with fewer, an edge that runs along the pixel grid (the third
-  // placement) moves in steps of a quarter pixel, which no real camera does, and its corners
-  // err by 0.1 px: enough to tilt the fitted floor by 10^-4 rad.
-  sim::RawImagingOptions floor_imaging;
-  floor_imaging.supersampling = 16;
-  std::vector<cv::Mat> floor_images;
-  for (std::size_t i = 0; i < placements.size(); ++i) {
-    const core::Pose2 placement(placements[i].translation_mm() * scale, placements[i].yaw_rad());
-    floor_images.push_back(sim::RenderBoardRaw(mounted, floor_board, placement, floor_imaging, args.seed * 1000 + i));
-  }
-  std::filesystem::create_directories(args.out / "intrinsics");
-  std::filesystem::create_directories(args.out / "ground");
-  char name[64];
-  for (std::size_t i = 0; i < shots.size(); ++i) {
-    std::snprintf(name, sizeof(name), "board-%02zu.png", i + 1);
-    WritePng(args.out / "intrinsics" / name, shots[i].image);
-  }
-  for (std::size_t i = 0; i < floor_images.size(); ++i) {
-    std::snprintf(name, sizeof(name), "floor-%02zu.png", i + 1);
-    WritePng(args.out / "ground" / name, floor_images[i]);
-  }
-  char text[1024];
-  std::snprintf(text, sizeof(text),
-                "# The simulated camera the images were made with (camera::RealCamera).\n"
-                "fx_px: %.6f\nfy_px: %.6f\ncx_px: %.6f\ncy_px: %.6f\nk1: %.6f\nheight_mm: %.6f\n"
-                "tilt_x_rad: %.6f\ntilt_y_rad: %.6f\nboard: %s\nfloor_board: %s\n",
-                truth.fx_px, truth.fy_px, truth.cx_px, truth.cy_px, truth.k1, truth.height_mm, truth.tilt_x_rad,
-                truth.tilt_y_rad, board.ToString().c_str(), floor_board.ToString().c_str());
-  core::WriteFileAtomically(args.out / "truth.yaml", text);
+  sim::CalibrationPhotographsOptions options;
+  options.board = camera::ParseBoardSpec(args.board);
+  options.floor_board = camera::ParseBoardSpec(args.floor_board);
+  options.shots = args.shots;
+  options.seed = args.seed;
+  const sim::CalibrationPhotographs written = sim::WriteCalibrationPhotographs(options, args.out);
   if (global.json) {
     std::printf("%s\n", nlohmann::json{{"out", args.out.string()},
-                                       {"board_images", shots.size()},
-                                       {"floor_images", floor_images.size()}}
+                                       {"board_images", written.board_images},
+                                       {"floor_images", written.floor_images}}
                             .dump(2)
                             .c_str());
   } else {
-    std::printf("%zu board photographs in %s, %zu of the board on the floor in %s; the truth in %s\n",
-                shots.size(), (args.out / "intrinsics").string().c_str(), floor_images.size(),
+    std::printf("%d board photographs in %s, %d of the board on the floor in %s; the truth in %s\n",
+                written.board_images, (args.out / "intrinsics").string().c_str(), written.floor_images,
                 (args.out / "ground").string().c_str(), (args.out / "truth.yaml").string().c_str());
   }
 }
@@ -395,226 +353,40 @@ struct VehicleArgs {
   std::filesystem::path out;
 };
 
-std::string Number(double value) {
-  char text[40];
-  std::snprintf(text, sizeof(text), "%.9g", value);
-  return text;
-}
-
 void RunVehicle(const VehicleArgs& args, const GlobalOptions& global) {
-  const dataset::DatasetReader reader(args.dataset);
-  const dataset::DatasetInfo& info = reader.info();
-  std::vector<dataset::EncoderSample> encoders;
-  {
-    auto stream = reader.Encoders();
-    while (auto sample = stream.Next()) encoders.push_back(*sample);
-  }
-  if (encoders.size() < 2) core::ThrowInvalidInput(args.dataset.string() + ": the drive has no encoder samples");
-  // Unwrapped tick counts (the PLC's int32 counters may wrap), interpolated at a time.
-  std::vector<double> left(encoders.size()), right(encoders.size());
-  for (std::size_t i = 1; i < encoders.size(); ++i) {
-    const auto delta = [](std::int32_t a, std::int32_t b) {
-      return static_cast<double>(static_cast<std::int32_t>(static_cast<std::uint32_t>(b) - static_cast<std::uint32_t>(a)));
-    };
-    left[i] = left[i - 1] + delta(encoders[i - 1].left_ticks, encoders[i].left_ticks);
-    right[i] = right[i - 1] + delta(encoders[i - 1].right_ticks, encoders[i].right_ticks);
-  }
-  const auto ticks_at = [&](core::Timestamp t) -> std::optional<Eigen::Vector2d> {
-    const auto after = std::lower_bound(encoders.begin(), encoders.end(), t,
-                                        [](const dataset::EncoderSample& s, core::Timestamp x) { return s.time < x; });
-    if (after == encoders.end()) return std::nullopt;
-    const std::size_t j = static_cast<std::size_t>(after - encoders.begin());
-    if (after->time == t) return Eigen::Vector2d(left[j], right[j]);
-    if (j == 0) return std::nullopt;
-    const double a = static_cast<double>((t - encoders[j - 1].time).count()) /
-                     static_cast<double>((encoders[j].time - encoders[j - 1].time).count());
-    return Eigen::Vector2d(left[j - 1] + a * (left[j] - left[j - 1]), right[j - 1] + a * (right[j] - right[j - 1]));
-  };
-  const double rad_per_tick = 2.0 * M_PI / static_cast<double>(info.vehicle.ticks_per_revolution);
-
-  camera::IdealCameraOptions camera_options;
-  camera_options.width_px = info.camera.width_px;
-  camera_options.height_px = info.camera.height_px;
-  camera_options.mm_per_px = info.camera.mm_per_px;
-  const camera::IdealCamera camera(camera_options);
-  // The tracker's matcher, set for accuracy rather than speed: the whole frame cut into
-  // templates (every part of the overlap used), and a wider low-pass, which keeps the
-  // sub-pixel estimate from locking onto the pixel grid (a bias that repeats with the same
-  // fractional shift and would not average out).
-  tracking::TrackerOptions tracker_options;
-  tracker_options.templates.mode = tracking::TemplateMode::kTiled;
-  tracker_options.templates.tile_cols = 6;
-  tracker_options.templates.tile_rows = 4;
-  tracker_options.refine.prefilter_sigma_px = 2.0;
-  const tracking::Tracker tracker(camera, tracker_options);
-  camera::VehicleCalibrationOptions options;
-  options.initial_wheels = {info.vehicle.left_wheel_radius_mm, info.vehicle.right_wheel_radius_mm,
-                            info.vehicle.track_width_mm};
-  options.initial_vehicle_from_camera = info.camera.vehicle_from_camera;
-
-  // The lens's vignetting stays on the pixels while the floor moves: estimated from the drive
-  // itself and divided out before registering.
-  cv::Mat gain;
-  {
-    camera::FlatFieldEstimator flat;
-    auto all = reader.Frames();
-    while (auto frame = all.Next()) flat.Add(frame->image);
-    gain = flat.Gain();
-  }
-
-  // Each frame is registered to the one before it (the chain that predicts the others) and
-  // to up to kBaselines earlier frames it still overlaps: the longer the baseline, the
-  // smaller a registration error is against the motion.
-  constexpr int kBaselines = 12;
-  constexpr double kMinOverlap = 0.2;
-  struct Kept {
-    cv::Mat image;
-    camera::WheelTurn turn;         // since the previous frame
-    core::Pose2 chain_from_camera;  // from the consecutive registrations
-  };
-  std::deque<Kept> window;
-  std::vector<camera::DriveStep> steps;
-  int failed = 0, frames = 0, consecutive = 0;
-  Eigen::Vector2d previous_ticks = Eigen::Vector2d::Zero();
-  std::optional<core::Pose2> last_motion;
-  auto stream = reader.Frames();
   ProgressBar progress("calibrate vehicle", global.quiet);
-  const double width_mm = camera.width_px() * camera.mm_per_px(), height_mm = camera.height_px() * camera.mm_per_px();
-  const auto overlap = [&](const core::Pose2& motion) {
-    // Share of the frame both images show, from the displacement of the corners.
-    double shift_x = 0.0, shift_y = 0.0;
-    for (const double x : {-0.5 * width_mm, 0.5 * width_mm}) {
-      for (const double y : {-0.5 * height_mm, 0.5 * height_mm}) {
-        const Eigen::Vector2d moved = motion * Eigen::Vector2d(x, y);
-        shift_x = std::max(shift_x, std::abs(moved.x() - x));
-        shift_y = std::max(shift_y, std::abs(moved.y() - y));
-      }
-    }
-    return std::max(0.0, 1.0 - shift_x / width_mm) * std::max(0.0, 1.0 - shift_y / height_mm);
-  };
-  while (auto frame = stream.Next()) {
-    ++frames;
-    const auto ticks = ticks_at(frame->time);
-    if (!ticks) continue;
-    Kept current{camera::DivideByGain(frame->image, gain), {}, core::Pose2()};
-    if (!window.empty()) {
-      camera::DriveStep step;
-      step.left_wheel_rad = ((*ticks)(0) - previous_ticks(0)) * rad_per_tick;
-      step.right_wheel_rad = ((*ticks)(1) - previous_ticks(1)) * rad_per_tick;
-      current.turn = {step.left_wheel_rad, step.right_wheel_rad};
-      // The prior: the last registered motion (the drive is smooth), or the nominal odometry.
-      core::Pose2 prior = last_motion.value_or(core::Pose2());
-      if (!last_motion) {
-        const double d = 0.5 * (options.initial_wheels.left_wheel_radius_mm * step.left_wheel_rad +
-                                options.initial_wheels.right_wheel_radius_mm * step.right_wheel_rad);
-        const double theta = (options.initial_wheels.right_wheel_radius_mm * step.right_wheel_rad -
-                              options.initial_wheels.left_wheel_radius_mm * step.left_wheel_rad) /
-                             options.initial_wheels.track_width_mm;
-        prior = options.initial_vehicle_from_camera.Inverse() * core::Pose2(d, 0.0, theta) *
-                options.initial_vehicle_from_camera;
-      }
-      const double sigma_mm = 3.0, sigma_rad = 0.01;
-      const Eigen::Matrix3d covariance =
-          Eigen::Vector3d(sigma_mm * sigma_mm, sigma_mm * sigma_mm, sigma_rad * sigma_rad).asDiagonal();
-      const tracking::TrackResult r =
-          tracking::RegisterFrames(tracker, window.back().image, current.image, prior, covariance);
-      if (r.ok()) {
-        step.previous_from_current_camera = r.world_from_camera;
-        last_motion = r.world_from_camera;
-        steps.push_back(step);
-        ++consecutive;
-        current.chain_from_camera = window.back().chain_from_camera * r.world_from_camera;
-        // The chain predicts the longer baselines to a fraction of a pixel.
-        const Eigen::Matrix3d chained = Eigen::Vector3d(0.25, 0.25, 1e-6).asDiagonal();
-        while (window.size() > 1 &&
-               overlap(window.front().chain_from_camera.Inverse() * current.chain_from_camera) < kMinOverlap) {
-          window.pop_front();
-        }
-        // Up to kBaselines of the earlier frames, evenly spread, the oldest first.
-        const int earlier = static_cast<int>(window.size()) - 1;
-        const int used = std::min(earlier, kBaselines);
-        for (int n = 0; n < used; ++n) {
-          const int index = static_cast<int>(std::lround(static_cast<double>(n) * earlier / used));
-          const Kept& from = window[static_cast<std::size_t>(index)];
-          const tracking::TrackResult far = tracking::RegisterFrames(
-              tracker, from.image, current.image, from.chain_from_camera.Inverse() * current.chain_from_camera, chained);
-          if (!far.ok()) continue;
-          camera::DriveStep long_step;
-          long_step.previous_from_current_camera = far.world_from_camera;
-          for (std::size_t i = static_cast<std::size_t>(index) + 1; i < window.size(); ++i) {
-            long_step.arcs.push_back(window[i].turn);
-          }
-          long_step.arcs.push_back(current.turn);
-          steps.push_back(long_step);
-        }
-      } else {
-        ++failed;
-        last_motion.reset();
-        window.clear();
-        core::Log().debug("frame {}: not registered to the previous one: {}", frame->time.nanoseconds(), r.reason);
-      }
-    }
-    window.push_back(std::move(current));
-    previous_ticks = *ticks;
-  }
-  // The pairs of a frame share its noise: the uncertainty counts frames, not pairs.
-  options.independent_steps = consecutive;
+  const calibration::VehicleDriveResult drive = calibration::CalibrateVehicleFromDrive(
+      args.dataset, {}, [&progress](double fraction) { progress.Update(fraction); });
   progress.Finish();
-  const camera::VehicleCalibrationResult result = camera::CalibrateVehicle(steps, options);
-  if (!result.converged) {
-    core::ThrowInvalidInput(args.dataset.string() + ": vehicle calibration failed: " + result.message + " (" +
-                            std::to_string(consecutive) + " consecutive frame pairs registered, " + std::to_string(failed) +
-                            " not)");
-  }
+  const calibration::VehicleCalibrationResult& result = drive.calibration;
   const core::Pose2& x = result.vehicle_from_camera;
-  const camera::WheelGeometry& w = result.wheels;
-  const auto& sigma = result.sigma;
+  const core::WheelGeometry& w = result.wheels;
+  const calibration::VehicleParameters value{x.x_mm(), x.y_mm(), x.yaw_rad(), w.left_wheel_radius_mm,
+                                             w.right_wheel_radius_mm, w.track_width_mm};
+  calibration::VehicleParameters sigma{};
+  for (int i = 0; i < 6; ++i) sigma[static_cast<std::size_t>(i)] = result.sigma(i);
   if (!args.out.empty()) {
-    std::string out;
-    out += "# mosaicloc vehicle calibration (mosaicloc calibrate vehicle --dataset " + args.dataset.string() + ")\n";
-    out += "# from " + std::to_string(steps.size()) + " registered frame pairs (" + std::to_string(consecutive) +
-           " consecutive); sigma_* are one-sigma uncertainties.\n";
-    out += "# Copy the values into run.yaml (camera.vehicle_from_camera, vehicle.*).\n";
-    out += "format_version: 1\n";
-    out += "vehicle_from_camera: {x_mm: " + Number(x.x_mm()) + ", y_mm: " + Number(x.y_mm()) +
-           ", yaw_rad: " + Number(x.yaw_rad()) + "}\n";
-    out += "vehicle_from_camera_sigma: {x_mm: " + Number(sigma(0)) + ", y_mm: " + Number(sigma(1)) +
-           ", yaw_rad: " + Number(sigma(2)) + "}\n";
-    out += "left_wheel_radius_mm: " + Number(w.left_wheel_radius_mm) + "\n";
-    out += "right_wheel_radius_mm: " + Number(w.right_wheel_radius_mm) + "\n";
-    out += "track_width_mm: " + Number(w.track_width_mm) + "\n";
-    out += "wheel_sigma: {left_wheel_radius_mm: " + Number(sigma(3)) + ", right_wheel_radius_mm: " +
-           Number(sigma(4)) + ", track_width_mm: " + Number(sigma(5)) + "}\n";
-    core::WriteFileAtomically(args.out, out);
+    calibration::WriteVehicleCalibration(
+        args.out, {x, w, sigma},
+        "mosaicloc vehicle calibration (mosaicloc calibrate vehicle --dataset " + args.dataset.string() + ")\nfrom " +
+            std::to_string(drive.steps) + " registered frame pairs (" + std::to_string(drive.consecutive_steps) +
+            " consecutive); *_sigma are one-sigma uncertainties.\n"
+            "Copy the values into run.yaml (camera.vehicle_from_camera, vehicle.*).");
   }
-  // A simulated drive carries its truth: show the errors too.
-  std::optional<std::array<double, 6>> truth;
-  const auto& p = info.provenance;
-  if (p.count("truth_vehicle_from_camera") && p.count("truth_left_wheel_radius_mm") &&
-      p.count("truth_right_wheel_radius_mm") && p.count("truth_track_width_mm")) {
-    std::array<double, 6> t{};
-    if (std::sscanf(p.at("truth_vehicle_from_camera").c_str(), "%lf %lf %lf", &t[0], &t[1], &t[2]) == 3) {
-      t[3] = std::stod(p.at("truth_left_wheel_radius_mm"));
-      t[4] = std::stod(p.at("truth_right_wheel_radius_mm"));
-      t[5] = std::stod(p.at("truth_track_width_mm"));
-      truth = t;
-    }
-  }
-  const std::array<double, 6> value{x.x_mm(), x.y_mm(), x.yaw_rad(), w.left_wheel_radius_mm, w.right_wheel_radius_mm,
-                                    w.track_width_mm};
+  const std::optional<calibration::VehicleParameters>& truth = drive.truth;
   const char* names[6] = {"camera x mm", "camera y mm", "camera yaw deg", "left radius mm", "right radius mm",
                           "track width mm"};
   const double unit[6] = {1.0, 1.0, 180.0 / M_PI, 1.0, 1.0, 1.0};
   if (global.json) {
-    nlohmann::json out = {{"frames", frames}, {"steps", steps.size()}, {"consecutive_steps", consecutive},
-                          {"not_registered", failed},
+    nlohmann::json out = {{"frames", drive.frames}, {"steps", drive.steps}, {"consecutive_steps", drive.consecutive_steps},
+                          {"not_registered", drive.not_registered},
                           {"iterations", result.iterations},
                           {"rms_translation_mm", result.rms_translation_mm},
                           {"rms_rotation_deg", result.rms_rotation_rad * 180.0 / M_PI}};
     const char* keys[6] = {"x_mm", "y_mm", "yaw_deg", "left_wheel_radius_mm", "right_wheel_radius_mm",
                            "track_width_mm"};
-    for (int i = 0; i < 6; ++i) {
-      out[keys[i]] = {{"value", value[i] * unit[i]}, {"sigma", sigma(i) * unit[i]}};
+    for (std::size_t i = 0; i < 6; ++i) {
+      out[keys[i]] = {{"value", value[i] * unit[i]}, {"sigma", sigma[i] * unit[i]}};
       if (truth) {
         out[keys[i]]["truth"] = (*truth)[i] * unit[i];
         out[keys[i]]["error"] = (value[i] - (*truth)[i]) * unit[i];
@@ -624,13 +396,14 @@ void RunVehicle(const VehicleArgs& args, const GlobalOptions& global) {
     std::printf("%s\n", out.dump(2).c_str());
     return;
   }
-  std::printf("%d of %d consecutive frame pairs registered, %zu pairs in all; residuals %.4f mm, %.5f deg per pair\n",
-              consecutive, frames - 1, steps.size(), result.rms_translation_mm, result.rms_rotation_rad * 180.0 / M_PI);
+  std::printf("%d of %d consecutive frame pairs registered, %d pairs in all; residuals %.4f mm, %.5f deg per pair\n",
+              drive.consecutive_steps, drive.frames - 1, drive.steps, result.rms_translation_mm,
+              result.rms_rotation_rad * 180.0 / M_PI);
   std::printf("  %-16s %14s %12s", "", "calibrated", "sigma");
   if (truth) std::printf(" %14s %12s", "truth", "error");
   std::printf("\n");
-  for (int i = 0; i < 6; ++i) {
-    std::printf("  %-16s %14.4f %12.4f", names[i], value[i] * unit[i], sigma(i) * unit[i]);
+  for (std::size_t i = 0; i < 6; ++i) {
+    std::printf("  %-16s %14.4f %12.4f", names[i], value[i] * unit[i], sigma[i] * unit[i]);
     if (truth) std::printf(" %14.4f %12.4f", (*truth)[i] * unit[i], (value[i] - (*truth)[i]) * unit[i]);
     std::printf("\n");
   }
@@ -664,46 +437,6 @@ void RunSimulateDrive(const DriveArgs& args, const GlobalOptions& global) {
 
 // ---- calibrate simulate-raw / rectify-dataset ------------------------------------------
 
-// A simulated calibration drive records nominal values in dataset.yaml and its truth in
-// the provenance; the raw images must be made at the true mounting.
-core::Pose2 TrueMounting(const dataset::DatasetInfo& info) {
-  const auto truth = info.provenance.find("truth_vehicle_from_camera");
-  double x = 0.0, y = 0.0, yaw = 0.0;
-  if (truth != info.provenance.end() && std::sscanf(truth->second.c_str(), "%lf %lf %lf", &x, &y, &yaw) == 3) {
-    return core::Pose2(x, y, yaw);
-  }
-  return info.camera.vehicle_from_camera;
-}
-
-// vehicle_from_camera from a vehicle calibration file (calibrate vehicle --out).
-core::Pose2 ReadVehicleMounting(const std::filesystem::path& file) {
-  const YAML::Node node = core::LoadYamlFile(file);
-  core::YamlProblems problems;
-  core::YamlMap root = core::YamlMap::Root(node, file.string(), &problems);
-  int version = 0;
-  root.Required("format_version", &version, core::IntegerInRange(1, 1));
-  double x = 0.0, y = 0.0, yaw = 0.0, ignored = 0.0;
-  core::YamlMap mounting = root.RequiredMap("vehicle_from_camera");
-  mounting.Required("x_mm", &x);
-  mounting.Required("y_mm", &y);
-  mounting.Required("yaw_rad", &yaw, core::InRange(-M_PI, M_PI));
-  mounting.Finish();
-  core::YamlMap sigma = root.RequiredMap("vehicle_from_camera_sigma");
-  for (const char* key : {"x_mm", "y_mm", "yaw_rad"}) sigma.Required(key, &ignored);
-  sigma.Finish();
-  for (const char* key : {"left_wheel_radius_mm", "right_wheel_radius_mm", "track_width_mm"}) {
-    root.Required(key, &ignored, core::Positive());
-  }
-  core::YamlMap wheel_sigma = root.RequiredMap("wheel_sigma");
-  for (const char* key : {"left_wheel_radius_mm", "right_wheel_radius_mm", "track_width_mm"}) {
-    wheel_sigma.Required(key, &ignored);
-  }
-  wheel_sigma.Finish();
-  root.Finish();
-  problems.ThrowIfAny();
-  return core::Pose2(x, y, yaw);
-}
-
 struct RawArgs {
   std::filesystem::path dataset;
   std::filesystem::path config;
@@ -713,96 +446,36 @@ struct RawArgs {
   bool overwrite = false;
 };
 
-dataset::DatasetWriter CopyHeader(const dataset::DatasetReader& reader, const dataset::CameraInfo& camera,
-                                  const std::string& note, const std::filesystem::path& out, bool overwrite) {
-  dataset::DatasetInfo info = reader.info();
-  info.camera.width_px = camera.width_px;
-  info.camera.height_px = camera.height_px;
-  info.camera.mm_per_px = camera.mm_per_px;
-  info.camera.vehicle_from_camera = camera.vehicle_from_camera;
-  info.provenance["calibration"] = note;
-  return dataset::DatasetWriter(out, info, overwrite);
+// "N frames <what> OUT<detail>", or the JSON of it.
+void PrintDataset(const GlobalOptions& global, const std::filesystem::path& out, std::int64_t frames,
+                  const char* what, const std::string& detail = "") {
+  if (global.json) {
+    std::printf("%s\n", nlohmann::json{{"dataset", out.string()}, {"frames", frames}}.dump(2).c_str());
+  } else {
+    std::printf("%lld %s %s%s\n", static_cast<long long>(frames), what, out.string().c_str(), detail.c_str());
+  }
 }
 
-void CopyEncodersAndTruth(const dataset::DatasetReader& reader, dataset::DatasetWriter* writer) {
-  auto encoders = reader.Encoders();
-  while (auto sample = encoders.Next()) writer->AddEncoderSample(*sample);
-  if (reader.HasGroundTruth()) writer->SetGroundTruth(reader.GroundTruth());
-}
-
-// The same drive seen through the simulated real camera: every frame rendered raw (distorted,
-// tilted) at its true camera pose, over the floor of the simulator configuration.
 void RunSimulateRaw(const RawArgs& args, const GlobalOptions& global) {
-  const dataset::DatasetReader reader(args.dataset);
-  if (!reader.HasGroundTruth()) core::ThrowInvalidInput(args.dataset.string() + ": needs ground truth");
   const sim::SimulatorOptions options = args.config.empty() ? sim::SimulatorOptions{} : LoadSimulatorConfig(args.config);
-  const auto floor = sim::MakeFloor(options.floor);
-  const dataset::Trajectory truth = reader.GroundTruth();
-  const core::Pose2 vehicle_from_camera = TrueMounting(reader.info());
-  const camera::RealCamera raw_camera(sim::CalibrationTruthCamera());
-  sim::RawImagingOptions imaging;
-  imaging.noise_std_dn = options.imaging.noise_std_dn;
-  imaging.black_dn = 0.0;
-  imaging.white_dn = 255.0;
-  dataset::CameraInfo raw_info = reader.info().camera;
-  raw_info.width_px = raw_camera.options().width_px;
-  raw_info.height_px = raw_camera.options().height_px;
-  dataset::DatasetWriter writer =
-      CopyHeader(reader, raw_info, "raw images of the simulated real camera (calibrate simulate-raw)", args.out,
-                 args.overwrite);
-  std::int64_t total = 0;
-  for (auto listing = reader.Frames(); listing.Next(/*decode=*/false);) ++total;
   ProgressBar progress("simulate raw", global.quiet);
-  auto frames = reader.Frames();
-  std::int64_t count = 0;
-  while (auto frame = frames.Next(/*decode=*/false)) {
-    const auto world_from_vehicle = dataset::PoseAt(truth, frame->time, std::chrono::milliseconds(100));
-    if (!world_from_vehicle) core::ThrowInvalidInput(frame->path.string() + ": no ground truth at its time");
-    writer.AddFrame(frame->time, sim::RenderFloorRaw(raw_camera, *floor, *world_from_vehicle * vehicle_from_camera,
-                                                     imaging, options.seed * 7919 + static_cast<std::uint64_t>(count)));
-    progress.Update(static_cast<double>(++count) / static_cast<double>(std::max<std::int64_t>(1, total)));
-  }
-  CopyEncodersAndTruth(reader, &writer);
-  writer.Commit();
+  const std::int64_t frames = sim::WriteRawDrive(args.dataset, options, args.out, args.overwrite,
+                                                 [&progress](double fraction) { progress.Update(fraction); });
   progress.Finish();
-  if (global.json) {
-    std::printf("%s\n", nlohmann::json{{"dataset", args.out.string()}, {"frames", count}}.dump(2).c_str());
-  } else {
-    std::printf("%lld raw frames in %s\n", static_cast<long long>(count), args.out.string().c_str());
-  }
+  PrintDataset(global, args.out, frames, "raw frames in");
 }
 
-// A recording of raw images made ideal, as a camera source does it live.
 void RunRectifyDataset(const RawArgs& args, const GlobalOptions& global) {
-  const camera::Rectifier rectifier(camera::ReadGroundCalibration(args.ground));
-  const dataset::DatasetReader reader(args.dataset);
+  const calibration::Rectifier rectifier(calibration::ReadGroundCalibration(args.ground));
+  std::optional<core::Pose2> mounting;
+  if (!args.vehicle.empty()) mounting = calibration::ReadVehicleCalibration(args.vehicle).vehicle_from_camera;
+  const std::int64_t frames = calibration::RectifyDataset(
+      args.dataset, rectifier, "rectified with " + args.ground.filename().string() + " (calibrate rectify-dataset)",
+      mounting, args.out, args.overwrite);
   const camera::IdealCameraOptions& ideal = rectifier.calibration().ideal;
-  dataset::CameraInfo ideal_info = reader.info().camera;
-  ideal_info.width_px = ideal.width_px;
-  ideal_info.height_px = ideal.height_px;
-  ideal_info.mm_per_px = ideal.mm_per_px;
-  if (!args.vehicle.empty()) ideal_info.vehicle_from_camera = ReadVehicleMounting(args.vehicle);
-  dataset::DatasetWriter writer = CopyHeader(
-      reader, ideal_info, "rectified with " + args.ground.filename().string() + " (calibrate rectify-dataset)",
-      args.out, args.overwrite);
-  auto frames = reader.Frames();
-  std::int64_t count = 0;
-  while (auto frame = frames.Next()) {
-    cv::Mat rectified;
-    if (!rectifier.Rectify(frame->image, &rectified)) {
-      core::ThrowInvalidInput(frame->path.string() + ": not the calibrated raw size");
-    }
-    writer.AddFrame(frame->time, rectified);
-    ++count;
-  }
-  CopyEncodersAndTruth(reader, &writer);
-  writer.Commit();
-  if (global.json) {
-    std::printf("%s\n", nlohmann::json{{"dataset", args.out.string()}, {"frames", count}}.dump(2).c_str());
-  } else {
-    std::printf("%lld frames rectified into %s (%dx%d at %.4f mm/px)\n", static_cast<long long>(count),
-                args.out.string().c_str(), ideal.width_px, ideal.height_px, ideal.mm_per_px);
-  }
+  char scale[96];
+  std::snprintf(scale, sizeof(scale), " (%dx%d at %.4f mm/px)", ideal.width_px, ideal.height_px, ideal.mm_per_px);
+  PrintDataset(global, args.out, frames, "frames rectified into", scale);
 }
 
 }  // namespace

@@ -136,7 +136,7 @@ RunConfig LoadRunConfig(const std::filesystem::path& file) {
     if (config.camera_source == "simulator") {
       camera.AddProblem("ground", "the simulator renders ideal images; a ground calibration is for a real camera");
     } else {
-      config.ground_calibration = camera::ReadGroundCalibration(config.ground);
+      config.ground_calibration = calibration::ReadGroundCalibration(config.ground);
       const camera::IdealCameraOptions& ideal = config.ground_calibration->ideal;
       if (config.camera_source == "v4l2" &&
           (ideal.width_px != config.camera.width_px || ideal.height_px != config.camera.height_px ||
@@ -154,10 +154,7 @@ RunConfig LoadRunConfig(const std::filesystem::path& file) {
   }
 
   core::YamlMap vehicle = root.OptionalMap("vehicle");
-  vehicle.Optional("left_wheel_radius_mm", &config.vehicle.left_wheel_radius_mm, InRange(1.0, 5000.0));
-  vehicle.Optional("right_wheel_radius_mm", &config.vehicle.right_wheel_radius_mm, InRange(1.0, 5000.0));
-  vehicle.Optional("track_width_mm", &config.vehicle.track_width_mm, InRange(10.0, 1e5));
-  vehicle.Optional("ticks_per_revolution", &config.vehicle.ticks_per_revolution, IntegerInRange(1, 1 << 30));
+  core::ReadWheelGeometry(vehicle, &config.vehicle, /*required=*/false);
   vehicle.Finish();
 
   core::YamlMap plc = root.OptionalMap("plc");

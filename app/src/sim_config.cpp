@@ -73,10 +73,7 @@ void ReadSimulatorConfig(const YAML::Node& node, const std::string& file_name, s
 
   core::YamlMap vehicle = root.OptionalMap("vehicle");
   dataset::VehicleInfo& v = options->encoders.nominal;
-  vehicle.Optional("left_wheel_radius_mm", &v.left_wheel_radius_mm, Positive());
-  vehicle.Optional("right_wheel_radius_mm", &v.right_wheel_radius_mm, Positive());
-  vehicle.Optional("track_width_mm", &v.track_width_mm, Positive());
-  vehicle.Optional("ticks_per_revolution", &v.ticks_per_revolution, IntegerInRange(1, 1LL << 30));
+  core::ReadWheelGeometry(vehicle, &v, /*required=*/false);
   vehicle.Finish();
 
   core::YamlMap encoders = root.OptionalMap("encoders");

@@ -1,6 +1,7 @@
 #include "mosaicloc/core/yaml.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <sstream>
@@ -141,8 +142,22 @@ std::string YamlMap::Where() const {
 }
 
 void YamlMap::AddProblem(std::string_view key, const std::string& reason) {
-  const auto child = (!absent_ && node_.IsMap()) ? node_[std::string(key)] : YAML::Node();
+  const auto child = (!key.empty() && !absent_ && node_.IsMap()) ? node_[std::string(key)] : YAML::Node();
   problems_->Add(Location(child && child.IsDefined() ? child : node_, key) + reason);
+}
+
+void YamlMap::AddCheckProblem(const std::string& why) {
+  std::size_t end = 0;
+  while (end < why.size() && (std::islower(static_cast<unsigned char>(why[end])) ||
+                              std::isdigit(static_cast<unsigned char>(why[end])) || why[end] == '_')) {
+    ++end;
+  }
+  const std::string key = why.substr(0, end);
+  if (end > 0 && end < why.size() && why[end] == ' ' && Has(key)) {
+    AddProblem(key, why.substr(end + 1));
+  } else {
+    AddProblem("", why);
+  }
 }
 
 bool YamlMap::Has(std::string_view key) const {

@@ -90,10 +90,7 @@ DatasetInfo ReadDatasetInfo(const fs::path& yaml_file) {
   camera.Finish();
 
   core::YamlMap vehicle = root.RequiredMap("vehicle");
-  vehicle.Required("left_wheel_radius_mm", &info.vehicle.left_wheel_radius_mm, core::Positive());
-  vehicle.Required("right_wheel_radius_mm", &info.vehicle.right_wheel_radius_mm, core::Positive());
-  vehicle.Required("track_width_mm", &info.vehicle.track_width_mm, core::Positive());
-  vehicle.Required("ticks_per_revolution", &info.vehicle.ticks_per_revolution, core::PositiveInteger());
+  core::ReadWheelGeometry(vehicle, &info.vehicle, /*required=*/true);
   vehicle.Finish();
 
   if (root.Has("provenance")) {
@@ -360,6 +357,18 @@ void DatasetWriter::Commit() {
   }
   committed_ = true;
   if (replacing) fs::remove_all(old, ec);
+}
+
+DatasetInfo DerivedInfo(const DatasetReader& reader, const CameraInfo& camera, const std::string& note) {
+  DatasetInfo info = reader.info();
+  info.camera = camera;
+  info.provenance["calibration"] = note;
+  return info;
+}
+
+void CopyEncodersAndTruth(const DatasetReader& reader, DatasetWriter* writer) {
+  for (auto encoders = reader.Encoders(); auto sample = encoders.Next();) writer->AddEncoderSample(*sample);
+  if (reader.HasGroundTruth()) writer->SetGroundTruth(reader.GroundTruth());
 }
 
 }  // namespace mosaicloc::dataset

@@ -6,18 +6,7 @@
 namespace mosaicloc::estimation {
 
 bool DiffDriveOptions::Check(std::string* why) const {
-  if (!(left_wheel_radius_mm > 0.0) || !(right_wheel_radius_mm > 0.0)) {
-    *why = "wheel radii must be > 0 mm";
-    return false;
-  }
-  if (!(track_width_mm > 0.0)) {
-    *why = "track_width_mm must be > 0";
-    return false;
-  }
-  if (ticks_per_revolution <= 0) {
-    *why = "ticks_per_revolution must be > 0";
-    return false;
-  }
+  if (!wheels.Check(why)) return false;
   if (!(wheel_variance_mm >= 0.0) || !(max_wheel_speed_mps > 0.0)) {
     *why = "wheel_variance_mm must be >= 0 and max_wheel_speed_mps > 0";
     return false;
@@ -45,13 +34,13 @@ DiffDriveOdometry::DiffDriveOdometry(const DiffDriveOptions& options, const core
 }
 
 double DiffDriveOdometry::LeftTicksToMm(std::int64_t ticks) const {
-  return 2.0 * std::numbers::pi * options_.left_wheel_radius_mm * static_cast<double>(ticks) /
-         static_cast<double>(options_.ticks_per_revolution);
+  return 2.0 * std::numbers::pi * options_.wheels.left_wheel_radius_mm * static_cast<double>(ticks) /
+         static_cast<double>(options_.wheels.ticks_per_revolution);
 }
 
 double DiffDriveOdometry::RightTicksToMm(std::int64_t ticks) const {
-  return 2.0 * std::numbers::pi * options_.right_wheel_radius_mm * static_cast<double>(ticks) /
-         static_cast<double>(options_.ticks_per_revolution);
+  return 2.0 * std::numbers::pi * options_.wheels.right_wheel_radius_mm * static_cast<double>(ticks) /
+         static_cast<double>(options_.wheels.ticks_per_revolution);
 }
 
 void DiffDriveOdometry::Reset(const core::Pose2& world_from_vehicle, const Eigen::Matrix3d& covariance) {
@@ -84,7 +73,7 @@ core::Result<OdometryIncrement, OdometryFailure> DiffDriveOdometry::Update(core:
     return core::Fail(OdometryFailure::kImplausibleJump);
   }
 
-  const double b = options_.track_width_mm;
+  const double b = options_.wheels.track_width_mm;
   increment.track_width_mm = b;
   const double ds = 0.5 * (increment.right_mm + increment.left_mm);
   const double dtheta = (increment.right_mm - increment.left_mm) / b;

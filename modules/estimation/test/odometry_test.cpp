@@ -13,9 +13,9 @@ using core::Timestamp;
 
 DiffDriveOptions Options() {
   DiffDriveOptions options;
-  options.left_wheel_radius_mm = options.right_wheel_radius_mm = 100.0 / std::numbers::pi;  // 200 mm/rev
-  options.ticks_per_revolution = 2000;                                                   // 0.1 mm/tick
-  options.track_width_mm = 500.0;
+  options.wheels.left_wheel_radius_mm = options.wheels.right_wheel_radius_mm = 100.0 / std::numbers::pi;  // 200 mm/rev
+  options.wheels.ticks_per_revolution = 2000;                                                   // 0.1 mm/tick
+  options.wheels.track_width_mm = 500.0;
   return options;
 }
 
@@ -95,7 +95,7 @@ TEST(DiffDriveOdometry, RejectsGlitchesAndTimeReversal) {
 
 TEST(DiffDriveOdometry, RejectsBadOptions) {
   DiffDriveOptions options = Options();
-  options.track_width_mm = 0.0;
+  options.wheels.track_width_mm = 0.0;
   EXPECT_THROW(DiffDriveOdometry{options}, core::Error);
 }
 

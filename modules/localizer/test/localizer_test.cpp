@@ -109,9 +109,9 @@ class Drive : public ::testing::Test {
     options.vehicle_from_camera = Pose2(200.0, 0.0, 0.0);
     options.reanchor_after_rejections = reanchor_after;
     Localizer localizer(camera, options, *reference_);
-    const double b = options.odometry.track_width_mm;
-    const double mm_per_tick = 2.0 * std::numbers::pi * options.odometry.left_wheel_radius_mm /
-                               static_cast<double>(options.odometry.ticks_per_revolution);
+    const double b = options.odometry.wheels.track_width_mm;
+    const double mm_per_tick = 2.0 * std::numbers::pi * options.odometry.wheels.left_wheel_radius_mm /
+                               static_cast<double>(options.odometry.wheels.ticks_per_revolution);
     double left_mm = 0.0, right_mm = 0.0;
     const auto ticks = [mm_per_tick](double mm) { return static_cast<std::int32_t>(std::lround(mm / mm_per_tick)); };
     localizer.Initialize(Timestamp(), Truth(0.0, speed_mps) * start_error,

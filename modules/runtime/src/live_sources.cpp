@@ -75,7 +75,7 @@ std::string DatasetFrameSource::Describe() const {
 }
 
 RectifyingFrameSource::RectifyingFrameSource(std::unique_ptr<io::FrameSource> raw,
-                                             const camera::GroundCalibration& calibration)
+                                             const calibration::GroundCalibration& calibration)
     : raw_(std::move(raw)), rectifier_(calibration) {}
 
 std::optional<io::CapturedFrame> RectifyingFrameSource::Next() {
@@ -83,7 +83,7 @@ std::optional<io::CapturedFrame> RectifyingFrameSource::Next() {
   if (!frame) return std::nullopt;
   cv::Mat ideal;
   if (!rectifier_.Rectify(frame->image, &ideal)) {
-    const camera::Intrinsics& raw = rectifier_.calibration().intrinsics;
+    const calibration::Intrinsics& raw = rectifier_.calibration().intrinsics;
     core::ThrowRuntime(fmt::format("{}: a {}x{} frame (type {}) where the ground calibration expects {}x{} 8-bit grey",
                                    raw_->Describe(), frame->image.cols, frame->image.rows, frame->image.type(),
                                    raw.width_px, raw.height_px));

@@ -9,10 +9,7 @@ localizer::LocalizerOptions LocalizerOptionsFor(const localizer::LocalizerOption
                                                 const dataset::CameraInfo& camera, const dataset::VehicleInfo& vehicle,
                                                 double encoder_timing_sigma_ms) {
   localizer::LocalizerOptions options = configured;
-  options.odometry.left_wheel_radius_mm = vehicle.left_wheel_radius_mm;
-  options.odometry.right_wheel_radius_mm = vehicle.right_wheel_radius_mm;
-  options.odometry.track_width_mm = vehicle.track_width_mm;
-  options.odometry.ticks_per_revolution = vehicle.ticks_per_revolution;
+  options.odometry.wheels = vehicle;
   options.vehicle_from_camera = camera.vehicle_from_camera;
   options.odometry_timing_sigma_ms = encoder_timing_sigma_ms;
   return options;

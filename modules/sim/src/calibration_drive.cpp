@@ -64,11 +64,11 @@ bool CalibrationDriveOptions::Check(std::string* why) const {
     *why = "calibration drive needs 0 < turn_step_rad < turn_rad";
     return false;
   }
-  if (!(frame_rate_hz > 0.0) || !(vehicle.left_wheel_radius_mm > 0.0) || !(vehicle.right_wheel_radius_mm > 0.0) ||
-      !(vehicle.track_width_mm > 0.0) || vehicle.ticks_per_revolution < 1) {
-    *why = "calibration drive needs a positive frame rate and wheel geometry";
+  if (!(frame_rate_hz > 0.0)) {
+    *why = "calibration drive needs a positive frame rate";
     return false;
   }
+  if (!vehicle.Check(why) || !nominal_vehicle.Check(why)) return false;
   return true;
 }
 

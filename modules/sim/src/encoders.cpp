@@ -12,11 +12,7 @@ bool EncoderOptions::Check(std::string* why) const {
     *why = "encoder rate_hz must be in (0, 10000]";
     return false;
   }
-  if (!(nominal.left_wheel_radius_mm > 0.0) || !(nominal.right_wheel_radius_mm > 0.0) ||
-      !(nominal.track_width_mm > 0.0) || nominal.ticks_per_revolution <= 0) {
-    *why = "vehicle wheel radii, track width and ticks_per_revolution must be > 0";
-    return false;
-  }
+  if (!nominal.Check(why)) return false;
   for (const double error : {left_radius_error, right_radius_error, track_width_error}) {
     if (!(std::abs(error) < 0.5)) {
       *why = "radius and track width errors must be within +-0.5 (relative)";

@@ -1,6 +1,5 @@
 #pragma once
 
-#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -40,18 +39,6 @@ struct BoardSpec {
 /// "acircles:COLSxROWS:PITCHmm" (a pitch without unit is mm). Throws core::Error (invalid
 /// input) quoting the text and the accepted forms.
 BoardSpec ParseBoardSpec(std::string_view text);
-
-/// The board's features found in one grey image, pixels (x right, y down, pixel centres at
-/// integers), in BoardSpec::FeaturePoints order.
-struct BoardDetection {
-  std::vector<Eigen::Vector2d> points_px;
-};
-
-/// Finds the board with OpenCV (findChessboardCorners then cornerSubPix on the image low-passed
-/// with a Gaussian of sigma 2 px, or
-/// findCirclesGrid, whose blob centroids are already sub-pixel). Nothing when the whole
-/// board is not found. `image` is CV_8UC1.
-std::optional<BoardDetection> DetectBoard(const cv::Mat& image, const BoardSpec& board);
 
 /// A printable image of the board: a white margin of one pitch around the pattern
 /// (chessboard: (cols + 1) x (rows + 1) squares), `px_per_mm` pixels per millimetre, CV_8UC1.

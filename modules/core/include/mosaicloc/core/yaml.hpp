@@ -81,11 +81,21 @@ class YamlMap {
   std::string Where() const;
   /// Adds a problem about `key` of this mapping (e.g. a cross-field check).
   void AddProblem(std::string_view key, const std::string& reason);
+  /// Runs the Check() of the options this mapping was read into and makes its complaint a
+  /// problem of this mapping: the valid ranges are stated once, in Check(), not again by
+  /// each reader. A complaint that begins with one of this mapping's keys is reported at
+  /// that key's line. Nothing is checked for an absent optional mapping (the defaults stand).
+  template <typename Options>
+  void Check(const Options& options) {
+    std::string why;
+    if (!absent_ && !options.Check(&why)) AddCheckProblem(why);
+  }
 
  private:
   YamlMap(YAML::Node node, std::string file, std::string path, YamlProblems* problems, bool absent);
   std::optional<YAML::Node> Lookup(std::string_view key, bool required);
   std::string Location(const YAML::Node& node, std::string_view key) const;
+  void AddCheckProblem(const std::string& why);
   template <typename T>
   void ReadNumber(std::string_view key, T* value, const YamlCheck<T>& check, bool required);
 

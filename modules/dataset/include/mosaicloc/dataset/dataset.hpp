@@ -14,6 +14,7 @@
 
 #include "mosaicloc/core/pose2.hpp"
 #include "mosaicloc/core/timestamp.hpp"
+#include "mosaicloc/core/wheel_geometry.hpp"
 #include "mosaicloc/dataset/trajectory.hpp"
 
 namespace mosaicloc::dataset {
@@ -31,12 +32,7 @@ struct CameraInfo {
 };
 
 /// Wheel geometry as the vehicle is calibrated (what odometry should use).
-struct VehicleInfo {
-  double left_wheel_radius_mm = 75.0;
-  double right_wheel_radius_mm = 75.0;
-  double track_width_mm = 500.0;
-  std::int64_t ticks_per_revolution = 4096;
-};
+using VehicleInfo = core::WheelGeometry;
 
 struct DatasetInfo {
   CameraInfo camera;
@@ -156,6 +152,12 @@ class DatasetWriter {
   std::optional<core::Timestamp> last_encoder_time_;
   std::optional<Trajectory> groundtruth_;
 };
+
+/// The header of a recording derived from `reader`'s (the same drive through another camera,
+/// or rectified): its info with `camera` in place and `note` as provenance "calibration".
+DatasetInfo DerivedInfo(const DatasetReader& reader, const CameraInfo& camera, const std::string& note);
+/// Copies `reader`'s encoder samples and ground truth (when it has one) into `writer`.
+void CopyEncodersAndTruth(const DatasetReader& reader, DatasetWriter* writer);
 
 /// Reads and validates DIR/dataset.yaml alone.
 DatasetInfo ReadDatasetInfo(const std::filesystem::path& yaml_file);

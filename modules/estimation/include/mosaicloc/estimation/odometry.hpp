@@ -9,15 +9,13 @@
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/pose2.hpp"
 #include "mosaicloc/core/timestamp.hpp"
+#include "mosaicloc/core/wheel_geometry.hpp"
 
 namespace mosaicloc::estimation {
 
 /// Differential-drive geometry as calibrated, and its error model.
 struct DiffDriveOptions {
-  double left_wheel_radius_mm = 75.0;
-  double right_wheel_radius_mm = 75.0;
-  double track_width_mm = 500.0;          ///< distance between the wheel contact points
-  std::int64_t ticks_per_revolution = 4096;
+  core::WheelGeometry wheels;
   /// Error model (Siegwart et al., "Introduction to Autonomous Mobile Robots", 2nd ed.,
   /// section 5.2.4): each wheel's travel has variance k |ds|, k in mm (mm^2 per mm).
   double wheel_variance_mm = 0.01;

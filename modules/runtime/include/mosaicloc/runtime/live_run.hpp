@@ -8,7 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "mosaicloc/camera/ground.hpp"
+#include "mosaicloc/calibration/ground.hpp"
 #include "mosaicloc/core/pose2.hpp"
 #include "mosaicloc/dataset/dataset.hpp"
 #include "mosaicloc/io/frame_source.hpp"
@@ -37,7 +37,7 @@ struct LiveRunOptions {
   /// recording) and every frame is rectified into the ideal image it describes before it
   /// enters the pipeline.
   std::filesystem::path ground;
-  std::optional<camera::GroundCalibration> ground_calibration;
+  std::optional<calibration::GroundCalibration> ground_calibration;
 
   io::PlcLinkOptions plc;
   /// Poll and output period. Faster than the PLC updates its counters, so a change is seen

@@ -5,7 +5,7 @@
 #include <memory>
 #include <optional>
 
-#include "mosaicloc/camera/ground.hpp"
+#include "mosaicloc/calibration/ground.hpp"
 #include "mosaicloc/core/timestamp.hpp"
 #include "mosaicloc/dataset/dataset.hpp"
 #include "mosaicloc/io/frame_source.hpp"
@@ -66,12 +66,12 @@ class DatasetFrameSource final : public io::FrameSource {
   std::atomic<bool> stop_{false};
 };
 
-/// A real camera's raw frames made ideal (camera::Rectifier, from the ground calibration)
+/// A real camera's raw frames made ideal (calibration::Rectifier, from the ground calibration)
 /// before they enter the pipeline: what every source of raw images is wrapped in.
 class RectifyingFrameSource final : public io::FrameSource {
  public:
   /// Throws core::Error (invalid input) if the calibration fails its check.
-  RectifyingFrameSource(std::unique_ptr<io::FrameSource> raw, const camera::GroundCalibration& calibration);
+  RectifyingFrameSource(std::unique_ptr<io::FrameSource> raw, const calibration::GroundCalibration& calibration);
   /// The next frame, rectified. Throws core::Error (runtime) naming the source when a frame
   /// is not the calibrated raw size.
   std::optional<io::CapturedFrame> Next() override;
@@ -81,7 +81,7 @@ class RectifyingFrameSource final : public io::FrameSource {
 
  private:
   std::unique_ptr<io::FrameSource> raw_;
-  camera::Rectifier rectifier_;
+  calibration::Rectifier rectifier_;
 };
 
 }  // namespace mosaicloc::runtime

@@ -6,15 +6,9 @@
 #include <Eigen/Core>
 
 #include "mosaicloc/core/pose2.hpp"
+#include "mosaicloc/core/wheel_geometry.hpp"
 
-namespace mosaicloc::camera {
-
-/// Differential-drive wheel geometry, mm.
-struct WheelGeometry {
-  double left_wheel_radius_mm = 75.0;
-  double right_wheel_radius_mm = 75.0;
-  double track_width_mm = 500.0;
-};
+namespace mosaicloc::calibration {
 
 /// How far each wheel turned between two encoder samples, rad.
 struct WheelTurn {
@@ -37,7 +31,7 @@ struct DriveStep {
 
 struct VehicleCalibrationOptions {
   /// Where the solver starts (the nominal, as-designed values).
-  WheelGeometry initial_wheels;
+  core::WheelGeometry initial_wheels;
   core::Pose2 initial_vehicle_from_camera;
   /// Standard deviations of one registration, for weighting translation against rotation.
   double registration_sigma_mm = 0.02;
@@ -54,7 +48,7 @@ struct VehicleCalibrationResult {
   std::string message;  ///< why not, when not converged
   int iterations = 0;
   core::Pose2 vehicle_from_camera;
-  WheelGeometry wheels;
+  core::WheelGeometry wheels;
   /// One-sigma uncertainties from the residuals (covariance s^2 (J^T J)^-1, s^2 the
   /// residual variance per degree of freedom): x_mm, y_mm, yaw_rad of vehicle_from_camera,
   /// then left radius, right radius, track width (mm).
@@ -81,4 +75,4 @@ struct VehicleCalibrationResult {
 /// Never throws for data that does not constrain the solution: the result says so.
 VehicleCalibrationResult CalibrateVehicle(const std::vector<DriveStep>& steps, const VehicleCalibrationOptions& options);
 
-}  // namespace mosaicloc::camera
+}  // namespace mosaicloc::calibration

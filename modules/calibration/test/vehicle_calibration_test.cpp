@@ -1,5 +1,5 @@
-#include "mosaicloc/camera/vehicle_calibration.hpp"
-#include "mosaicloc/camera/flat_field.hpp"
+#include "mosaicloc/calibration/vehicle_calibration.hpp"
+#include "mosaicloc/calibration/flat_field.hpp"
 
 #include <cmath>
 #include <random>
@@ -7,12 +7,12 @@
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 
-namespace mosaicloc::camera {
+namespace mosaicloc::calibration {
 namespace {
 
 // A straight run then a turn in place, with the truth's wheel arcs and exact camera motions
 // plus registration noise.
-std::vector<DriveStep> Drive(const core::Pose2& vehicle_from_camera, const WheelGeometry& truth, double noise_mm,
+std::vector<DriveStep> Drive(const core::Pose2& vehicle_from_camera, const core::WheelGeometry& truth, double noise_mm,
                              double noise_rad, std::uint64_t seed) {
   std::mt19937_64 random(seed);
   std::normal_distribution<double> n_mm(0.0, noise_mm), n_rad(0.0, noise_rad);
@@ -35,7 +35,7 @@ std::vector<DriveStep> Drive(const core::Pose2& vehicle_from_camera, const Wheel
 
 TEST(CalibrateVehicle, RecoversMountingAndWheelsFromAStraightRunAndATurn) {
   const core::Pose2 truth(212.5, -14.0, 0.035);
-  const WheelGeometry wheels{75.4, 74.7, 507.0};
+  const core::WheelGeometry wheels{75.4, 74.7, 507.0, 4096};
   const auto steps = Drive(truth, wheels, 0.02, 1e-4, 3);
   const VehicleCalibrationResult result = CalibrateVehicle(steps, {});
   ASSERT_TRUE(result.converged) << result.message;
@@ -57,7 +57,7 @@ TEST(CalibrateVehicle, RecoversMountingAndWheelsFromAStraightRunAndATurn) {
 }
 
 TEST(CalibrateVehicle, AStraightRunAloneIsReportedAsNotDetermining) {
-  auto steps = Drive(core::Pose2(200.0, 0.0, 0.0), WheelGeometry{}, 0.02, 1e-4, 4);
+  auto steps = Drive(core::Pose2(200.0, 0.0, 0.0), core::WheelGeometry{}, 0.02, 1e-4, 4);
   steps.resize(40);
   const VehicleCalibrationResult result = CalibrateVehicle(steps, {});
   EXPECT_FALSE(result.converged);
@@ -66,7 +66,7 @@ TEST(CalibrateVehicle, AStraightRunAloneIsReportedAsNotDetermining) {
 
 TEST(CalibrateVehicle, LongerBaselinesComposeTheArcsOfTheirIntervals) {
   const core::Pose2 truth(212.5, -14.0, 0.035);
-  const WheelGeometry wheels{75.4, 74.7, 507.0};
+  const core::WheelGeometry wheels{75.4, 74.7, 507.0, 4096};
   const auto single = Drive(truth, wheels, 0.0, 0.0, 5);
   // Every step also registered over three intervals, the straight run into the turn
   // included: the composed arcs must predict those motions exactly.
@@ -121,4 +121,4 @@ TEST(FlatField, RecoversVignettingUnderAMovingTexture) {
 }
 
 }  // namespace
-}  // namespace mosaicloc::camera
+}  // namespace mosaicloc::calibration

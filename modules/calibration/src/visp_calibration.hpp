@@ -8,7 +8,7 @@
 
 #include <Eigen/Core>
 
-namespace mosaicloc::camera::detail {
+namespace mosaicloc::calibration::detail {
 
 struct VispViewPoints {
   std::vector<Eigen::Vector3d> object_mm;  ///< board frame
@@ -36,4 +36,4 @@ std::string SaveVispXml(const std::string& file, const VispCameraModel& camera, 
 std::string LoadVispXml(const std::string& file, const std::string& camera_name, VispCameraModel* camera,
                         int* width_px, int* height_px);
 
-}  // namespace mosaicloc::camera::detail
+}  // namespace mosaicloc::calibration::detail

@@ -4,7 +4,7 @@
 
 #include <opencv2/core/mat.hpp>
 
-namespace mosaicloc::camera {
+namespace mosaicloc::calibration {
 
 /// The brightness pattern an image carries wherever the camera looks (the lens's vignetting,
 /// uneven lighting fixed to the vehicle), estimated from the frames of a drive over a
@@ -39,4 +39,4 @@ class FlatFieldEstimator {
 /// `frame` (8-bit grey) divided by `gain` (as FlatFieldEstimator::Gain), rounded to 8 bits.
 cv::Mat DivideByGain(const cv::Mat& frame, const cv::Mat& gain);
 
-}  // namespace mosaicloc::camera
+}  // namespace mosaicloc::calibration

@@ -1,4 +1,4 @@
-#include "mosaicloc/camera/vehicle_calibration.hpp"
+#include "mosaicloc/calibration/vehicle_calibration.hpp"
 
 #include <cmath>
 
@@ -6,7 +6,7 @@
 #include <Eigen/LU>
 #include <opencv2/core.hpp>
 
-namespace mosaicloc::camera {
+namespace mosaicloc::calibration {
 namespace {
 
 using Parameters = Eigen::Matrix<double, 6, 1>;  // x_mm, y_mm, yaw_rad, r_l, r_r, b
@@ -84,9 +84,8 @@ double InitialYaw(const std::vector<DriveStep>& steps, double fallback) {
 }  // namespace
 
 bool VehicleCalibrationOptions::Check(std::string* why) const {
-  if (!(initial_wheels.left_wheel_radius_mm > 0.0 && initial_wheels.right_wheel_radius_mm > 0.0 &&
-        initial_wheels.track_width_mm > 0.0)) {
-    *why = "vehicle calibration needs positive initial wheel radii and track width";
+  if (!initial_wheels.Check(why)) {
+    *why = "vehicle calibration's initial wheels: " + *why;
     return false;
   }
   if (!(registration_sigma_mm > 0.0 && registration_sigma_rad > 0.0)) {
@@ -201,4 +200,4 @@ VehicleCalibrationResult CalibrateVehicle(const std::vector<DriveStep>& steps,
   return result;
 }
 
-}  // namespace mosaicloc::camera
+}  // namespace mosaicloc::calibration

@@ -1,4 +1,4 @@
-#include "mosaicloc/camera/ground.hpp"
+#include "mosaicloc/calibration/ground.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -11,15 +11,15 @@
 #include "mosaicloc/sim/raw_imaging.hpp"
 #include "mosaicloc/test/test_support.hpp"
 
-namespace mosaicloc::camera {
+namespace mosaicloc::calibration {
 namespace {
 
-Intrinsics IntrinsicsOf(const RealCameraOptions& truth) {
+Intrinsics IntrinsicsOf(const camera::RealCameraOptions& truth) {
   return {truth.width_px, truth.height_px, truth.fx_px, truth.fy_px, truth.cx_px, truth.cy_px, truth.k1, 0.0};
 }
 
 // The board lying on the floor around the nadir, turned and shifted.
-std::vector<BoardView> FloorViews(const RealCamera& camera, const BoardSpec& board,
+std::vector<BoardView> FloorViews(const camera::RealCamera& camera, const camera::BoardSpec& board,
                                   const std::vector<core::Pose2>& placements) {
   std::vector<BoardView> views;
   for (std::size_t i = 0; i < placements.size(); ++i) {
@@ -34,9 +34,9 @@ std::vector<BoardView> FloorViews(const RealCamera& camera, const BoardSpec& boa
 }
 
 TEST(CalibrateGround, RecoversTheTiltedCameraAndMakesIdealImagesOfTheRightScale) {
-  const RealCameraOptions truth = sim::CalibrationTruthCamera();
-  const RealCamera camera(truth);
-  const BoardSpec board = ParseBoardSpec("chessboard:9x6:10mm");
+  const camera::RealCameraOptions truth = sim::CalibrationTruthCamera();
+  const camera::RealCamera camera(truth);
+  const camera::BoardSpec board = camera::ParseBoardSpec("chessboard:9x6:10mm");
   const std::vector<core::Pose2> placements = {
       {-62.0, -42.0, 0.05}, {-18.0, -42.0, -0.05}, {-62.0, -8.0, 0.0}, {-18.0, -8.0, 0.05}};
   GroundOptions options;
@@ -55,7 +55,7 @@ TEST(CalibrateGround, RecoversTheTiltedCameraAndMakesIdealImagesOfTheRightScale)
   }
 
   // The rectification against the truth: every ideal pixel's floor point seen by the real camera.
-  const IdealCamera ideal(c.ideal);
+  const camera::IdealCamera ideal(c.ideal);
   double worst_px = 0.0;
   for (int v = 0; v < ideal.height_px(); v += 20) {
     for (int u = 0; u < ideal.width_px(); u += 20) {
@@ -89,7 +89,7 @@ TEST(CalibrateGround, RecoversTheTiltedCameraAndMakesIdealImagesOfTheRightScale)
 }
 
 TEST(CalibrateGround, ABoardMissingFromAViewIsBadInputNamingIt) {
-  const BoardSpec board = ParseBoardSpec("chessboard:9x6:10mm");
+  const camera::BoardSpec board = camera::ParseBoardSpec("chessboard:9x6:10mm");
   const std::vector<BoardView> views = {{"empty.png", {}}};
   try {
     CalibrateGround(views, board, IntrinsicsOf(sim::CalibrationTruthCamera()), {});
@@ -104,7 +104,7 @@ GroundCalibration SomeCalibration() {
   GroundCalibration c;
   c.intrinsics = IntrinsicsOf(sim::CalibrationTruthCamera());
   c.ideal = {600, 400, 0.25};
-  const RealCameraOptions truth = sim::CalibrationTruthCamera();
+  const camera::RealCameraOptions truth = sim::CalibrationTruthCamera();
   const Eigen::Matrix3d rotation = (Eigen::AngleAxisd(truth.tilt_x_rad, Eigen::Vector3d::UnitX()) *
                                     Eigen::AngleAxisd(truth.tilt_y_rad, Eigen::Vector3d::UnitY()))
                                        .toRotationMatrix();
@@ -139,9 +139,9 @@ TEST(GroundCalibrationFile, RoundTripsAndRejectsEditsAndUnknownKeys) {
 }
 
 TEST(RealCamera, SharesTheGroundCalibrationsFloorFrame) {
-  // RealCamera's model written as a ground calibration maps the floor the same way.
+  // camera::RealCamera's model written as a ground calibration maps the floor the same way.
   const GroundCalibration c = SomeCalibration();
-  const RealCamera camera(sim::CalibrationTruthCamera());
+  const camera::RealCamera camera(sim::CalibrationTruthCamera());
   for (const Eigen::Vector2d& p : {Eigen::Vector2d(10.0, -20.0), Eigen::Vector2d(-60.0, 45.0)}) {
     const auto raw = camera.FloorToPixel(p);
     ASSERT_TRUE(raw.has_value());
@@ -152,4 +152,4 @@ TEST(RealCamera, SharesTheGroundCalibrationsFloorFrame) {
 }
 
 }  // namespace
-}  // namespace mosaicloc::camera
+}  // namespace mosaicloc::calibration

@@ -1,4 +1,4 @@
-#include "mosaicloc/camera/intrinsics.hpp"
+#include "mosaicloc/calibration/intrinsics.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -12,58 +12,8 @@
 #include "mosaicloc/sim/raw_imaging.hpp"
 #include "mosaicloc/test/test_support.hpp"
 
-namespace mosaicloc::camera {
+namespace mosaicloc::calibration {
 namespace {
-
-TEST(BoardSpec, ParsesTheDocumentedForms) {
-  const BoardSpec chess = ParseBoardSpec("chessboard:9x6:25mm");
-  EXPECT_EQ(chess.kind, BoardSpec::Kind::kChessboard);
-  EXPECT_EQ(chess.cols, 9);
-  EXPECT_EQ(chess.rows, 6);
-  EXPECT_DOUBLE_EQ(chess.pitch_mm, 25.0);
-  EXPECT_EQ(chess.ToString(), "chessboard:9x6:25mm");
-  const BoardSpec circles = ParseBoardSpec("circles:6x6:3.4cm");
-  EXPECT_EQ(circles.kind, BoardSpec::Kind::kCircles);
-  EXPECT_DOUBLE_EQ(circles.pitch_mm, 34.0);
-  EXPECT_EQ(ParseBoardSpec("acircles:4x11:20").kind, BoardSpec::Kind::kAsymmetricCircles);
-  EXPECT_EQ(ParseBoardSpec("acircles:4x11:20").FeaturePoints()[5].x(), 3 * 20.0);  // (2*1 + 1) p
-}
-
-TEST(BoardSpec, RejectsBadSpecsNamingThem) {
-  for (const char* bad : {"chessboard", "chessboard:9x6", "chess:9x6:25mm", "chessboard:9by6:25mm",
-                          "chessboard:9x6:-3mm", "chessboard:7x7:25mm", "chessboard:2x6:25mm", "circles:6x6:25in"}) {
-    try {
-      ParseBoardSpec(bad);
-      ADD_FAILURE() << bad << " was accepted";
-    } catch (const core::Error& e) {
-      EXPECT_EQ(e.kind(), core::ErrorKind::kInvalidInput);
-      EXPECT_NE(std::string(e.what()).find(bad), std::string::npos) << e.what();
-    }
-  }
-}
-
-TEST(Board, PrintedBoardIsDetectedWhereItsCornersAre) {
-  const BoardSpec board = ParseBoardSpec("chessboard:9x6:10mm");
-  const double px_per_mm = 4.0;
-  const cv::Mat print = DrawBoard(board, px_per_mm);
-  const auto detection = DetectBoard(print, board);
-  ASSERT_TRUE(detection.has_value());
-  // Inner corners are two pitches from the left and bottom edges and one pitch apart. OpenCV
-  // may number them from any end of the board: every corner must be on the grid.
-  const double step = board.pitch_mm * px_per_mm;
-  const double x0 = 2.0 * step - 0.5, y_bottom = print.rows - 2.0 * step - 0.5;
-  for (const Eigen::Vector2d& p : detection->points_px) {
-    const double i = (p.x() - x0) / step, j = (y_bottom - p.y()) / step;
-    EXPECT_NEAR(i, std::round(i), 0.01) << p.transpose();
-    EXPECT_NEAR(j, std::round(j), 0.01) << p.transpose();
-    EXPECT_GE(std::round(i), 0);
-    EXPECT_LT(std::round(i), board.cols);
-    EXPECT_GE(std::round(j), 0);
-    EXPECT_LT(std::round(j), board.rows);
-  }
-  EXPECT_NEAR((detection->points_px[1] - detection->points_px[0]).norm(), step, 0.02);
-  EXPECT_FALSE(DetectBoard(cv::Mat(480, 640, CV_8UC1, cv::Scalar(128)), board).has_value());
-}
 
 // The synthetic camera: known intrinsics and distortion, photographs through the real-camera model.
 // Three samples per pixel along each axis keep the rendering (and the tests under the
@@ -74,7 +24,7 @@ sim::RawImagingOptions Imaging() {
   return options;
 }
 
-std::vector<BoardView> Detect(const std::vector<sim::BoardShot>& shots, const BoardSpec& board) {
+std::vector<BoardView> Detect(const std::vector<sim::BoardShot>& shots, const camera::BoardSpec& board) {
   std::vector<BoardView> views;
   for (std::size_t i = 0; i < shots.size(); ++i) {
     BoardView view;
@@ -96,7 +46,7 @@ void ExpectRecovered(const Intrinsics& estimate, const camera::RealCameraOptions
 }
 
 TEST(CalibrateIntrinsics, RecoversASyntheticCameraFromChessboardShots) {
-  const BoardSpec board = ParseBoardSpec("chessboard:9x6:20mm");
+  const camera::BoardSpec board = camera::ParseBoardSpec("chessboard:9x6:20mm");
   const camera::RealCameraOptions truth = sim::CalibrationTruthCamera();
   const auto shots = sim::RenderIntrinsicsShots(truth, board, 12, 0.42, Imaging(), 11);
   std::vector<BoardView> views = Detect(shots, board);
@@ -121,7 +71,7 @@ TEST(CalibrateIntrinsics, RecoversASyntheticCameraFromChessboardShots) {
 }
 
 TEST(CalibrateIntrinsics, RecoversASyntheticCameraFromCircleGridShots) {
-  const BoardSpec board = ParseBoardSpec("circles:7x5:24mm");
+  const camera::BoardSpec board = camera::ParseBoardSpec("circles:7x5:24mm");
   const camera::RealCameraOptions truth = sim::CalibrationTruthCamera();
   const auto shots = sim::RenderIntrinsicsShots(truth, board, 8, 0.3, Imaging(), 5);
   const IntrinsicsResult result = CalibrateIntrinsics(Detect(shots, board), board, truth.width_px, truth.height_px, {});
@@ -133,7 +83,7 @@ TEST(CalibrateIntrinsics, RecoversASyntheticCameraFromCircleGridShots) {
 }
 
 TEST(CalibrateIntrinsics, RejectsAnOutlierViewNamingIt) {
-  const BoardSpec board = ParseBoardSpec("chessboard:9x6:20mm");
+  const camera::BoardSpec board = camera::ParseBoardSpec("chessboard:9x6:20mm");
   const camera::RealCameraOptions truth = sim::CalibrationTruthCamera();
   const auto shots = sim::RenderIntrinsicsShots(truth, board, 6, 0.4, Imaging(), 3);
   std::vector<BoardView> views = Detect(shots, board);
@@ -146,7 +96,7 @@ TEST(CalibrateIntrinsics, RejectsAnOutlierViewNamingIt) {
 }
 
 TEST(CalibrateIntrinsics, TooFewViewsIsBadInputNamingTheRejected) {
-  const BoardSpec board = ParseBoardSpec("chessboard:9x6:20mm");
+  const camera::BoardSpec board = camera::ParseBoardSpec("chessboard:9x6:20mm");
   std::vector<BoardView> views = {{"a.png", {}}, {"b.png", {}}};
   try {
     CalibrateIntrinsics(views, board, 640, 480, {});
@@ -193,7 +143,7 @@ TEST(CalibrateIntrinsics, VispGrid36ImagesCalibrateAndAgreeWithOpenCv) {
   if (!std::filesystem::exists(folder / "grid36-01.pgm")) {
     GTEST_SKIP() << "ViSP's calibration images are absent (" << folder << "): install visp-images-data";
   }
-  const BoardSpec board = ParseBoardSpec("circles:6x6:34mm");
+  const camera::BoardSpec board = camera::ParseBoardSpec("circles:6x6:34mm");
   std::vector<BoardView> views;
   int width = 0, height = 0;
   for (int i = 1; i <= 4; ++i) {
@@ -222,4 +172,4 @@ TEST(CalibrateIntrinsics, VispGrid36ImagesCalibrateAndAgreeWithOpenCv) {
 }
 
 }  // namespace
-}  // namespace mosaicloc::camera
+}  // namespace mosaicloc::calibration

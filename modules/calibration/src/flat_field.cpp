@@ -1,4 +1,4 @@
-#include "mosaicloc/camera/flat_field.hpp"
+#include "mosaicloc/calibration/flat_field.hpp"
 
 #include <algorithm>
 
@@ -8,7 +8,7 @@
 
 #include "mosaicloc/core/error.hpp"
 
-namespace mosaicloc::camera {
+namespace mosaicloc::calibration {
 namespace {
 
 // Monomials u^i v^j, i + j <= degree, of coordinates scaled to [-1, 1].
@@ -84,4 +84,4 @@ cv::Mat DivideByGain(const cv::Mat& frame, const cv::Mat& gain) {
   return out;
 }
 
-}  // namespace mosaicloc::camera
+}  // namespace mosaicloc::calibration

@@ -1,4 +1,4 @@
-#include "mosaicloc/camera/intrinsics.hpp"
+#include "mosaicloc/calibration/intrinsics.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -14,10 +14,10 @@
 #include "mosaicloc/core/file.hpp"
 #include "visp_calibration.hpp"
 
-namespace mosaicloc::camera {
+namespace mosaicloc::calibration {
 namespace {
 
-IntrinsicsEstimate CalibrateWithOpenCv(const std::vector<const BoardView*>& views, const BoardSpec& board,
+IntrinsicsEstimate CalibrateWithOpenCv(const std::vector<const BoardView*>& views, const camera::BoardSpec& board,
                                        int width_px, int height_px) {
   std::vector<cv::Point3f> object;
   for (const Eigen::Vector3d& p : board.FeaturePoints()) {
@@ -56,7 +56,7 @@ IntrinsicsEstimate CalibrateWithOpenCv(const std::vector<const BoardView*>& view
   return estimate;
 }
 
-detail::VispCalibrationAnswer RunVisp(const std::vector<const BoardView*>& views, const BoardSpec& board,
+detail::VispCalibrationAnswer RunVisp(const std::vector<const BoardView*>& views, const camera::BoardSpec& board,
                                       int width_px, int height_px) {
   std::vector<detail::VispViewPoints> points;
   const std::vector<Eigen::Vector3d> object = board.FeaturePoints();
@@ -107,7 +107,7 @@ bool IntrinsicsOptions::Check(std::string* why) const {
   return true;
 }
 
-IntrinsicsResult CalibrateIntrinsics(const std::vector<BoardView>& views, const BoardSpec& board, int width_px,
+IntrinsicsResult CalibrateIntrinsics(const std::vector<BoardView>& views, const camera::BoardSpec& board, int width_px,
                                      int height_px, const IntrinsicsOptions& options) {
   std::string why;
   if (!options.Check(&why) || !board.Check(&why)) core::ThrowInvalidInput(why);
@@ -271,4 +271,4 @@ Eigen::Vector2d UndistortToNormalized(const Intrinsics& k, const Eigen::Vector2d
   return distorted * (r / r_d);
 }
 
-}  // namespace mosaicloc::camera
+}  // namespace mosaicloc::calibration

@@ -12,7 +12,7 @@
 #include <visp3/core/vpXmlParserCamera.h>
 #include <visp3/vision/vpCalibration.h>
 
-namespace mosaicloc::camera::detail {
+namespace mosaicloc::calibration::detail {
 namespace {
 
 // ViSP works in metres; the board is in millimetres.
@@ -144,4 +144,4 @@ std::string LoadVispXml(const std::string& file, const std::string& camera_name,
   return {};
 }
 
-}  // namespace mosaicloc::camera::detail
+}  // namespace mosaicloc::calibration::detail

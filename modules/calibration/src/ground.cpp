@@ -1,8 +1,7 @@
-#include "mosaicloc/camera/ground.hpp"
+#include "mosaicloc/calibration/ground.hpp"
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 
 #include <Eigen/Geometry>
@@ -13,11 +12,11 @@
 #include "mosaicloc/core/file.hpp"
 #include "mosaicloc/core/yaml.hpp"
 
-namespace mosaicloc::camera {
+namespace mosaicloc::calibration {
 namespace {
 
-Eigen::Matrix3d IdealPixelToFloor(const IdealCameraOptions& ideal) {
-  const IdealCamera camera(ideal);
+Eigen::Matrix3d IdealPixelToFloor(const camera::IdealCameraOptions& ideal) {
+  const camera::IdealCamera camera(ideal);
   const double s = ideal.mm_per_px;
   Eigen::Matrix3d a;
   a << s, 0.0, -s * camera.cx(), 0.0, -s, s * camera.cy(), 0.0, 0.0, 1.0;
@@ -87,12 +86,6 @@ IdealBoardMeasurement FitLayout(const Eigen::Matrix2Xd& layout, const Eigen::Mat
   return best;
 }
 
-std::string Number(double value) {
-  char text[40];
-  std::snprintf(text, sizeof(text), "%.17g", value);
-  return text;
-}
-
 }  // namespace
 
 bool GroundCalibration::Check(std::string* why) const {
@@ -152,7 +145,7 @@ bool GroundOptions::Check(std::string* why) const {
   return true;
 }
 
-GroundResult CalibrateGround(const std::vector<BoardView>& views, const BoardSpec& board,
+GroundResult CalibrateGround(const std::vector<BoardView>& views, const camera::BoardSpec& board,
                              const Intrinsics& intrinsics, const GroundOptions& options) {
   std::string why;
   if (!options.Check(&why) || !board.Check(&why) || !intrinsics.Check(&why)) core::ThrowInvalidInput(why);
@@ -282,41 +275,61 @@ void WriteGroundCalibration(const std::filesystem::path& file, const GroundCalib
   if (!c.Check(&why)) core::ThrowInvalidInput(file.string() + ": " + why);
   const Eigen::Matrix3d& m = c.optical_from_floor;
   const Eigen::Matrix3d h = c.IdealFromUndistortedRaw();
-  std::string out;
-  out += "# mosaicloc ground-plane calibration: turns one camera's raw images into ideal ones\n";
-  out += "# (design.md section 3; the format is described in calib/README.md).\n";
-  out += "# " + provenance + "\n";
-  out += "format_version: 1\n";
-  out += "intrinsics:              # ViSP perspective projection with distortion, pixels\n";
-  out += "  width_px: " + std::to_string(c.intrinsics.width_px) + "\n";
-  out += "  height_px: " + std::to_string(c.intrinsics.height_px) + "\n";
-  out += "  fx_px: " + Number(c.intrinsics.fx_px) + "\n";
-  out += "  fy_px: " + Number(c.intrinsics.fy_px) + "\n";
-  out += "  cx_px: " + Number(c.intrinsics.cx_px) + "\n";
-  out += "  cy_px: " + Number(c.intrinsics.cy_px) + "\n";
-  out += "  kud: " + Number(c.intrinsics.kud) + "            # undistorted -> distorted, r^2 (normalized)\n";
-  out += "  kdu: " + Number(c.intrinsics.kdu) + "            # distorted -> undistorted, r^2 (approximate)\n";
-  out += "ideal:                   # the rectified image: square pixels, principal point at the centre\n";
-  out += "  width_px: " + std::to_string(c.ideal.width_px) + "\n";
-  out += "  height_px: " + std::to_string(c.ideal.height_px) + "\n";
-  out += "  mm_per_px: " + Number(c.ideal.mm_per_px) + "\n";
-  out += "floor_in_optical:        # camera floor frame C in the optical frame (x right, y down, z forward)\n";
+  YAML::Emitter yaml;
+  yaml.SetDoublePrecision(17);
+  yaml << YAML::Comment("mosaicloc ground-plane calibration: turns one camera's raw images into ideal ones\n"
+                        "(design.md section 3; the format is described in calib/README.md).\n" +
+                        provenance);
+  yaml << YAML::BeginMap;
+  yaml << YAML::Key << "format_version" << YAML::Value << 1;
+  yaml << YAML::Key << "intrinsics" << YAML::Comment("ViSP perspective projection with distortion, pixels");
+  yaml << YAML::Value << YAML::BeginMap;
+  yaml << YAML::Key << "width_px" << YAML::Value << c.intrinsics.width_px;
+  yaml << YAML::Key << "height_px" << YAML::Value << c.intrinsics.height_px;
+  yaml << YAML::Key << "fx_px" << YAML::Value << c.intrinsics.fx_px;
+  yaml << YAML::Key << "fy_px" << YAML::Value << c.intrinsics.fy_px;
+  yaml << YAML::Key << "cx_px" << YAML::Value << c.intrinsics.cx_px;
+  yaml << YAML::Key << "cy_px" << YAML::Value << c.intrinsics.cy_px;
+  yaml << YAML::Key << "kud" << YAML::Value << c.intrinsics.kud
+       << YAML::Comment("undistorted -> distorted, r^2 (normalized)");
+  yaml << YAML::Key << "kdu" << YAML::Value << c.intrinsics.kdu
+       << YAML::Comment("distorted -> undistorted, r^2 (approximate)");
+  yaml << YAML::EndMap;
+  yaml << YAML::Key << "ideal" << YAML::Comment("the rectified image: square pixels, principal point at the centre");
+  yaml << YAML::Value << YAML::BeginMap;
+  yaml << YAML::Key << "width_px" << YAML::Value << c.ideal.width_px;
+  yaml << YAML::Key << "height_px" << YAML::Value << c.ideal.height_px;
+  yaml << YAML::Key << "mm_per_px" << YAML::Value << c.ideal.mm_per_px;
+  yaml << YAML::EndMap;
+  yaml << YAML::Key << "floor_in_optical"
+       << YAML::Comment("camera floor frame C in the optical frame (x right, y down, z forward)");
+  yaml << YAML::Value << YAML::BeginMap;
   const char* columns[] = {"x_axis", "y_axis", "origin_mm"};
-  const char* notes[] = {"  # unit vector: image right on the floor", "  # unit vector: image up on the floor",
-                         "  # the nadir: the floor point below the optical centre, mm"};
+  const char* notes[] = {"unit vector: image right on the floor", "unit vector: image up on the floor",
+                         "the nadir: the floor point below the optical centre, mm"};
   for (int col = 0; col < 3; ++col) {
-    out += std::string("  ") + columns[col] + ": {x: " + Number(m(0, col)) + ", y: " + Number(m(1, col)) +
-           ", z: " + Number(m(2, col)) + "}" + notes[col] + "\n";
+    yaml << YAML::Key << columns[col] << YAML::Value << YAML::Flow << YAML::BeginMap;
+    yaml << YAML::Key << "x" << YAML::Value << m(0, col) << YAML::Key << "y" << YAML::Value << m(1, col);
+    yaml << YAML::Key << "z" << YAML::Value << m(2, col) << YAML::EndMap << YAML::Comment(notes[col]);
   }
-  out += "# Homography from undistorted raw pixels to ideal pixels (row-major, h22 = 1); it follows\n";
-  out += "# from the keys above and is checked against them when read.\n";
-  out += "ideal_from_undistorted_raw:\n";
+  yaml << YAML::EndMap;
+  yaml << YAML::Key << "ideal_from_undistorted_raw"
+       << YAML::Comment("homography from undistorted raw pixels to ideal pixels (row-major, h22 = 1); it\n"
+                        "follows from the keys above and is checked against them when read");
+  yaml << YAML::Value << YAML::BeginMap;
   for (int r = 0; r < 3; ++r) {
-    out += "  row" + std::to_string(r) + ": {c0: " + Number(h(r, 0)) + ", c1: " + Number(h(r, 1)) +
-           ", c2: " + Number(h(r, 2)) + "}\n";
+    yaml << YAML::Key << "row" + std::to_string(r) << YAML::Value << YAML::Flow << YAML::BeginMap;
+    for (int col = 0; col < 3; ++col) yaml << YAML::Key << "c" + std::to_string(col) << YAML::Value << h(r, col);
+    yaml << YAML::EndMap;
   }
-  out += "height_mm: " + Number(c.height_mm()) + "        # derived: optical centre above the floor\n";
-  out += "tilt_deg: " + Number(c.tilt_rad() * 180.0 / M_PI) + "        # derived: optical axis to the floor normal\n";
+  yaml << YAML::EndMap;
+  yaml << YAML::Key << "height_mm" << YAML::Value << c.height_mm()
+       << YAML::Comment("derived: optical centre above the floor");
+  yaml << YAML::Key << "tilt_deg" << YAML::Value << c.tilt_rad() * 180.0 / M_PI
+       << YAML::Comment("derived: optical axis to the floor normal");
+  yaml << YAML::EndMap;
+  if (!yaml.good()) core::ThrowRuntime(file.string() + ": cannot write YAML: " + yaml.GetLastError());
+  const std::string out = std::string(yaml.c_str()) + "\n";
   core::WriteFileAtomically(file, out);
 }
 
@@ -376,9 +389,9 @@ GroundCalibration ReadGroundCalibration(const std::filesystem::path& file) {
   return c;
 }
 
-IdealBoardMeasurement MeasureIdealBoard(const BoardDetection& detection, const BoardSpec& board,
-                                        const IdealCameraOptions& ideal) {
-  const IdealCamera camera(ideal);
+IdealBoardMeasurement MeasureIdealBoard(const BoardDetection& detection, const camera::BoardSpec& board,
+                                        const camera::IdealCameraOptions& ideal) {
+  const camera::IdealCamera camera(ideal);
   const std::vector<Eigen::Vector3d> layout_3d = board.FeaturePoints();
   if (detection.points_px.size() != layout_3d.size()) core::ThrowInvalidInput("board detection has the wrong size");
   Eigen::Matrix2Xd floor(2, layout_3d.size()), layout(2, layout_3d.size());
@@ -389,4 +402,4 @@ IdealBoardMeasurement MeasureIdealBoard(const BoardDetection& detection, const B
   return FitLayout(layout, floor);
 }
 
-}  // namespace mosaicloc::camera
+}  // namespace mosaicloc::calibration

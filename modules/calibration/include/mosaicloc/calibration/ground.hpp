@@ -10,9 +10,10 @@
 
 #include "mosaicloc/camera/board.hpp"
 #include "mosaicloc/camera/ideal_camera.hpp"
-#include "mosaicloc/camera/intrinsics.hpp"
+#include "mosaicloc/core/pose2.hpp"
+#include "mosaicloc/calibration/intrinsics.hpp"
 
-namespace mosaicloc::camera {
+namespace mosaicloc::calibration {
 
 /// Where the floor is under a real camera, and the ideal image made from its raw images.
 ///
@@ -31,7 +32,7 @@ namespace mosaicloc::camera {
 /// and the raw pixel follows through the distortion of `intrinsics`.
 struct GroundCalibration {
   Intrinsics intrinsics;
-  IdealCameraOptions ideal;
+  camera::IdealCameraOptions ideal;
   Eigen::Matrix3d optical_from_floor = Eigen::Matrix3d::Identity();  ///< M above; columns mm-scaled only in o_C
 
   bool Check(std::string* why) const;
@@ -80,7 +81,7 @@ struct GroundResult {
 /// more, in different places, average the detection noise and measure flatness). Each view
 /// is posed by PnP on the undistorted features; one plane is fitted to all features.
 /// Throws core::Error (invalid input) if a view lacks the board or the options are bad.
-GroundResult CalibrateGround(const std::vector<BoardView>& views, const BoardSpec& board,
+GroundResult CalibrateGround(const std::vector<BoardView>& views, const camera::BoardSpec& board,
                              const Intrinsics& intrinsics, const GroundOptions& options);
 
 /// Maps for cv::remap from the ideal image to the raw one (CV_32FC1, ideal size): ideal
@@ -112,9 +113,18 @@ void WriteGroundCalibration(const std::filesystem::path& file, const GroundCalib
 /// the rest. Throws core::Error (invalid input) naming the file, line and key.
 GroundCalibration ReadGroundCalibration(const std::filesystem::path& file);
 
-}  // namespace mosaicloc::camera
+/// A recording of raw images made ideal, as a camera source does it live: every frame of
+/// the dataset at `raw` rectified, the header's camera made the ideal one (with the mounting
+/// `vehicle_from_camera` when given, e.g. from a vehicle calibration), encoders and ground
+/// truth copied. Throws core::Error (invalid input) naming the frame that is not of the
+/// calibrated raw size; nothing is left at `out` on failure. Returns the number of frames.
+std::int64_t RectifyDataset(const std::filesystem::path& raw, const Rectifier& rectifier, const std::string& note,
+                            const std::optional<core::Pose2>& vehicle_from_camera, const std::filesystem::path& out,
+                            bool overwrite);
 
-namespace mosaicloc::camera {
+}  // namespace mosaicloc::calibration
+
+namespace mosaicloc::calibration {
 
 /// A board seen in an ideal image, measured: its features in the camera floor frame C
 /// against the board's layout after the best rigid and similarity fits.
@@ -125,7 +135,7 @@ struct IdealBoardMeasurement {
 };
 
 /// Measures `detection` (in an ideal image of `ideal`'s geometry) against `board`.
-IdealBoardMeasurement MeasureIdealBoard(const BoardDetection& detection, const BoardSpec& board,
-                                        const IdealCameraOptions& ideal);
+IdealBoardMeasurement MeasureIdealBoard(const BoardDetection& detection, const camera::BoardSpec& board,
+                                        const camera::IdealCameraOptions& ideal);
 
-}  // namespace mosaicloc::camera
+}  // namespace mosaicloc::calibration

@@ -6,15 +6,16 @@
 
 #include <Eigen/Core>
 
+#include "mosaicloc/calibration/board_detection.hpp"
 #include "mosaicloc/camera/board.hpp"
 
-namespace mosaicloc::camera {
+namespace mosaicloc::calibration {
 
 /// Pinhole intrinsics with one radial distortion term, in ViSP's vpCameraParameters
 /// "perspective projection with distortion" model. For normalized undistorted coordinates
 /// (x, y) = (X/Z, Y/Z) in the optical frame (x right, y down, z along the axis):
 ///   u = cx + fx x (1 + kud r^2),  v = cy + fy y (1 + kud r^2),  r^2 = x^2 + y^2,
-/// which is RealCamera with k1 = kud, k2 = 0, and OpenCV's model with k1 = kud and every
+/// which is camera::RealCamera with k1 = kud, k2 = 0, and OpenCV's model with k1 = kud and every
 /// other coefficient zero. ViSP also stores the approximate inverse (pixel to normalized):
 ///   x = (u - cx)/fx (1 + kdu r_d^2),  r_d^2 = ((u - cx)/fx)^2 + ((v - cy)/fy)^2.
 /// Pixel centres are at integer (u, v).
@@ -79,7 +80,7 @@ struct IntrinsicsResult {
 /// with distortion. Outlier views (IntrinsicsOptions) are dropped once and the rest
 /// recalibrated. Throws core::Error: invalid input when fewer than min_views views remain
 /// (naming the rejected ones) or the options are bad; runtime when ViSP fails.
-IntrinsicsResult CalibrateIntrinsics(const std::vector<BoardView>& views, const BoardSpec& board, int width_px,
+IntrinsicsResult CalibrateIntrinsics(const std::vector<BoardView>& views, const camera::BoardSpec& board, int width_px,
                                      int height_px, const IntrinsicsOptions& options);
 
 /// Writes the intrinsics as ViSP camera XML (vpXmlParserCamera, perspective projection with
@@ -98,4 +99,4 @@ Eigen::Vector2d ProjectWithDistortion(const Intrinsics& intrinsics, const Eigen:
 /// method along the radius (kdu is not used: it is only approximate).
 Eigen::Vector2d UndistortToNormalized(const Intrinsics& intrinsics, const Eigen::Vector2d& pixel);
 
-}  // namespace mosaicloc::camera
+}  // namespace mosaicloc::calibration

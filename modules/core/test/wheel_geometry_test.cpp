@@ -1,0 +1,66 @@
+#include "mosaicloc/core/wheel_geometry.hpp"
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+namespace mosaicloc::core {
+namespace {
+
+using ::testing::ElementsAre;
+using ::testing::HasSubstr;
+
+std::vector<std::string> Read(const std::string& text, WheelGeometry* wheels, bool required) {
+  const YAML::Node node = YAML::Load(text);
+  YamlProblems problems;
+  YamlMap root = YamlMap::Root(node, "run.yaml", &problems);
+  YamlMap vehicle = root.OptionalMap("vehicle");
+  ReadWheelGeometry(vehicle, wheels, required);
+  vehicle.Finish();
+  root.Finish();
+  return problems.messages();
+}
+
+TEST(WheelGeometry, ChecksEachValueNamingIt) {
+  std::string why;
+  EXPECT_TRUE(WheelGeometry{}.Check(&why));
+  WheelGeometry bad;
+  bad.right_wheel_radius_mm = 0.0;
+  EXPECT_FALSE(bad.Check(&why));
+  EXPECT_THAT(why, HasSubstr("right_wheel_radius_mm must be > 0"));
+  bad = {};
+  bad.track_width_mm = std::nan("");
+  EXPECT_FALSE(bad.Check(&why));
+  EXPECT_THAT(why, HasSubstr("track_width_mm"));
+  bad = {};
+  bad.ticks_per_revolution = 0;
+  EXPECT_FALSE(bad.Check(&why));
+  EXPECT_THAT(why, HasSubstr("ticks_per_revolution"));
+}
+
+TEST(WheelGeometry, OptionalKeysKeepTheDefaultsAndCheckReportsAtTheKeysLine) {
+  WheelGeometry wheels;
+  EXPECT_TRUE(Read("vehicle:\n  track_width_mm: 480\n", &wheels, false).empty());
+  EXPECT_EQ(wheels.track_width_mm, 480.0);
+  EXPECT_EQ(wheels.left_wheel_radius_mm, 75.0);
+  wheels = {};
+  EXPECT_THAT(Read("vehicle:\n  track_width_mm: 480\n  left_wheel_radius_mm: -2\n", &wheels, false),
+              ElementsAre("run.yaml:3: vehicle.left_wheel_radius_mm: must be > 0 mm (got -2.000000)"));
+  wheels = {};
+  // An absent optional mapping is not checked: the defaults stand.
+  EXPECT_TRUE(Read("other: 1\n", &wheels, false).size() == 1);  // only `other` is unknown
+}
+
+TEST(WheelGeometry, RequiredKeysAreAllNamedWhenMissing) {
+  WheelGeometry wheels;
+  const auto problems = Read("vehicle:\n  track_width_mm: 480\n", &wheels, true);
+  ASSERT_EQ(problems.size(), 3u);
+  EXPECT_THAT(problems[0], HasSubstr("vehicle.left_wheel_radius_mm: missing required key"));
+  EXPECT_THAT(problems[2], HasSubstr("vehicle.ticks_per_revolution: missing required key"));
+}
+
+}  // namespace
+}  // namespace mosaicloc::core
