@@ -24,7 +24,7 @@
 #include "mosaicloc/sim/raw_recordings.hpp"
 #include "mosaicloc/sim/simulator.hpp"
 #include "progress.hpp"
-#include "sim_config.hpp"
+#include "mosaicloc/sim/config.hpp"
 
 namespace mosaicloc::app {
 namespace {
@@ -457,7 +457,7 @@ void PrintDataset(const GlobalOptions& global, const std::filesystem::path& out,
 }
 
 void RunSimulateRaw(const RawArgs& args, const GlobalOptions& global) {
-  const sim::SimulatorOptions options = args.config.empty() ? sim::SimulatorOptions{} : LoadSimulatorConfig(args.config);
+  const sim::SimulatorOptions options = args.config.empty() ? sim::SimulatorOptions{} : sim::LoadSimulatorConfig(args.config);
   ProgressBar progress("simulate raw", global.quiet);
   const std::int64_t frames = sim::WriteRawDrive(args.dataset, options, args.out, args.overwrite,
                                                  [&progress](double fraction) { progress.Update(fraction); });

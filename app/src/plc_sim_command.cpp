@@ -21,7 +21,7 @@
 
 #include "commands.hpp"
 #include "mosaicloc/runtime/live_sources.hpp"
-#include "sim_config.hpp"
+#include "mosaicloc/sim/config.hpp"
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/file.hpp"
 #include "mosaicloc/core/log.hpp"
@@ -29,7 +29,7 @@
 #include "mosaicloc/dataset/dataset.hpp"
 #include "mosaicloc/dataset/evaluation.hpp"
 #include "mosaicloc/io/register_server.hpp"
-#include "run_config.hpp"
+#include "mosaicloc/runtime/run_config.hpp"
 
 namespace mosaicloc::app {
 namespace {
@@ -63,9 +63,9 @@ std::uint32_t Masked(std::uint32_t value, const io::RegisterField& field) {
 
 void RunPlcSim(const PlcSimArgs& args, const GlobalOptions& global) {
   io::RegisterMap map;
-  if (!args.config.empty()) ReadRegisterMap(core::LoadYamlFile(args.config), args.config.string(), &map);
+  if (!args.config.empty()) runtime::ReadRegisterMap(core::LoadYamlFile(args.config), args.config.string(), &map);
   std::unique_ptr<runtime::SimulatedDrive> drive;
-  if (args.simulate) drive = std::make_unique<runtime::SimulatedDrive>(SimulatorConfigOrDefaults(*args.simulate));
+  if (args.simulate) drive = std::make_unique<runtime::SimulatedDrive>(sim::SimulatorConfigOrDefaults(*args.simulate));
   const std::filesystem::path played = drive ? drive->directory() : args.dataset;
   if (played.empty()) core::ThrowInvalidInput("plc-sim: give --dataset DIR or --simulate [YAML]");
   const dataset::DatasetReader reader(played);

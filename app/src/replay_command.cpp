@@ -4,7 +4,7 @@
 #include <vector>
 
 #include "commands.hpp"
-#include "localizer_config.hpp"
+#include "mosaicloc/runtime/localization_config.hpp"
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/log.hpp"
 #include "mosaicloc/runtime/replay.hpp"
@@ -41,7 +41,7 @@ void Run(const ReplayArgs& args, const GlobalOptions& global) {
                                              : runtime::ReplayMode::kMosaic;
   // Dead reckoning has nothing to configure but the overlap the speed limit is quoted for.
   if (!args.config.empty() && options.mode != runtime::ReplayMode::kDeadReckoning) {
-    options.settings = LoadLocalizerConfig(args.config);
+    options.settings = runtime::LoadLocalizerConfig(args.config);
   }
   if (args.required_overlap) options.settings.required_overlap = *args.required_overlap;
   if (!args.start_offset.empty()) {

@@ -16,8 +16,8 @@
 #include "mosaicloc/io/v4l2_camera.hpp"
 #include "mosaicloc/runtime/live_run.hpp"
 #include "mosaicloc/runtime/live_sources.hpp"
-#include "run_config.hpp"
-#include "sim_config.hpp"
+#include "mosaicloc/runtime/run_config.hpp"
+#include "mosaicloc/sim/config.hpp"
 
 namespace mosaicloc::app {
 namespace {
@@ -50,7 +50,7 @@ struct RunArgs {
 };
 
 void Run(const RunArgs& args, const GlobalOptions& global) {
-  RunConfig config = LoadRunConfig(args.config);
+  runtime::RunConfig config = runtime::LoadRunConfig(args.config);
   if (args.start_unix_s) config.dataset_start_unix_s = *args.start_unix_s;
   if (!args.record.empty() && std::filesystem::exists(args.record)) {
     core::ThrowInvalidInput("run: --record " + args.record.string() + " exists; give a new directory");
@@ -60,7 +60,7 @@ void Run(const RunArgs& args, const GlobalOptions& global) {
   dataset::VehicleInfo vehicle = config.vehicle;
   std::unique_ptr<runtime::SimulatedDrive> drive;
   if (config.camera_source == "simulator") {
-    drive = std::make_unique<runtime::SimulatedDrive>(SimulatorConfigOrDefaults(config.simulator_config));
+    drive = std::make_unique<runtime::SimulatedDrive>(sim::SimulatorConfigOrDefaults(config.simulator_config));
   }
   if (config.camera_source == "dataset" || drive) {
     // A recording (or a simulated drive) carries its own camera and vehicle calibration.

@@ -7,7 +7,7 @@
 #include "mosaicloc/core/log.hpp"
 #include "mosaicloc/sim/simulator.hpp"
 #include "progress.hpp"
-#include "sim_config.hpp"
+#include "mosaicloc/sim/config.hpp"
 
 namespace mosaicloc::app {
 namespace {
@@ -28,7 +28,7 @@ struct SimulateArgs {
 };
 
 void Run(const SimulateArgs& args, const GlobalOptions& global) {
-  sim::SimulatorOptions options = args.config.empty() ? sim::SimulatorOptions{} : LoadSimulatorConfig(args.config);
+  sim::SimulatorOptions options = args.config.empty() ? sim::SimulatorOptions{} : sim::LoadSimulatorConfig(args.config);
   if (!args.floor.empty()) {
     if (args.floor == "procedural") {
       options.floor.kind = "procedural";

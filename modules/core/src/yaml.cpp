@@ -146,18 +146,25 @@ void YamlMap::AddProblem(std::string_view key, const std::string& reason) {
   problems_->Add(Location(child && child.IsDefined() ? child : node_, key) + reason);
 }
 
-void YamlMap::AddCheckProblem(const std::string& why) {
+bool YamlMap::AddCheckProblem(const std::string& why,
+                               std::initializer_list<std::pair<std::string_view, std::string_view>> yaml_key_of,
+                               bool only_own_keys) {
   std::size_t end = 0;
   while (end < why.size() && (std::islower(static_cast<unsigned char>(why[end])) ||
                               std::isdigit(static_cast<unsigned char>(why[end])) || why[end] == '_')) {
     ++end;
   }
-  const std::string key = why.substr(0, end);
+  std::string key = why.substr(0, end);
+  for (const auto& [field, yaml_key] : yaml_key_of) {
+    if (key == field) key = yaml_key;
+  }
   if (end > 0 && end < why.size() && why[end] == ' ' && Has(key)) {
     AddProblem(key, why.substr(end + 1));
-  } else {
-    AddProblem("", why);
+    return true;
   }
+  if (only_own_keys) return false;
+  AddProblem("", why);
+  return true;
 }
 
 bool YamlMap::Has(std::string_view key) const {

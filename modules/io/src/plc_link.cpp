@@ -25,7 +25,7 @@ bool PlcLinkOptions::Check(std::string* why) const {
   if (transport == "tcp" && host.empty()) return fail("host must not be empty");
   if (transport == "rtu") {
     if (device.empty()) return fail("device must not be empty");
-    if (baud <= 0) return fail("baud must be positive");
+    if (baud < 300 || baud > 4000000) return fail("baud must be in 300-4000000");
     if (parity != "N" && parity != "E" && parity != "O") return fail("parity must be N, E or O");
     if (data_bits < 5 || data_bits > 8) return fail("data_bits must be in 5-8");
     if (stop_bits != 1 && stop_bits != 2) return fail("stop_bits must be 1 or 2");
@@ -34,8 +34,9 @@ bool PlcLinkOptions::Check(std::string* why) const {
   if (!(response_timeout_ms >= 1.0 && response_timeout_ms <= 10000.0)) {
     return fail("response_timeout_ms must be in 1-10000");
   }
-  if (!(reconnect_min_ms >= 1.0) || !(reconnect_max_ms >= reconnect_min_ms)) {
-    return fail("reconnect_min_ms must be >= 1 and reconnect_max_ms >= reconnect_min_ms");
+  if (!(reconnect_min_ms >= 1.0 && reconnect_min_ms <= 600000.0)) return fail("reconnect_min_ms must be in 1-600000");
+  if (!(reconnect_max_ms >= reconnect_min_ms && reconnect_max_ms <= 600000.0)) {
+    return fail("reconnect_max_ms must be at least reconnect_min_ms and at most 600000");
   }
   std::string registers_why;
   if (!registers.Check(&registers_why)) return fail("registers: " + registers_why);

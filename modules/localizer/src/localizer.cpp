@@ -85,7 +85,6 @@ bool PartlyOffTheMap(const tracking::TrackResult& track) {
 }  // namespace
 
 bool LocalizerOptions::Check(std::string* why) const {
-  if (!tracker.Check(why) || !filter.Check(why) || !lock.Check(why) || !odometry.Check(why)) return false;
   auto fail = [why](const char* message) {
     if (why != nullptr) *why = message;
     return false;
@@ -113,7 +112,8 @@ bool LocalizerOptions::Check(std::string* why) const {
   if (!(odometry_timing_sigma_ms >= 0.0) || odometry_timing_sigma_ms > 1000.0) {
     return fail("odometry_timing_sigma_ms must be in [0, 1000]");
   }
-  return true;
+  // The parts last, so that a complaint about a field of this struct is not hidden by one of theirs.
+  return tracker.Check(why) && filter.Check(why) && lock.Check(why) && odometry.Check(why);
 }
 
 Eigen::Matrix3d CameraCovariance(const core::Pose2& world_from_vehicle, const core::Pose2& vehicle_from_camera,

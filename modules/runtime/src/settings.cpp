@@ -2,8 +2,25 @@
 
 #include <cmath>
 #include <numbers>
+#include <string>
+
+#include <fmt/format.h>
 
 namespace mosaicloc::runtime {
+
+bool LocalizationSettings::Check(std::string* why) const {
+  if (!localizer.Check(why)) return false;
+  const auto in = [why](const char* key, double value, double min, double max) {
+    if (value >= min && value <= max) return true;
+    *why = std::string(key) + " must be in [" + fmt::format("{:g}", min) + ", " + fmt::format("{:g}", max) + "]";
+    return false;
+  };
+  return in("cache_budget_mib", static_cast<double>(cache_budget_mib), 16.0, 1 << 20) &&
+         in("prefetch_horizon_s", prefetch_horizon_s, 0.0, 10.0) &&
+         in("prefetch_turn_radius_mm", prefetch_turn_radius_mm, 0.0, 1e6) &&
+         in("start_sigma_mm", start_sigma_mm, 1e-3, 1e5) && in("start_sigma_deg", start_sigma_deg, 1e-4, 180.0) &&
+         in("required_overlap", required_overlap, 0.0, 0.95);
+}
 
 localizer::LocalizerOptions LocalizerOptionsFor(const localizer::LocalizerOptions& configured,
                                                 const dataset::CameraInfo& camera, const dataset::VehicleInfo& vehicle,

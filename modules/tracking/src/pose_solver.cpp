@@ -190,6 +190,15 @@ bool PoseSolverOptions::Check(std::string* why) const {
   return true;
 }
 
+const char* ToString(RobustLoss loss) {
+  switch (loss) {
+    case RobustLoss::kNone: return "none";
+    case RobustLoss::kHuber: return "huber";
+    case RobustLoss::kCauchy: return "cauchy";
+  }
+  return "unknown";
+}
+
 const char* ToString(PoseFailure failure) {
   switch (failure) {
     case PoseFailure::kNone: return "ok";

@@ -768,7 +768,7 @@ bool RefineOptions::Check(std::string* why) const {
     if (why != nullptr) *why = message;
     return false;
   };
-  if (max_iterations < 1) return fail("max_iterations must be >= 1");
+  if (max_iterations < 1 || max_iterations > 1000) return fail("max_iterations must be in [1, 1000]");
   if (!(tolerance_px > 0.0)) return fail("tolerance_px must be > 0");
   if (!(max_shift_px > 0.0 && max_shift_px <= 64.0)) return fail("max_shift_px must be in (0, 64]");
   if (sampling < 1 || sampling > 8) return fail("sampling must be in [1, 8]");
@@ -776,9 +776,27 @@ bool RefineOptions::Check(std::string* why) const {
   if (!(prefilter_sigma_px >= 0.0 && prefilter_sigma_px <= 5.0)) return fail("prefilter_sigma_px must be in [0, 5]");
   if (!(min_mapped_fraction > 0.0 && min_mapped_fraction <= 1.0)) return fail("min_mapped_fraction must be in (0, 1]");
   if (method == RefineMethod::kDirect && warp != RefineWarp::kTranslation) {
-    return fail("the direct method estimates a translation only (warp: translation)");
+    return fail("warp must be translation for the direct method, which estimates a translation only");
   }
   return true;
+}
+
+const char* ToString(RefineMethod method) {
+  switch (method) {
+    case RefineMethod::kDirect: return "direct";
+    case RefineMethod::kVispSsd: return "visp-ssd";
+    case RefineMethod::kVispZncc: return "visp-zncc";
+  }
+  return "unknown";
+}
+
+const char* ToString(RefineWarp warp) {
+  switch (warp) {
+    case RefineWarp::kTranslation: return "translation";
+    case RefineWarp::kSrt: return "srt";
+    case RefineWarp::kHomography: return "homography";
+  }
+  return "unknown";
 }
 
 const char* ToString(RefineFailure failure) {

@@ -284,6 +284,14 @@ void RankingMapOpenCv(const cv::Mat& half, int k, cv::Mat* eigen) {
 
 }  // namespace
 
+const char* ToString(TemplateMode mode) {
+  switch (mode) {
+    case TemplateMode::kSpread: return "spread";
+    case TemplateMode::kTiled: return "tiled";
+  }
+  return "unknown";
+}
+
 bool TemplateOptions::Check(std::string* why) const {
   auto fail = [why](const char* message) {
     if (why != nullptr) *why = message;

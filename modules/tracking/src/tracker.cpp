@@ -21,20 +21,23 @@ Eigen::Vector2d CentreOf(const cv::Rect& r) { return {r.x + 0.5 * (r.width - 1),
 }  // namespace
 
 bool TrackerOptions::Check(std::string* why) const {
-  if (!templates.Check(why) || !search.Check(why) || !refine.Check(why) || !solver.Check(why)) return false;
   auto fail = [why](const char* message) {
     if (why != nullptr) *why = message;
     return false;
   };
-  if (!(search_sigmas > 0.0)) return fail("search_sigmas must be > 0");
+  if (!(search_sigmas >= 0.5 && search_sigmas <= 20.0)) return fail("search_sigmas must be in [0.5, 20]");
   if (spare_templates < 0 || spare_templates > 64) return fail("spare_templates must be in [0, 64]");
-  if (min_search_px < 1 || max_search_px < min_search_px) return fail("need 1 <= min_search_px <= max_search_px");
+  if (min_search_px < 1) return fail("min_search_px must be >= 1");
+  if (max_search_px < min_search_px || max_search_px > 4096) {
+    return fail("max_search_px must be at least min_search_px and at most 4096");
+  }
   if (!(min_peak > -1.0 && min_peak < 1.0)) return fail("min_peak must be in (-1, 1)");
   if (!(max_ambiguity > 0.0 && max_ambiguity <= 1.0)) return fail("max_ambiguity must be in (0, 1]");
   if (!(min_zncc > -1.0 && min_zncc < 1.0)) return fail("min_zncc must be in (-1, 1)");
   if (refine_passes < 0 || refine_passes > 5) return fail("refine_passes must be in [0, 5]");
   if (!(min_window_mapped > 0.0 && min_window_mapped <= 1.0)) return fail("min_window_mapped must be in (0, 1]");
-  return true;
+  // The parts last, so that a complaint about a field of this struct is not hidden by one of theirs.
+  return templates.Check(why) && search.Check(why) && refine.Check(why) && solver.Check(why);
 }
 
 const char* ToString(TrackFailure failure) {

@@ -1,8 +1,10 @@
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <initializer_list>
 #include <optional>
 #include <set>
 #include <string>
@@ -17,7 +19,12 @@ namespace mosaicloc::core {
 /// at once instead of fixing one per run.
 class YamlProblems {
  public:
-  void Add(std::string message) { messages_.push_back(std::move(message)); }
+  /// Adds a problem; the same problem found twice (by two checks) is kept once.
+  void Add(std::string message) {
+    if (std::find(messages_.begin(), messages_.end(), message) == messages_.end()) {
+      messages_.push_back(std::move(message));
+    }
+  }
   bool empty() const { return messages_.empty(); }
   const std::vector<std::string>& messages() const { return messages_; }
   /// Throws core::Error (invalid input) listing every problem, one per line.
@@ -68,6 +75,18 @@ class YamlMap {
   void Optional(std::string_view key, bool* value);
   void Optional(std::string_view key, std::string* value, YamlCheck<std::string> check = {});
 
+  /// Reads an enumeration by the names ToString gives its values (`all` lists them).
+  template <typename Enum, std::size_t N>
+  void OptionalEnum(std::string_view key, Enum* value, const Enum (&all)[N]) {
+    std::string name = ToString(*value);
+    std::vector<std::string> names;
+    for (const Enum e : all) names.emplace_back(ToString(e));
+    Optional(key, &name, OneOf(names));
+    for (const Enum e : all) {
+      if (name == ToString(e)) *value = e;
+    }
+  }
+
   /// A nested mapping. A missing required map is a problem and yields an empty map whose
   /// reads are all skipped (only the map itself is reported missing).
   YamlMap RequiredMap(std::string_view key);
@@ -88,14 +107,26 @@ class YamlMap {
   template <typename Options>
   void Check(const Options& options) {
     std::string why;
-    if (!absent_ && !options.Check(&why)) AddCheckProblem(why);
+    if (!absent_ && !options.Check(&why)) AddCheckProblem(why, {}, /*only_own_keys=*/false);
+  }
+  /// The same for options whose fields this mapping holds only some of: a complaint is
+  /// reported only when it begins with one of this mapping's keys, or with a field that
+  /// `yaml_key_of` names one of them ({field, key} pairs, for fields the file calls otherwise).
+  /// Returns whether it was.
+  template <typename Options>
+  bool CheckOwnKeys(const Options& options, std::initializer_list<std::pair<std::string_view, std::string_view>>
+                                                yaml_key_of = {}) {
+    std::string why;
+    return !absent_ && !options.Check(&why) && AddCheckProblem(why, yaml_key_of, /*only_own_keys=*/true);
   }
 
  private:
   YamlMap(YAML::Node node, std::string file, std::string path, YamlProblems* problems, bool absent);
   std::optional<YAML::Node> Lookup(std::string_view key, bool required);
   std::string Location(const YAML::Node& node, std::string_view key) const;
-  void AddCheckProblem(const std::string& why);
+  bool AddCheckProblem(const std::string& why,
+                       std::initializer_list<std::pair<std::string_view, std::string_view>> yaml_key_of,
+                       bool only_own_keys);
   template <typename T>
   void ReadNumber(std::string_view key, T* value, const YamlCheck<T>& check, bool required);
 

@@ -22,6 +22,10 @@ struct LocalizationSettings {
   double start_sigma_mm = 1.0;     ///< uncertainty of the starting pose given to the filter
   double start_sigma_deg = 0.5;
   double required_overlap = 0.5;   ///< beta of the overlap speed limit
+  /// The localizer's options and: cache_budget_mib in [16, 2^20], prefetch_horizon_s in
+  /// [0, 10], prefetch_turn_radius_mm in [0, 1e6], start_sigma_mm in [1e-3, 1e5],
+  /// start_sigma_deg in [1e-4, 180], required_overlap in [0, 0.95].
+  bool Check(std::string* why) const;
 };
 
 /// The localizer options for one camera on one vehicle: the configured tuning and odometry

@@ -20,6 +20,9 @@ struct Correspondence {
 };
 
 enum class RobustLoss { kNone, kHuber, kCauchy };
+/// "none", "huber" or "cauchy", as the localizer configuration names them.
+const char* ToString(RobustLoss loss);
+inline constexpr RobustLoss kRobustLosses[] = {RobustLoss::kNone, RobustLoss::kHuber, RobustLoss::kCauchy};
 
 struct PoseSolverOptions {
   RobustLoss loss = RobustLoss::kCauchy;

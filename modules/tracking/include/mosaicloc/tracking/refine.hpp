@@ -21,6 +21,12 @@ enum class RefineMethod {
 /// Warp estimated by the ViSP methods (kDirect is always a translation: rotation is handled
 /// by the pose solver across templates).
 enum class RefineWarp { kTranslation, kSrt, kHomography };
+/// The names the localizer configuration uses: "direct", "visp-ssd", "visp-zncc"; and
+/// "translation", "srt", "homography".
+const char* ToString(RefineMethod method);
+const char* ToString(RefineWarp warp);
+inline constexpr RefineMethod kRefineMethods[] = {RefineMethod::kDirect, RefineMethod::kVispSsd, RefineMethod::kVispZncc};
+inline constexpr RefineWarp kRefineWarps[] = {RefineWarp::kTranslation, RefineWarp::kSrt, RefineWarp::kHomography};
 
 struct RefineOptions {
   RefineMethod method = RefineMethod::kDirect;

@@ -12,6 +12,9 @@ enum class TemplateMode {
   kSpread,  ///< `count` square templates where texture is strongest, one per cell of a grid
   kTiled,   ///< the whole frame cut into `tile_cols` x `tile_rows` blocks: every pixel is used
 };
+/// "spread" or "tiled", as the localizer configuration names them.
+const char* ToString(TemplateMode mode);
+inline constexpr TemplateMode kTemplateModes[] = {TemplateMode::kSpread, TemplateMode::kTiled};
 
 struct TemplateOptions {
   TemplateMode mode = TemplateMode::kSpread;

@@ -3,10 +3,10 @@
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
-#include "localizer_config.hpp"
+#include "mosaicloc/runtime/localization_config.hpp"
 #include "mosaicloc/core/error.hpp"
 
-namespace mosaicloc::app {
+namespace mosaicloc::runtime {
 namespace {
 
 // The documented defaults are the compiled ones: a reader can trust the example file.
@@ -77,7 +77,7 @@ TEST(LocalizerConfig, EveryProblemIsReportedWithFileLineAndKey) {
     EXPECT_NE(message.find("site.yaml:2"), std::string::npos) << message;
     EXPECT_NE(message.find("templates.count"), std::string::npos) << message;
     EXPECT_NE(message.find("did you mean 'method'"), std::string::npos) << message;
-    EXPECT_NE(message.find("lost_after_misses must be at least degraded_after_misses"), std::string::npos) << message;
+    EXPECT_NE(message.find("lock.lost_after_misses: must be >= degraded_after_misses"), std::string::npos) << message;
   }
 }
 
@@ -98,4 +98,4 @@ TEST(LocalizerConfig, OnMapCoverageBelowTheRelocalizationShareIsRefused) {
 }
 
 }  // namespace
-}  // namespace mosaicloc::app
+}  // namespace mosaicloc::runtime

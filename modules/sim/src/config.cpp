@@ -1,12 +1,12 @@
-#include "sim_config.hpp"
+#include "mosaicloc/sim/config.hpp"
 
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/log.hpp"
 #include "mosaicloc/core/yaml.hpp"
 
-namespace mosaicloc::app {
+namespace mosaicloc::sim {
 
-void ReadSimulatorConfig(const YAML::Node& node, const std::string& file_name, sim::SimulatorOptions* options) {
+void ReadSimulatorConfig(const YAML::Node& node, const std::string& file_name, SimulatorOptions* options) {
   using core::InRange;
   using core::IntegerInRange;
   using core::NonNegative;
@@ -26,7 +26,7 @@ void ReadSimulatorConfig(const YAML::Node& node, const std::string& file_name, s
   floor.Finish();
 
   core::YamlMap route = root.OptionalMap("route");
-  sim::RouteOptions& r = options->route;
+  RouteOptions& r = options->route;
   route.Optional("name", &r.name, core::OneOf({"straight", "loop", "network", "serpentine"}));
   route.Optional("straight_length_m", &r.straight_length_m, Positive());
   route.Optional("loop_width_m", &r.loop_width_m, Positive());
@@ -62,7 +62,7 @@ void ReadSimulatorConfig(const YAML::Node& node, const std::string& file_name, s
   camera.Finish();
 
   core::YamlMap imaging = root.OptionalMap("imaging");
-  sim::ImagingOptions& i = options->imaging;
+  ImagingOptions& i = options->imaging;
   imaging.Optional("exposure_us", &i.exposure_us, InRange(0.0, 100000.0));
   imaging.Optional("noise_std_dn", &i.noise_std_dn, InRange(0.0, 64.0));
   imaging.Optional("vignetting", &i.vignetting, InRange(0.0, 0.99));
@@ -77,7 +77,7 @@ void ReadSimulatorConfig(const YAML::Node& node, const std::string& file_name, s
   vehicle.Finish();
 
   core::YamlMap encoders = root.OptionalMap("encoders");
-  sim::EncoderOptions& e = options->encoders;
+  EncoderOptions& e = options->encoders;
   encoders.Optional("rate_hz", &e.rate_hz, InRange(0.1, 10000.0));
   encoders.Optional("left_radius_error", &e.left_radius_error, InRange(-0.49, 0.49));
   encoders.Optional("right_radius_error", &e.right_radius_error, InRange(-0.49, 0.49));
@@ -100,16 +100,16 @@ void ReadSimulatorConfig(const YAML::Node& node, const std::string& file_name, s
   problems.ThrowIfAny();
 }
 
-sim::SimulatorOptions LoadSimulatorConfig(const std::filesystem::path& file) {
-  sim::SimulatorOptions options;
+SimulatorOptions LoadSimulatorConfig(const std::filesystem::path& file) {
+  SimulatorOptions options;
   ReadSimulatorConfig(core::LoadYamlFile(file), file.string(), &options);
   return options;
 }
 
-sim::SimulatorOptions SimulatorConfigOrDefaults(const std::filesystem::path& file) {
-  if (file.empty()) return sim::SimulatorOptions{};
+SimulatorOptions SimulatorConfigOrDefaults(const std::filesystem::path& file) {
+  if (file.empty()) return SimulatorOptions{};
   core::Log().info("the simulated drive of {}", file.string());
   return LoadSimulatorConfig(file);
 }
 
-}  // namespace mosaicloc::app
+}  // namespace mosaicloc::sim

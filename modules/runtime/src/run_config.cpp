@@ -1,4 +1,4 @@
-#include "run_config.hpp"
+#include "mosaicloc/runtime/run_config.hpp"
 
 #include <cmath>
 #include <numbers>
@@ -8,7 +8,7 @@
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/yaml.hpp"
 
-namespace mosaicloc::app {
+namespace mosaicloc::runtime {
 namespace {
 
 using core::InRange;
@@ -28,7 +28,8 @@ void ReadField(core::YamlMap* registers, const char* key, io::RegisterField* fie
 }
 
 // Reads the fields; the map's consistency is then reported on `parent` (the plc section).
-void ReadRegisters(core::YamlMap* parent, core::YamlMap* registers, io::RegisterMap* map) {
+// Returns whether the map is consistent.
+bool ReadRegisters(core::YamlMap* parent, core::YamlMap* registers, io::RegisterMap* map) {
   // One word order for every 32-bit field, unless a field says otherwise.
   if (registers->Has("word_order")) {
     std::string order;
@@ -55,7 +56,9 @@ void ReadRegisters(core::YamlMap* parent, core::YamlMap* registers, io::Register
   ReadField(registers, "heartbeat", &map->heartbeat);
   registers->Finish();
   std::string why;
-  if (!map->Check(&why)) parent->AddProblem("registers", why);
+  if (map->Check(&why)) return true;
+  parent->AddProblem("registers", why);
+  return false;
 }
 
 void ReadPose(core::YamlMap* parent, const char* key, core::Pose2* pose) {
@@ -106,10 +109,11 @@ RunConfig LoadRunConfig(const std::filesystem::path& file) {
   core::YamlMap v4l2 = camera.OptionalMap("v4l2");
   v4l2.Optional("device", &config.v4l2.device);
   v4l2.Optional("pixel_format", &config.v4l2.pixel_format, core::OneOf({"auto", "grey", "yuyv", "mjpeg"}));
-  v4l2.Optional("frame_rate_hz", &config.v4l2.frame_rate_hz, InRange(0.1, 10000.0));
+  v4l2.Optional("frame_rate_hz", &config.v4l2.frame_rate_hz);
   v4l2.Optional("exposure_us", &config.v4l2.exposure_us, InRange(-1.0, 1e7));
   v4l2.Optional("gain", &config.v4l2.gain, IntegerInRange(-1, 1 << 20));
-  v4l2.Optional("buffers", &config.v4l2.buffers, IntegerInRange(2, 32));
+  v4l2.Optional("buffers", &config.v4l2.buffers);
+  v4l2.CheckOwnKeys(config.v4l2);
   v4l2.Finish();
   core::YamlMap recording = camera.OptionalMap("dataset");
   std::string dataset;
@@ -159,19 +163,19 @@ RunConfig LoadRunConfig(const std::filesystem::path& file) {
 
   core::YamlMap plc = root.OptionalMap("plc");
   io::PlcLinkOptions& link = config.plc;
-  plc.Optional("role", &link.role, core::OneOf({"client", "server"}));
-  plc.Optional("transport", &link.transport, core::OneOf({"tcp", "rtu"}));
+  plc.Optional("role", &link.role);
+  plc.Optional("transport", &link.transport);
   plc.Optional("host", &link.host);
-  plc.Optional("port", &link.port, IntegerInRange(1, 65535));
+  plc.Optional("port", &link.port);
   plc.Optional("device", &link.device);
-  plc.Optional("baud", &link.baud, IntegerInRange(300, 4000000));
-  plc.Optional("parity", &link.parity, core::OneOf({"N", "E", "O"}));
-  plc.Optional("data_bits", &link.data_bits, IntegerInRange(5, 8));
-  plc.Optional("stop_bits", &link.stop_bits, IntegerInRange(1, 2));
-  plc.Optional("unit_id", &link.unit_id, IntegerInRange(0, 247));
-  plc.Optional("response_timeout_ms", &link.response_timeout_ms, InRange(1.0, 10000.0));
-  plc.Optional("reconnect_min_ms", &link.reconnect_min_ms, InRange(1.0, 600000.0));
-  plc.Optional("reconnect_max_ms", &link.reconnect_max_ms, InRange(1.0, 600000.0));
+  plc.Optional("baud", &link.baud);
+  plc.Optional("parity", &link.parity);
+  plc.Optional("data_bits", &link.data_bits);
+  plc.Optional("stop_bits", &link.stop_bits);
+  plc.Optional("unit_id", &link.unit_id);
+  plc.Optional("response_timeout_ms", &link.response_timeout_ms);
+  plc.Optional("reconnect_min_ms", &link.reconnect_min_ms);
+  plc.Optional("reconnect_max_ms", &link.reconnect_max_ms);
   plc.Optional("cycle_ms", &config.plc_cycle_ms, InRange(1.0, 10000.0));
   plc.Optional("fix_period_ms", &config.fix_period_ms, InRange(0.0, 600000.0));
   plc.Optional("heartbeat_timeout_ms", &config.heartbeat_timeout_ms, InRange(0.0, 600000.0));
@@ -180,11 +184,10 @@ RunConfig LoadRunConfig(const std::filesystem::path& file) {
   plc.Optional("stationary_after_ms", &config.stationary_after_ms, InRange(1.0, 60000.0));
   plc.Optional("counter_period_ms", &config.counter_period_ms, InRange(0.0, 10000.0));
   core::YamlMap registers = plc.OptionalMap("registers");
-  ReadRegisters(&plc, &registers, &link.registers);
+  const bool registers_ok = ReadRegisters(&plc, &registers, &link.registers);
+  // The link's ranges are its Check()'s; the register map reports its own problems above.
+  if (registers_ok) plc.Check(link);
   plc.Finish();
-  if (link.reconnect_max_ms < link.reconnect_min_ms) {
-    plc.AddProblem("reconnect_max_ms", "must be at least reconnect_min_ms");
-  }
   core::YamlMap start = root.OptionalMap("start");
   double x = 0.0, y = 0.0, yaw_deg = 0.0;
   start.Optional("x_mm", &x, InRange(-1e9, 1e9));
@@ -203,4 +206,4 @@ RunConfig LoadRunConfig(const std::filesystem::path& file) {
   return config;
 }
 
-}  // namespace mosaicloc::app
+}  // namespace mosaicloc::runtime

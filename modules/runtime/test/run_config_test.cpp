@@ -5,9 +5,9 @@
 
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/test/test_support.hpp"
-#include "run_config.hpp"
+#include "mosaicloc/runtime/run_config.hpp"
 
-namespace mosaicloc::app {
+namespace mosaicloc::runtime {
 namespace {
 
 void ExpectSameField(const io::RegisterField& a, const io::RegisterField& b) {
@@ -123,4 +123,4 @@ TEST(RunConfig, OneWordOrderForEveryField) {
 }
 
 }  // namespace
-}  // namespace mosaicloc::app
+}  // namespace mosaicloc::runtime

@@ -1,11 +1,11 @@
-#include "sim_config.hpp"
+#include "mosaicloc/sim/config.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include "mosaicloc/core/error.hpp"
 
-namespace mosaicloc::app {
+namespace mosaicloc::sim {
 namespace {
 
 using ::testing::HasSubstr;
@@ -13,8 +13,8 @@ using ::testing::HasSubstr;
 // The shipped example must state exactly the compiled defaults, so the documentation of
 // every key cannot drift from the code.
 TEST(SimulatorConfig, DefaultFileEqualsCompiledDefaults) {
-  const sim::SimulatorOptions loaded = LoadSimulatorConfig(std::string(MOSAICLOC_CONFIG_DIR) + "/default/simulator.yaml");
-  const sim::SimulatorOptions defaults;
+  const SimulatorOptions loaded = LoadSimulatorConfig(std::string(MOSAICLOC_CONFIG_DIR) + "/default/simulator.yaml");
+  const SimulatorOptions defaults;
   EXPECT_EQ(loaded.floor.kind, defaults.floor.kind);
   EXPECT_EQ(loaded.floor.seed, defaults.floor.seed);
   EXPECT_EQ(loaded.floor.image, defaults.floor.image);
@@ -66,7 +66,7 @@ TEST(SimulatorConfig, DefaultFileEqualsCompiledDefaults) {
 }
 
 TEST(SimulatorConfig, TypoIsRejectedWithFileLineAndSuggestion) {
-  sim::SimulatorOptions options;
+  SimulatorOptions options;
   const YAML::Node node = YAML::Load("route:\n  name: loop\n  sped_mps: 2.0\nimaging:\n  noise_std_dn: -1\n");
   try {
     ReadSimulatorConfig(node, "site.yaml", &options);
@@ -79,7 +79,7 @@ TEST(SimulatorConfig, TypoIsRejectedWithFileLineAndSuggestion) {
 }
 
 TEST(SimulatorConfig, OverridesApply) {
-  sim::SimulatorOptions options;
+  SimulatorOptions options;
   ReadSimulatorConfig(YAML::Load("route: {name: network, speed_mps: 2.5}\nrun: {laps: 3}\n"), "x.yaml", &options);
   EXPECT_EQ(options.route.name, "network");
   EXPECT_DOUBLE_EQ(options.route.speed_mps, 2.5);
@@ -88,4 +88,4 @@ TEST(SimulatorConfig, OverridesApply) {
 }
 
 }  // namespace
-}  // namespace mosaicloc::app
+}  // namespace mosaicloc::sim

@@ -1,0 +1,116 @@
+#include "mosaicloc/runtime/localization_config.hpp"
+
+
+#include "mosaicloc/core/error.hpp"
+#include "mosaicloc/core/yaml.hpp"
+
+namespace mosaicloc::runtime {
+
+// Keys are read with their types only: every range is the options' Check(), run per section
+// so that a complaint names the key and line it is about, then over the whole so that
+// nothing goes unchecked.
+void ReadLocalizerConfig(const YAML::Node& node, const std::string& file_name, LocalizerConfig* config) {
+  core::YamlProblems problems;
+  core::YamlMap root = core::YamlMap::Root(node, file_name, &problems);
+  localizer::LocalizerOptions& o = config->localizer;
+  tracking::TrackerOptions& t = o.tracker;
+
+  core::YamlMap templates = root.OptionalMap("templates");
+  templates.OptionalEnum("mode", &t.templates.mode, tracking::kTemplateModes);
+  templates.Optional("count", &t.templates.count);
+  templates.Optional("size_px", &t.templates.size_px);
+  templates.Optional("tile_cols", &t.templates.tile_cols);
+  templates.Optional("tile_rows", &t.templates.tile_rows);
+  templates.Optional("border_px", &t.templates.border_px);
+  templates.Optional("min_texture", &t.templates.min_texture);
+  templates.Optional("spares", &t.spare_templates);
+  templates.Optional("edge_count", &o.edge_templates);
+  templates.Check(t.templates);
+  templates.CheckOwnKeys(t, {{"spare_templates", "spares"}});
+  templates.CheckOwnKeys(o, {{"edge_templates", "edge_count"}});
+  templates.Finish();
+
+  core::YamlMap search = root.OptionalMap("search");
+  search.Optional("sigmas", &t.search_sigmas);
+  search.Optional("min_range_px", &t.min_search_px);
+  search.Optional("max_range_px", &t.max_search_px);
+  search.Optional("min_peak", &t.min_peak);
+  search.Optional("max_ambiguity", &t.max_ambiguity);
+  search.Optional("prefilter_sigma_px", &t.search.prefilter_sigma_px);
+  search.Check(t.search);
+  search.CheckOwnKeys(t, {{"search_sigmas", "sigmas"}, {"min_search_px", "min_range_px"},
+                          {"max_search_px", "max_range_px"}});
+  search.Finish();
+
+  core::YamlMap refine = root.OptionalMap("refine");
+  refine.OptionalEnum("method", &t.refine.method, tracking::kRefineMethods);
+  refine.OptionalEnum("warp", &t.refine.warp, tracking::kRefineWarps);
+  refine.Optional("sampling", &t.refine.sampling);
+  refine.Optional("max_iterations", &t.refine.max_iterations);
+  refine.Optional("prefilter_sigma_px", &t.refine.prefilter_sigma_px);
+  refine.Optional("passes", &t.refine_passes);
+  refine.Optional("min_zncc", &t.min_zncc);
+  refine.Optional("visp_pyramid_levels", &t.refine.visp_pyramid_levels);
+  refine.Optional("min_mapped_fraction", &t.refine.min_mapped_fraction);
+  refine.Check(t.refine);
+  refine.CheckOwnKeys(t, {{"refine_passes", "passes"}});
+  refine.Finish();
+
+  core::YamlMap solver = root.OptionalMap("solver");
+  solver.OptionalEnum("loss", &t.solver.loss, tracking::kRobustLosses);
+  solver.Optional("loss_scale_mm", &t.solver.loss_scale_mm);
+  solver.Optional("outlier_threshold_mm", &t.solver.outlier_threshold_mm);
+  solver.Optional("min_inliers", &t.solver.min_inliers);
+  solver.Check(t.solver);
+  solver.Finish();
+
+  core::YamlMap filter = root.OptionalMap("filter");
+  filter.Optional("gate_chi2", &o.filter.gate_chi2);
+  filter.Optional("fix_sigma_floor_mm", &o.fix_sigma_floor_mm);
+  filter.Optional("fix_sigma_floor_rad", &o.fix_sigma_floor_rad);
+  filter.Optional("fix_covariance_scale", &o.fix_covariance_scale);
+  filter.Optional("wheel_variance_mm", &o.odometry.wheel_variance_mm);
+  filter.Optional("wheel_scale_sigma", &o.filter.wheel_scale_sigma);
+  filter.Optional("wheel_scale_walk_per_sqrt_m", &o.filter.wheel_scale_walk_per_sqrt_m);
+  filter.Optional("start_sigma_mm", &config->start_sigma_mm);
+  filter.Optional("start_sigma_deg", &config->start_sigma_deg);
+  filter.Check(o.filter);
+  filter.CheckOwnKeys(o.odometry);
+  filter.CheckOwnKeys(o);
+  filter.CheckOwnKeys(*config);
+  filter.Finish();
+
+  core::YamlMap lock = root.OptionalMap("lock");
+  lock.Optional("degraded_after_misses", &o.lock.degraded_after_misses);
+  lock.Optional("lost_after_misses", &o.lock.lost_after_misses);
+  lock.Optional("regain_after_fixes", &o.lock.regain_after_fixes);
+  lock.Optional("lost_above_sigma_mm", &o.lock.lost_above_sigma_mm);
+  lock.Optional("relocalize_after_misses", &o.relocalize_after_misses);
+  lock.Optional("on_map_coverage", &o.on_map_coverage);
+  lock.Check(o.lock);
+  lock.CheckOwnKeys(o);
+  lock.Finish();
+
+  core::YamlMap map = root.OptionalMap("map");
+  std::int64_t budget = static_cast<std::int64_t>(config->cache_budget_mib);
+  map.Optional("cache_budget_mib", &budget, core::IntegerInRange(0, std::int64_t{1} << 40));
+  config->cache_budget_mib = static_cast<std::size_t>(budget);
+  map.Optional("prefetch_horizon_s", &config->prefetch_horizon_s);
+  map.Optional("prefetch_turn_radius_mm", &config->prefetch_turn_radius_mm);
+  map.CheckOwnKeys(*config);
+  map.Finish();
+
+  root.Optional("required_overlap", &config->required_overlap);
+  root.Finish();
+  // What no section reported (a rule across sections) is reported for the file.
+  if (problems.empty()) root.Check(*config);
+  problems.ThrowIfAny();
+}
+
+LocalizerConfig LoadLocalizerConfig(const std::filesystem::path& file) {
+  LocalizerConfig config;
+  ReadLocalizerConfig(core::LoadYamlFile(file), file.string(), &config);
+  return config;
+}
+
+}  // namespace mosaicloc::runtime
