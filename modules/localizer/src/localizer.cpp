@@ -14,6 +14,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "mosaicloc/core/error.hpp"
+#include "mosaicloc/tracking/render_window.hpp"
 
 namespace mosaicloc::localizer {
 namespace {

@@ -16,6 +16,7 @@
 #include "mosaicloc/mosaic/tile_store.hpp"
 #include "mosaicloc/sim/resample.hpp"
 #include "mosaicloc/test/test_support.hpp"
+#include "mosaicloc/tracking/render_window.hpp"
 #include "mosaicloc/tracking/tracker.hpp"
 
 namespace mosaicloc::tracking {
