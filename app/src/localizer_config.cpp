@@ -99,7 +99,7 @@ void ReadLocalizerConfig(const YAML::Node& node, const std::string& file_name, L
   lock.Optional("regain_after_fixes", &o.lock.regain_after_fixes, IntegerInRange(1, 100000));
   lock.Optional("lost_above_sigma_mm", &o.lock.lost_above_sigma_mm, Positive());
   lock.Optional("relocalize_after_misses", &o.relocalize_after_misses, IntegerInRange(0, 100000));
-  lock.Optional("on_map_coverage", &o.on_map_coverage, InRange(o.relocalize_min_coverage, 1.0));
+  lock.Optional("on_map_coverage", &o.on_map_coverage, InRange(o.relocalize.min_coverage, 1.0));
   lock.Finish();
   if (o.lock.lost_after_misses < o.lock.degraded_after_misses) {
     root.AddProblem("lock", "lost_after_misses must be at least degraded_after_misses");
