@@ -130,6 +130,13 @@ cv::Mat RenderWindow(const ReferenceRaster& reference, const Affine& frame_to_ra
   return out;
 }
 
+cv::Mat RenderCameraView(const ReferenceRaster& reference, const camera::IdealCamera& camera,
+                         const core::Pose2& world_from_camera, cv::Mat* mask) {
+  const Affine frame_to_raster = ComposeAffine(reference.WorldToRaster(), camera.PixelToWorldAffine(world_from_camera));
+  return RenderWindow(reference, frame_to_raster, cv::Point(0, 0), cv::Size(camera.width_px(), camera.height_px()),
+                      mask);
+}
+
 cv::Mat detail::RenderWindowKnown(const ReferenceRaster& reference, const Affine& frame_to_raster,
                                   const cv::Point& origin, const cv::Size& size, cv::Mat* mask, bool* all_known) {
   *all_known = false;

@@ -22,6 +22,21 @@ TEST(Reference, RenderWindowAtIdentityIsTheImage) {
   EXPECT_EQ(cv::countNonZero(mask), 50 * 40);
 }
 
+// A camera's view of an image placed where that camera took it is the image itself.
+TEST(Reference, CameraViewAtTheImagesOwnPoseIsTheImage) {
+  const camera::IdealCamera camera{camera::IdealCameraOptions{}};
+  cv::Mat image(camera.height_px(), camera.width_px(), CV_8UC1);
+  cv::RNG(11).fill(image, cv::RNG::UNIFORM, 0, 256);
+  const Pose2 world_from_camera(-40.0, 25.0, 0.0);
+  const ImageReference reference(image, world_from_camera, camera.mm_per_px());
+  cv::Mat mask;
+  const cv::Mat view = RenderCameraView(reference, camera, world_from_camera, &mask);
+  // The outermost pixels may fall a rounding error outside the image: unknown there.
+  const cv::Rect inner(1, 1, camera.width_px() - 2, camera.height_px() - 2);
+  EXPECT_EQ(cv::norm(view(inner), image(inner), cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::countNonZero(mask(inner)), inner.area());
+}
+
 // The AVX2 build of the unchecked path (when the processor has it) renders the same pixels
 // as the baseline build, at widths that are and are not whole groups of four.
 TEST(Reference, RenderWindowVectorBuildsAgreeExactly) {
