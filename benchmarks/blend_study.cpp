@@ -15,6 +15,8 @@
 #include "mosaicloc/sim/imaging.hpp"
 #include "mosaicloc/sim/simulator.hpp"
 #include "mosaicloc/test/test_support.hpp"
+#include "mosaicloc/tracking/reference.hpp"
+#include "mosaicloc/tracking/render_window.hpp"
 
 namespace {
 
@@ -83,15 +85,17 @@ int main(int argc, char** argv) {
     auto store = mosaic::TileStore::Open(file, false);
     mosaic::TileCache cache(*store);
     const mosaic::MapRenderer renderer(cache);
+    const tracking::MapReference reference(renderer, 0);
     double zncc_sum = 0, zncc_min = 1, sharp_sum = 0;
     int n = 0;
     for (std::size_t i = 5; i + 5 < poses.size(); i += 10) {
-      const mosaic::RenderedView view = renderer.RenderView(poses[i], camera.width_px(), camera.height_px(), camera.mm_per_px(), 0);
+      cv::Mat mask;
+      const cv::Mat view = tracking::RenderCameraView(reference, camera, poses[i], &mask);
       const cv::Mat clean = truth.RenderClean(poses[i]);
-      const double z = test::Zncc(view.image, clean, view.mask);
+      const double z = test::Zncc(view, clean, mask);
       zncc_sum += z;
       zncc_min = std::min(zncc_min, z);
-      sharp_sum += Sharpness(view.image, clean, view.mask);
+      sharp_sum += Sharpness(view, clean, mask);
       ++n;
     }
     std::printf("%-10s %10.4f %10.4f %12.3f\n", name, zncc_sum / n, zncc_min, sharp_sum / n);

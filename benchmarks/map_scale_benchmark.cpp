@@ -1,7 +1,8 @@
 // Map at scale: writes a map of several gigapixels of procedural concrete straight into the
-// store, then drives a long lawnmower route over it rendering a 640x480 view every frame
-// while the prefetcher loads ahead. Reports the share of renders that had to wait for a
-// tile and the peak resident memory against the cache budget.
+// store, then drives a long lawnmower route over it rendering a 640x480 view every frame, as
+// the tracker renders from the map (tracking::RenderWindow over the blocks tracking::MapReference
+// reads), while the prefetcher loads ahead. Reports the share of renders that had to wait for
+// a tile and the peak resident memory against the cache budget.
 //
 //   mosaicloc_map_scale_benchmark --map /tmp/big.mosaic --tiles-per-side 248   (4.03 gigapixels)
 //   mosaicloc_map_scale_benchmark --map /tmp/big.mosaic --drive-km 10
@@ -18,6 +19,7 @@
 #include <future>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include <malloc.h>
@@ -30,6 +32,8 @@
 #include "mosaicloc/mosaic/tile_store.hpp"
 #include "mosaicloc/sim/floor.hpp"
 #include "mosaicloc/sim/route.hpp"
+#include "mosaicloc/tracking/reference.hpp"
+#include "mosaicloc/tracking/render_window.hpp"
 
 namespace {
 
@@ -88,6 +92,26 @@ void Build(const std::filesystem::path& file, int tiles_per_side, int threads, i
               png_compression, static_cast<double>(std::filesystem::file_size(file)) / (1 << 30), seconds);
 }
 
+// Level 0 of the map as the tracker reads it, counting the tiles its reads had to wait for.
+class CountingMapReference final : public tracking::ReferenceRaster {
+ public:
+  explicit CountingMapReference(const mosaic::MapRenderer& renderer) : map_(renderer, 0) {}
+  Eigen::Matrix<double, 2, 3> RasterToWorld() const override { return map_.RasterToWorld(); }
+  using ReferenceRaster::Region;
+  void Region(std::int64_t col0, std::int64_t row0, int cols, int rows, cv::Mat& store,
+              mosaic::RasterPatch* patch) const override {
+    map_.Region(col0, row0, cols, rows, store, patch);
+    tiles_loaded_ += patch->tiles_loaded;
+  }
+  std::unique_ptr<const tracking::ReferenceRaster> Coarser() const override { return map_.Coarser(); }
+  // The tiles waited for since the last call.
+  int TakeTilesLoaded() { return std::exchange(tiles_loaded_, 0); }
+
+ private:
+  tracking::MapReference map_;
+  mutable int tiles_loaded_ = 0;
+};
+
 void Drive(const std::filesystem::path& file, double drive_km, double speed_mps, double frame_rate_hz,
            double time_scale, std::size_t budget_mib, bool prefetch, const mosaic::PrefetchOptions& options) {
   const auto store = mosaic::TileStore::Open(file, false);
@@ -97,6 +121,9 @@ void Drive(const std::filesystem::path& file, double drive_km, double speed_mps,
   const double side_mm = static_cast<double>(max_col + 1) * 64.0;
   mosaic::TileCache cache(*store, budget_mib << 20);
   const mosaic::MapRenderer renderer(cache);
+  CountingMapReference reference(renderer);
+  const camera::IdealCamera camera{camera::IdealCameraOptions{}};  // 640 x 480 px of 0.25 mm
+  cv::Mat mask;
   std::optional<mosaic::TilePrefetcher> prefetcher;
   if (prefetch) prefetcher.emplace(cache, options);
 
@@ -142,17 +169,18 @@ void Drive(const std::filesystem::path& file, double drive_km, double speed_mps,
     const double yaw_rate = core::YawDifference(pose_later, pose) / 0.01;
     if (prefetcher) prefetcher->Predict(pose, velocity, yaw_rate);
     const auto start = Clock::now();
-    const mosaic::RenderedView view = renderer.RenderView(pose, 640, 480, 0.25, 0);
+    const cv::Mat view = tracking::RenderCameraView(reference, camera, pose, &mask);
     render_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - start).count());
+    const int tiles_loaded = reference.TakeTilesLoaded();
     const bool turning = std::abs(yaw_rate) > 0.05;
     frames_turning += turning ? 1 : 0;
-    if (view.tiles_loaded > 0) {
+    if (tiles_loaded > 0) {
       ++waited;
       waited_turning += turning ? 1 : 0;
-      tiles_waited += view.tiles_loaded;
+      tiles_waited += tiles_loaded;
       if (waited <= 200) {
         std::fprintf(stderr, "waited: frame %lld at %.3f km (lap time %.2f s), %.2f m/s, yaw rate %.2f rad/s, %d tiles\n",
-                     static_cast<long long>(i), driven_m / 1000.0, t, velocity.norm() / 1000.0, yaw_rate, view.tiles_loaded);
+                     static_cast<long long>(i), driven_m / 1000.0, t, velocity.norm() / 1000.0, yaw_rate, tiles_loaded);
       }
     }
     if (i % 1000 == 0) {

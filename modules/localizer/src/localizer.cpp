@@ -2,18 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
-#include <memory>
 #include <utility>
-#include <vector>
 
-#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <opencv2/core.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include "mosaicloc/core/error.hpp"
+#include "mosaicloc/tracking/render_window.hpp"
 
 namespace mosaicloc::localizer {
 namespace {
@@ -33,24 +29,6 @@ tracking::TrackerOptions EdgeTrackerOptions(const LocalizerOptions& options) {
   tracking::TrackerOptions edge = options.tracker;
   if (options.edge_templates > 0) edge.templates.count = options.edge_templates;
   return edge;
-}
-
-// `reference` halved up to `levels` times (fewer where the map has no coarser level).
-struct CoarseLevel {
-  std::unique_ptr<const tracking::ReferenceRaster> owner;  ///< the coarser raster, if any
-  const tracking::ReferenceRaster* raster = nullptr;
-  int halvings = 0;
-};
-CoarseLevel Coarsen(const tracking::ReferenceRaster& reference, int levels) {
-  CoarseLevel coarse;
-  coarse.raster = &reference;
-  for (; coarse.halvings < levels; ++coarse.halvings) {
-    std::unique_ptr<const tracking::ReferenceRaster> next = coarse.raster->Coarser();
-    if (!next) break;
-    coarse.owner = std::move(next);
-    coarse.raster = coarse.owner.get();
-  }
-  return coarse;
 }
 
 // MapCoverage on a raster already at the level to sample.
@@ -91,29 +69,22 @@ bool LocalizerOptions::Check(std::string* why) const {
   };
   if (!(fix_sigma_floor_mm >= 0.0) || !(fix_sigma_floor_rad >= 0.0)) return fail("fix sigma floors must be >= 0");
   if (!(fix_covariance_scale >= 1.0)) return fail("fix_covariance_scale must be >= 1");
-  if (relocalize_level < 1 || relocalize_level > 6) return fail("relocalize_level must be in [1, 6]");
   if (!(relocalize_radius_mm > 0.0)) return fail("relocalize_radius_mm must be > 0");
-  if (relocalize_candidates < 1 || relocalize_candidates > 50) return fail("relocalize_candidates must be in [1, 50]");
-  if (!(relocalize_zncc_tie >= 0.0 && relocalize_zncc_tie <= 1.0)) return fail("relocalize_zncc_tie must be in [0, 1]");
-  if (!(relocalize_nearer_factor >= 1.0)) return fail("relocalize_nearer_factor must be >= 1");
   if (reanchor_after_rejections < 0 || reanchor_after_rejections == 1) {
     return fail("reanchor_after_rejections must be 0 (never) or >= 2");
   }
   if (relocalize_after_misses < 0) return fail("relocalize_after_misses must be >= 0");
   if (edge_templates < 0 || edge_templates > 64) return fail("edge_templates must be in [0, 64]");
   if (!(on_map_coverage > 0.0 && on_map_coverage <= 1.0)) return fail("on_map_coverage must be in (0, 1]");
-  if (on_map_coverage < relocalize_min_coverage) {
-    return fail("on_map_coverage must be at least relocalize_min_coverage: a kidnap search must be able to take "
+  if (on_map_coverage < relocalize.min_coverage) {
+    return fail("on_map_coverage must be at least relocalize.min_coverage: a kidnap search must be able to take "
                 "the place the view is expected on");
-  }
-  if (!(relocalize_min_coverage > 0.0 && relocalize_min_coverage <= 1.0)) {
-    return fail("relocalize_min_coverage must be in (0, 1]");
   }
   if (!(odometry_timing_sigma_ms >= 0.0) || odometry_timing_sigma_ms > 1000.0) {
     return fail("odometry_timing_sigma_ms must be in [0, 1000]");
   }
   // The parts last, so that a complaint about a field of this struct is not hidden by one of theirs.
-  return tracker.Check(why) && filter.Check(why) && lock.Check(why) && odometry.Check(why);
+  return tracker.Check(why) && relocalize.Check(why) && filter.Check(why) && lock.Check(why) && odometry.Check(why);
 }
 
 Eigen::Matrix3d CameraCovariance(const core::Pose2& world_from_vehicle, const core::Pose2& vehicle_from_camera,
@@ -126,34 +97,6 @@ Eigen::Matrix3d VehicleCovariance(const core::Pose2& world_from_camera, const co
                                   const Eigen::Matrix3d& camera_covariance) {
   const Eigen::Matrix3d j = ComposeJacobian(world_from_camera, vehicle_from_camera.Inverse());
   return j * camera_covariance * j.transpose();
-}
-
-tracking::TrackResult ChooseRelocalization(std::vector<tracking::TrackResult> verified, const core::Pose2& prior_camera,
-                                           double zncc_tie, double nearer_factor) {
-  if (verified.empty()) core::ThrowInvalidInput("ChooseRelocalization: no verified place");
-  double best_zncc = 0.0;
-  for (const tracking::TrackResult& r : verified) best_zncc = std::max(best_zncc, r.mean_zncc);
-  std::vector<std::pair<double, std::size_t>> equal;  // (distance from the prediction, index)
-  for (std::size_t i = 0; i < verified.size(); ++i) {
-    if (verified[i].mean_zncc >= best_zncc - zncc_tie) {
-      equal.emplace_back(Distance(verified[i].world_from_camera, prior_camera), i);
-    }
-  }
-  std::sort(equal.begin(), equal.end());
-  if (equal.size() == 1 || equal[1].first >= nearer_factor * equal[0].first) {
-    return std::move(verified[equal[0].second]);
-  }
-  tracking::TrackResult ambiguous;
-  ambiguous.failure = tracking::TrackFailure::kAmbiguous;
-  const core::Pose2& a = verified[equal[0].second].world_from_camera;
-  const core::Pose2& b = verified[equal[1].second].world_from_camera;
-  ambiguous.reason = "relocalization: " + std::to_string(equal.size()) +
-                     " places match the frame equally well (the floor repeats; two of them " +
-                     std::to_string(static_cast<int>(std::lround(Distance(a, b)))) + " mm apart, " +
-                     std::to_string(static_cast<int>(std::lround(equal[0].first))) + " and " +
-                     std::to_string(static_cast<int>(std::lround(equal[1].first))) +
-                     " mm from the prediction)";
-  return ambiguous;
 }
 
 std::string FrameOutcome::ReasonWord() const {
@@ -172,6 +115,7 @@ Localizer::Localizer(const camera::IdealCamera& camera, const LocalizerOptions& 
       reference_(reference),
       tracker_(camera, options.tracker),
       edge_tracker_(camera, EdgeTrackerOptions(options)),
+      relocalizer_(tracker_, reference, options.relocalize),
       odometry_(options.odometry),
       lock_(options.lock) {
   std::string why;
@@ -322,7 +266,7 @@ estimation::FrameVerdict Localizer::ClassifyMiss(const FrameOutcome& outcome, co
     ++unmatched_run_;
     return estimation::FrameVerdict::kMissed;
   }
-  const CoarseLevel coarse = Coarsen(reference_, std::min(2, options_.relocalize_level));
+  const tracking::CoarseReference coarse = tracking::Coarsen(reference_, std::min(2, options_.relocalize.level));
   const double seen = CoverageOn(*coarse.raster, camera_, prior_camera, 0.0);
   if (seen < options_.on_map_coverage) {
     unmatched_run_ = 0;
@@ -383,108 +327,22 @@ bool Localizer::RejectedAgain(core::Timestamp time, const Eigen::Vector3d& offse
 
 tracking::TrackResult Localizer::Relocalize(const cv::Mat& frame, const core::Pose2& prior_camera,
                                            const Eigen::Matrix3d& prior_camera_covariance, bool kidnapped) const {
-  tracking::TrackResult none;
-  none.failure = tracking::TrackFailure::kNoMatch;
-  none.reason = "relocalization found no verified place";
-  // The coarse level of the map, and the frame averaged down to it.
-  const CoarseLevel coarse = Coarsen(reference_, options_.relocalize_level);
-  const tracking::ReferenceRaster* level = coarse.raster;
-  const int k = coarse.halvings;
-  if (k == 0) return none;
-  const int scale = 1 << k;
-  cv::Mat small = frame;
-  for (int i = 0; i < k; ++i) cv::resize(small, small, cv::Size(small.cols / 2, small.rows / 2), 0, 0, cv::INTER_AREA);
-
-  // A window around the prediction in the frame's orientation: small-frame pixel q is frame
-  // pixel scale q + (scale - 1) / 2.
+  if (kidnapped) {
+    // The covariance no longer says where to look: the whole radius is searched, any place taken.
+    return relocalizer_.Search(frame, prior_camera, prior_camera_covariance, options_.relocalize_radius_mm,
+                               std::nullopt);
+  }
+  // The prediction's gate, and a little more for the candidates' own uncertainty.
   const double sigma_mm = std::sqrt(std::max(prior_camera_covariance(0, 0), prior_camera_covariance(1, 1)));
-  // Kidnapped: the covariance no longer says where to look, so the whole radius is searched.
-  // Else the prediction's gate, and a little more for the candidates' own uncertainty.
-  const double radius_mm = kidnapped ? options_.relocalize_radius_mm
-                                     : std::min(options_.relocalize_radius_mm,
-                                                std::sqrt(options_.filter.gate_chi2) * sigma_mm + 20.0);
-  const int range = static_cast<int>(std::ceil(radius_mm / (camera_.mm_per_px() * scale)));
-  Eigen::Matrix<double, 2, 3> small_to_frame;
-  small_to_frame << scale, 0.0, 0.5 * (scale - 1), 0.0, scale, 0.5 * (scale - 1);
-  const Eigen::Matrix<double, 2, 3> small_to_raster = tracking::ComposeAffine(
-      level->WorldToRaster(), tracking::ComposeAffine(camera_.PixelToWorldAffine(prior_camera), small_to_frame));
-  cv::Mat mask;
-  cv::Mat window = tracking::RenderWindow(*level, small_to_raster, cv::Point(-range, -range),
-                                          cv::Size(small.cols + 2 * range, small.rows + 2 * range), &mask);
-  if (cv::countNonZero(mask) < small.cols * small.rows) return none;
-  window.setTo(cv::mean(window, mask), ~mask);
-  cv::Mat scores;
-  cv::matchTemplate(window, small, scores, cv::TM_CCOEFF_NORMED);
-  // Places where the frame fits only partly on the map are not candidates.
-  cv::Mat coverage;
-  cv::Mat mask_f;
-  mask.convertTo(mask_f, CV_32F, 1.0 / 255.0);
-  cv::boxFilter(mask_f, coverage, -1, small.size(), cv::Point(0, 0), true, cv::BORDER_CONSTANT);
-  cv::Mat dilated;
-  cv::dilate(scores, dilated, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(5, 5)));
-  std::vector<std::pair<float, cv::Point>> peaks;
-  for (int y = 0; y < scores.rows; ++y) {
-    for (int x = 0; x < scores.cols; ++x) {
-      const float v = scores.at<float>(y, x);
-      if (v >= dilated.at<float>(y, x) && coverage.at<float>(y, x) >= options_.relocalize_min_coverage) peaks.push_back({v, {x, y}});
-    }
-  }
-  std::sort(peaks.begin(), peaks.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
-  if (peaks.size() > static_cast<std::size_t>(options_.relocalize_candidates)) {
-    peaks.resize(static_cast<std::size_t>(options_.relocalize_candidates));
-  }
-  // Verify every candidate at full resolution.
-  const Eigen::Matrix3d candidate_covariance =
-      Eigen::Vector3d(std::pow(2.0 * scale * camera_.mm_per_px(), 2), std::pow(2.0 * scale * camera_.mm_per_px(), 2),
-                      prior_camera_covariance(2, 2))
-          .asDiagonal();
-  std::vector<tracking::TrackResult> verified;
-  for (const auto& [score, at] : peaks) {
-    // The frame's centre moved by (at - range) small pixels, in the frame's own axes.
-    const Eigen::Vector2d shift_px = scale * Eigen::Vector2d(at.x - range, at.y - range);
-    const Eigen::Vector2d shift_camera_mm(shift_px.x() * camera_.mm_per_px(), -shift_px.y() * camera_.mm_per_px());
-    const core::Pose2 candidate = prior_camera * core::Pose2(shift_camera_mm, 0.0);
-    tracking::TrackResult r = tracker_.Track(frame, candidate, candidate_covariance, reference_);
-    if (!r.ok() || r.mean_zncc < options_.relocalize_min_zncc) continue;
-    // Two peaks of one place verify to the same pose: keep it once, with its better match.
-    const auto same = std::find_if(verified.begin(), verified.end(), [&r](const tracking::TrackResult& v) {
-      return Distance(v.world_from_camera, r.world_from_camera) < 2.0;
-    });
-    if (same == verified.end()) {
-      verified.push_back(std::move(r));
-    } else if (r.mean_zncc > same->mean_zncc) {
-      *same = std::move(r);
-    }
-  }
-  if (verified.empty()) return none;
-  if (!kidnapped) {
-    // Only a place the prediction allows: one period of a repeating floor away is not.
-    std::vector<tracking::TrackResult> allowed;
-    double nearest_mm = std::numeric_limits<double>::infinity();
-    for (tracking::TrackResult& r : verified) {
-      const Eigen::Vector3d offset(r.world_from_camera.x_mm() - prior_camera.x_mm(),
-                                   r.world_from_camera.y_mm() - prior_camera.y_mm(),
-                                   core::WrapAngle(r.world_from_camera.yaw_rad() - prior_camera.yaw_rad()));
-      const Eigen::Matrix3d both = prior_camera_covariance + options_.fix_covariance_scale * r.covariance;
-      nearest_mm = std::min(nearest_mm, offset.head<2>().norm());
-      if (offset.dot(both.ldlt().solve(offset)) <= options_.filter.gate_chi2) allowed.push_back(std::move(r));
-    }
-    if (allowed.empty()) {
-      none.reason = "relocalization: " + std::to_string(verified.size()) +
-                    " places match the frame, none within the prediction's uncertainty (the nearest " +
-                    std::to_string(static_cast<int>(std::lround(nearest_mm))) + " mm off, sigma " +
-                    std::to_string(static_cast<int>(std::lround(sigma_mm))) + " mm)";
-      return none;
-    }
-    verified = std::move(allowed);
-  }
-  return ChooseRelocalization(std::move(verified), prior_camera, options_.relocalize_zncc_tie,
-                              options_.relocalize_nearer_factor);
+  const double radius_mm =
+      std::min(options_.relocalize_radius_mm, std::sqrt(options_.filter.gate_chi2) * sigma_mm + 20.0);
+  return relocalizer_.Search(frame, prior_camera, prior_camera_covariance, radius_mm,
+                             tracking::RelocalizeGate{options_.filter.gate_chi2, options_.fix_covariance_scale});
 }
 
 double MapCoverage(const tracking::ReferenceRaster& reference, const camera::IdealCamera& camera,
                    const core::Pose2& world_from_camera, double margin_mm, int level) {
-  const CoarseLevel coarse = Coarsen(reference, level);
+  const tracking::CoarseReference coarse = tracking::Coarsen(reference, level);
   return CoverageOn(*coarse.raster, camera, world_from_camera, margin_mm);
 }
 

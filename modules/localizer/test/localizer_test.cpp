@@ -382,31 +382,6 @@ TEST_F(RepeatingExcursion, AViewPartlyOffTheMapIsRegisteredAgainWithMoreTemplate
   EXPECT_LT(sixteen.fix_errors_mm[b], 0.02);
 }
 
-tracking::TrackResult Verified(double x_mm, double zncc) {
-  tracking::TrackResult r;
-  r.world_from_camera = Pose2(x_mm, 0.0, 0.0);
-  r.mean_zncc = zncc;
-  return r;
-}
-
-TEST(ChooseRelocalization, TakesTheNearestOfEqualPlacesOnlyWhenThePredictionDecides) {
-  const Pose2 prior(0.0, 0.0, 0.0);
-  EXPECT_EQ(ChooseRelocalization({Verified(300.0, 0.9)}, prior, 0.02, 2.0).world_from_camera.x_mm(), 300.0)
-      << "one place: taken however far";
-  const auto two = [&](double near_mm, double far_mm) {
-    return ChooseRelocalization({Verified(far_mm, 0.95), Verified(near_mm, 0.95)}, prior, 0.02, 2.0);
-  };
-  EXPECT_EQ(two(40.0, -216.0).world_from_camera.x_mm(), 40.0);
-  const tracking::TrackResult halfway = two(120.0, -136.0);
-  EXPECT_EQ(halfway.failure, tracking::TrackFailure::kAmbiguous);
-  EXPECT_NE(halfway.reason.find("2 places"), std::string::npos) << halfway.reason;
-  EXPECT_NE(halfway.reason.find("256 mm apart"), std::string::npos) << halfway.reason;
-  // A clearly better match is no tie, even if farther.
-  EXPECT_EQ(ChooseRelocalization({Verified(10.0, 0.85), Verified(200.0, 0.97)}, prior, 0.02, 2.0)
-                .world_from_camera.x_mm(),
-            200.0);
-}
-
 TEST(CovarianceTransfer, CameraAndVehicleCovariancesAreInverse) {
   const Pose2 world_from_vehicle(10.0, 20.0, 0.7), vehicle_from_camera(200.0, -30.0, 0.1);
   const Eigen::Matrix3d p = Eigen::Vector3d(0.5, 0.2, 1e-4).asDiagonal();

@@ -429,122 +429,6 @@ TEST(TileCache, ConcurrentReadersAgree) {
   EXPECT_LE(cache.stats().bytes, cache.budget_bytes());
 }
 
-TEST(MapRenderer, ViewEqualsADirectWarpOfTheSource) {
-  test::ScratchDir dir;
-  MapGrid grid;
-  grid.tile_size_px = 128;
-  auto store = TileStore::Create(dir / "r.mosaic", grid);
-  cv::Mat source = SourceTexture(1024);
-  cv::max(source, 1, source);
-  StoreImage(*store, source);
-  TileCache cache(*store);
-  const MapRenderer renderer(cache);
-  std::mt19937_64 rng(17);
-  std::uniform_real_distribution<double> position(100.0, 156.0);  // keeps the view inside the source
-  std::uniform_real_distribution<double> yaw(-3.2, 3.2);
-  for (int trial = 0; trial < 20; ++trial) {
-    const core::Pose2 world_from_camera(position(rng), -position(rng), yaw(rng));
-    const double view_mm_per_px = trial % 2 ? 0.25 : 0.3;
-    const RenderedView view = renderer.RenderView(world_from_camera, 320, 240, view_mm_per_px, 0);
-    EXPECT_DOUBLE_EQ(view.mapped_fraction, 1.0);
-    // The same view by warping the whole source image directly (raster = source pixel).
-    cv::Mat map(2, 3, CV_64F);
-    const Eigen::Matrix2d r = world_from_camera.Rotation();
-    const double k = view_mm_per_px / grid.mm_per_px;
-    const Eigen::Vector2d centre = grid.WorldToRaster(world_from_camera.translation_mm(), 0);
-    map.at<double>(0, 0) = r(0, 0) * k;
-    map.at<double>(0, 1) = -r(0, 1) * k;
-    map.at<double>(1, 0) = -r(1, 0) * k;
-    map.at<double>(1, 1) = r(1, 1) * k;
-    map.at<double>(0, 2) = centre.x() - map.at<double>(0, 0) * 159.5 - map.at<double>(0, 1) * 119.5;
-    map.at<double>(1, 2) = centre.y() - map.at<double>(1, 0) * 159.5 - map.at<double>(1, 1) * 119.5;
-    cv::Mat direct;
-    cv::warpAffine(source, direct, map, cv::Size(320, 240), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP);
-    cv::Mat difference;
-    cv::absdiff(view.image, direct, difference);
-    EXPECT_LE(cv::norm(difference, cv::NORM_INF), 1.0) << "trial " << trial;
-    EXPECT_LT(cv::mean(difference)[0], 0.02) << "trial " << trial;
-    // The same fixed-point arithmetic: only a position within 1e-12 px of a rounding step
-    // of 1/1024 px can round the other way (the region's origin is subtracted first).
-    EXPECT_LE(cv::countNonZero(difference), 10) << "trial " << trial;
-  }
-}
-
-TEST(MapRenderer, MaskFollowsHolesAcrossTileBorders) {
-  test::ScratchDir dir;
-  MapGrid grid;
-  grid.tile_size_px = 64;
-  auto store = TileStore::Create(dir / "h.mosaic", grid);
-  cv::Mat source = SourceTexture(512);
-  cv::max(source, 1, source);
-  // Holes: two absent tiles side by side, and unmapped specks and a stripe inside a tile.
-  source(cv::Rect(192, 192, 128, 64)).setTo(cv::Scalar(kUnmapped));
-  for (int i = 0; i < 40; ++i) source.at<std::uint8_t>(70 + 3 * i, 130 + (i * 7) % 60) = kUnmapped;
-  source(cv::Rect(60, 300, 9, 70)).setTo(cv::Scalar(kUnmapped));  // across a tile border
-  std::vector<TileWrite> tiles;
-  for (int tr = 0; tr < 8; ++tr) {
-    for (int tc = 0; tc < 8; ++tc) {
-      if (tr == 3 && (tc == 3 || tc == 4)) continue;
-      tiles.push_back({TileKey{0, tc, tr}, source(cv::Rect(tc * 64, tr * 64, 64, 64)).clone()});
-    }
-  }
-  store->Write(tiles);
-  TileCache cache(*store);
-  const MapRenderer renderer(cache);
-  const cv::Mat mapped = source != kUnmapped;
-  std::mt19937_64 rng(23);
-  std::uniform_real_distribution<double> position(30.0, 98.0);
-  std::uniform_real_distribution<double> yaw(-3.2, 3.2);
-  for (int trial = 0; trial < 12; ++trial) {
-    const core::Pose2 world_from_camera(position(rng), -position(rng), yaw(rng));
-    const RenderedView view = renderer.RenderView(world_from_camera, 200, 150, 0.25, 0);
-    cv::Mat map(2, 3, CV_64F);
-    const Eigen::Matrix2d r = world_from_camera.Rotation();
-    const Eigen::Vector2d centre = grid.WorldToRaster(world_from_camera.translation_mm(), 0);
-    map.at<double>(0, 0) = r(0, 0);
-    map.at<double>(0, 1) = -r(0, 1);
-    map.at<double>(1, 0) = -r(1, 0);
-    map.at<double>(1, 1) = r(1, 1);
-    map.at<double>(0, 2) = centre.x() - r(0, 0) * 99.5 + r(0, 1) * 74.5;
-    map.at<double>(1, 2) = centre.y() + r(1, 0) * 99.5 - r(1, 1) * 74.5;
-    // 255 in the warped mapped-mask means at most 2/1024 of the weight fell on unmapped
-    // pixels; the view's mask is stricter (none of it), so it lies inside that one and
-    // differs from it only where the bilinear weights of the unmapped neighbours are tiny.
-    cv::Mat warped_mask, direct;
-    cv::warpAffine(mapped, warped_mask, map, view.image.size(), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP);
-    cv::warpAffine(source, direct, map, view.image.size(), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP);
-    const cv::Mat loose = warped_mask == 255;
-    EXPECT_EQ(cv::countNonZero(view.mask & ~loose), 0) << "trial " << trial;
-    const int edge = cv::countNonZero((warped_mask > 0) & (warped_mask < 255));
-    EXPECT_LE(cv::countNonZero(loose & ~view.mask), edge / 8 + 4) << "trial " << trial;
-    EXPECT_GT(edge, 0) << "trial " << trial << ": the view missed the holes";
-    EXPECT_DOUBLE_EQ(view.mapped_fraction, cv::countNonZero(view.mask) / static_cast<double>(view.mask.total()));
-    // Where the view is mapped it is the direct warp; elsewhere it is kUnmapped.
-    cv::Mat difference;
-    cv::absdiff(view.image, direct, difference);
-    difference.setTo(cv::Scalar(0), ~view.mask);
-    EXPECT_LE(cv::norm(difference, cv::NORM_INF), 1.0) << "trial " << trial;
-    EXPECT_EQ(cv::countNonZero(view.image & ~view.mask), 0) << "trial " << trial;
-    EXPECT_EQ(cv::countNonZero((view.image == kUnmapped) & view.mask), 0) << "trial " << trial;
-  }
-}
-
-TEST(MapRenderer, MaskMarksUnmappedArea) {
-  test::ScratchDir dir;
-  MapGrid grid;
-  grid.tile_size_px = 64;
-  auto store = TileStore::Create(dir / "u.mosaic", grid);
-  StoreImage(*store, SourceTexture(128));  // 128 x 128 px = 32 x 32 mm mapped from (0, 0)
-  TileCache cache(*store);
-  const MapRenderer renderer(cache);
-  // A view centred on the map's right edge sees half mapped, half not.
-  const RenderedView view = renderer.RenderView(core::Pose2(32.0, -16.0, 0.0), 64, 64, 0.25, 0);
-  EXPECT_NEAR(view.mapped_fraction, 0.5, 0.02);
-  EXPECT_EQ(cv::countNonZero(view.image(cv::Rect(40, 0, 24, 64))), 0);
-  const RenderedView outside = renderer.RenderView(core::Pose2(500.0, 500.0, 0.0), 64, 64, 0.25, 0);
-  EXPECT_EQ(outside.mapped_fraction, 0.0);
-}
-
 TEST(MapBuilder, PaintedMapReproducesTheFrames) {
   const cv::Mat source = SourceTexture(1024);  // the "floor": raster pixel = source pixel, 0.25 mm
   MapGrid grid;
@@ -552,7 +436,8 @@ TEST(MapBuilder, PaintedMapReproducesTheFrames) {
   grid.levels = 3;
   for (const Blend blend : {Blend::kFeather, Blend::kBestView}) {
     MapBuilder builder(grid, blend);
-    std::vector<std::pair<core::Pose2, cv::Mat>> frames;
+    // Each frame with the warp that made it from the floor (frame pixel -> raster).
+    std::vector<std::pair<cv::Mat, cv::Mat>> frames;
     for (int i = 0; i < 12; ++i) {
       // Overlapping frames along a gentle curve, each the exact view of the floor there.
       const core::Pose2 pose(60.0 + 12.0 * i, -120.0 - 3.0 * i, 0.05 * i);
@@ -568,7 +453,7 @@ TEST(MapBuilder, PaintedMapReproducesTheFrames) {
       cv::Mat frame;
       cv::warpAffine(source, frame, map, cv::Size(320, 240), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP);
       builder.AddFrame(frame, pose, 0.25);
-      frames.emplace_back(pose, frame);
+      frames.emplace_back(map, frame);
     }
     test::ScratchDir dir;
     auto store = TileStore::Create(dir / "p.mosaic", grid);
@@ -576,10 +461,14 @@ TEST(MapBuilder, PaintedMapReproducesTheFrames) {
     EXPECT_GT(store->Count(2), 0);
     TileCache cache(*store);
     const MapRenderer renderer(cache);
-    for (const auto& [pose, frame] : frames) {
-      const RenderedView view = renderer.RenderView(pose, 320, 240, 0.25, 0);
-      EXPECT_GT(view.mapped_fraction, 0.99);
-      EXPECT_GT(test::Zncc(view.image, frame, view.mask), 0.98);
+    // The painted level 0 over the whole floor, warped as the floor was into each frame.
+    const RasterPatch painted = renderer.Region(0, 0, 0, source.cols, source.rows);
+    for (const auto& [map, frame] : frames) {
+      cv::Mat view, mapped;
+      cv::warpAffine(painted.image, view, map, frame.size(), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP);
+      cv::warpAffine(painted.mask, mapped, map, frame.size(), cv::INTER_NEAREST | cv::WARP_INVERSE_MAP);
+      EXPECT_GT(cv::countNonZero(mapped), 0.99 * static_cast<double>(mapped.total()));
+      EXPECT_GT(test::Zncc(view, frame, mapped), 0.98);
     }
   }
 }
@@ -682,21 +571,21 @@ TEST(TilePrefetcher, WarmsTheTilesAheadSoRendersDoNotWait) {
   options.view_radius_mm = 30.0;  // a 160 x 120 px view at 0.25 mm is 40 x 30 mm: half diagonal 25 mm
   options.horizon_s = 1.0;
   TilePrefetcher prefetcher(cache, options);
-  // Driving along y = -128 mm at 100 mm/s: predict, let the prefetcher work, then render
-  // where the vehicle will be half a second later.
+  // Driving along y = -128 mm at 100 mm/s: predict, let the prefetcher work, then read the
+  // view's pixels where the vehicle will be half a second later.
   int waited = 0;
   for (double x = 40.0; x <= 200.0; x += 20.0) {
     const core::Pose2 pose(x, -128.0, 0.0);
     prefetcher.Predict(pose, {100.0, 0.0}, 0.0);
     prefetcher.WaitIdle();
-    waited += renderer.RenderView(core::Pose2(x + 50.0, -128.0, 0.0), 160, 120, 0.25, 0).tiles_loaded;
+    waited += renderer.PatchAround({x + 50.0, -128.0}, 160, 120, 0).tiles_loaded;
   }
   EXPECT_EQ(waited, 0);
   EXPECT_GT(prefetcher.tiles_requested(), 0);
-  // Without a prediction the render ahead has to load.
+  // Without a prediction the read ahead has to load.
   TileCache cold(*store);
   const MapRenderer cold_renderer(cold);
-  EXPECT_GT(cold_renderer.RenderView(core::Pose2(90.0, -128.0, 0.0), 160, 120, 0.25, 0).tiles_loaded, 0);
+  EXPECT_GT(cold_renderer.PatchAround({90.0, -128.0}, 160, 120, 0).tiles_loaded, 0);
 }
 
 TEST(TilePrefetcher, PlansNearestFirstAndCoversTheTurnsItMayTake) {

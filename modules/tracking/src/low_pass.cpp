@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -15,8 +14,6 @@
 
 namespace mosaicloc::tracking::detail {
 namespace {
-
-std::atomic<bool> avx2_allowed{true};
 
 constexpr int kMaxRadius = 15;  // sigma <= 5 px (the options' limit)
 
@@ -184,17 +181,6 @@ void Dispatch(const cv::Mat& src, const cv::Rect& rect, cv::Mat& dst, double sig
 }
 
 }  // namespace
-
-bool UseAvx2() {
-#ifdef MOSAICLOC_TRACKING_AVX2
-  static const bool have = __builtin_cpu_supports("avx2");
-  return have && avx2_allowed.load(std::memory_order_relaxed);
-#else
-  return false;
-#endif
-}
-
-void SetAvx2Allowed(bool allowed) { avx2_allowed.store(allowed, std::memory_order_relaxed); }
 
 int LowPassRadius(double sigma_px) { return sigma_px > 0.0 ? static_cast<int>(std::ceil(3.0 * sigma_px)) : 0; }
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include <Eigen/LU>
 #include <opencv2/core.hpp>
@@ -32,6 +33,18 @@ Eigen::Matrix<double, 2, 3> ReferenceRaster::WorldToRaster() const {
   result.leftCols<2>() = inverse;
   result.col(2) = -inverse * a.col(2);
   return result;
+}
+
+CoarseReference Coarsen(const ReferenceRaster& reference, int levels) {
+  CoarseReference coarse;
+  coarse.raster = &reference;
+  for (; coarse.halvings < levels; ++coarse.halvings) {
+    std::unique_ptr<const ReferenceRaster> next = coarse.raster->Coarser();
+    if (!next) break;
+    coarse.owner = std::move(next);
+    coarse.raster = coarse.owner.get();
+  }
+  return coarse;
 }
 
 Eigen::Matrix<double, 2, 3> MapReference::RasterToWorld() const {

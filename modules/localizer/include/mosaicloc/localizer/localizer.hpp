@@ -14,6 +14,7 @@
 #include "mosaicloc/estimation/lock.hpp"
 #include "mosaicloc/estimation/odometry.hpp"
 #include "mosaicloc/estimation/pose_filter.hpp"
+#include "mosaicloc/tracking/relocalize.hpp"
 #include "mosaicloc/tracking/tracker.hpp"
 
 namespace mosaicloc::localizer {
@@ -36,29 +37,18 @@ struct LocalizerOptions {
   /// widened by that much along the heading, for the search and for the gate.
   double odometry_timing_sigma_ms = 0.0;
   /// Relocalization, when the prediction is too uncertain for the tracker's search range or
-  /// a kidnap is known (below): the frame is searched for at this coarse map level (3 = 8x
-  /// coarser) around the prediction and the best peaks verified with the full tracker.
-  /// Without a known kidnap the search covers the prediction's gate (filter.gate_chi2) and a
-  /// place outside it is never taken; with one, relocalize_radius_mm is searched whatever the
-  /// prior says. On a floor that repeats, relocalize_radius_mm should exceed the period, or a
-  /// kidnapped vehicle may take the one copy it sees.
-  int relocalize_level = 3;
+  /// a kidnap is known (below): the frame is searched for on the coarse map around the
+  /// prediction (tracking::Relocalizer). Without a known kidnap the search covers the
+  /// prediction's gate (filter.gate_chi2) and a place outside it is never taken; with one,
+  /// relocalize_radius_mm is searched whatever the prior says. On a floor that repeats,
+  /// relocalize_radius_mm should exceed the period, or a kidnapped vehicle may take the one
+  /// copy it sees.
+  tracking::RelocalizeOptions relocalize;
   double relocalize_radius_mm = 600.0;
-  int relocalize_candidates = 5;
-  double relocalize_min_zncc = 0.8;   ///< of the verifying registration
-  /// A floor that repeats (tiles, a printed pattern) verifies in several places. Places whose
-  /// ZNCC is within relocalize_zncc_tie of the best are equally good; of those the one
-  /// nearest the prediction is taken only if the next is at least relocalize_nearer_factor
-  /// times as far, else the frame is ambiguous and no place is taken.
-  double relocalize_zncc_tie = 0.02;
-  double relocalize_nearer_factor = 2.0;
-  /// Share of a candidate place the map must cover. Less than 1: a vehicle that mapped one
-  /// lane and drives it a few mm aside sees a sliver of floor the map does not have.
-  float relocalize_min_coverage = 0.75F;
   /// A frame without a fix whose predicted view the map covers less than this share of is
   /// off the map (state and reason "off-map"): a miss is expected there, the filter
   /// dead-reckons, and the lock is not lost. At or above it a fix is expected (the tracker
-  /// fixes views half on the map); keep it at least relocalize_min_coverage, so that a place a
+  /// fixes views half on the map); keep it at least relocalize.min_coverage, so that a place a
   /// kidnap search may have to find is one the search can take.
   double on_map_coverage = 0.75;
   /// Evidence of a kidnap from the view itself: after this many frames in a row without a
@@ -150,10 +140,9 @@ class Localizer {
   bool kidnapped() const { return kidnapped_; }
 
  private:
-  // Searches the coarse map around the prediction and verifies the best candidates; the
-  // verified registration, or nothing.
+  // Relocalizes the frame around the prediction: the verified registration, or nothing.
   // `kidnapped`: the prediction is not to be trusted, so the whole relocalize_radius_mm is
-  // searched and any place may be taken; else only places inside the prediction's gate.
+  // searched and any place may be taken; else the prediction's gate, and only places in it.
   tracking::TrackResult Relocalize(const cv::Mat& frame, const core::Pose2& prior_camera,
                                    const Eigen::Matrix3d& prior_camera_covariance, bool kidnapped) const;
   // What a frame without a fix says: off the map (none expected), a miss inside the map
@@ -175,6 +164,7 @@ class Localizer {
   const tracking::ReferenceRaster& reference_;
   tracking::Tracker tracker_;
   tracking::Tracker edge_tracker_;  ///< with edge_templates, for views partly off the map
+  tracking::Relocalizer relocalizer_;
   estimation::DiffDriveOdometry odometry_;
   std::optional<estimation::PoseFilter> filter_;
   estimation::LockMonitor lock_;
@@ -203,12 +193,5 @@ Eigen::Matrix3d CameraCovariance(const core::Pose2& world_from_vehicle, const co
                                  const Eigen::Matrix3d& vehicle_covariance);
 Eigen::Matrix3d VehicleCovariance(const core::Pose2& world_from_camera, const core::Pose2& vehicle_from_camera,
                                   const Eigen::Matrix3d& camera_covariance);
-
-/// Of the places a relocalization verified (distinct, each a successful registration), the
-/// one to take: among those whose mean ZNCC is within `zncc_tie` of the best, the nearest to
-/// the predicted camera pose, if the next nearest is at least `nearer_factor` times as far;
-/// otherwise a kAmbiguous result saying how many places matched. `verified` must not be empty.
-tracking::TrackResult ChooseRelocalization(std::vector<tracking::TrackResult> verified, const core::Pose2& prior_camera,
-                                           double zncc_tie, double nearer_factor);
 
 }  // namespace mosaicloc::localizer

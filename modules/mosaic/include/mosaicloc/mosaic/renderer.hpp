@@ -7,19 +7,9 @@
 #include <Eigen/Core>
 #include <opencv2/core/mat.hpp>
 
-#include "mosaicloc/core/pose2.hpp"
 #include "mosaicloc/mosaic/tile_cache.hpp"
 
 namespace mosaicloc::mosaic {
-
-/// A view rendered from the map.
-struct RenderedView {
-  cv::Mat image;                ///< CV_8UC1; kUnmapped where the map has no data
-  cv::Mat mask;                 ///< CV_8UC1, 255 where every pixel the value came from is mapped
-  double mapped_fraction = 0.0;
-  int tiles_loaded = 0;         ///< tiles that were not in memory: the render waited for them
-  std::vector<std::string> problems;  ///< corrupt tiles met (treated as unmapped)
-};
 
 /// An axis-aligned block of a level's pixels.
 struct RasterPatch {
@@ -33,20 +23,13 @@ struct RasterPatch {
   std::vector<std::string> problems;
 };
 
-/// Renders what an ideal camera would see from the map, seamlessly across tile borders.
+/// Reads blocks of a level's pixels from the map, seamlessly across tile borders (the
+/// tracker's views are rendered from them: tracking::MapReference, tracking::RenderWindow).
 /// Const and thread-safe given a thread-safe cache.
 class MapRenderer {
  public:
   explicit MapRenderer(TileCache& cache) : cache_(cache) {}
 
-  /// The view of an ideal camera (width x height pixels of mm_per_px, principal point at the
-  /// centre, frames of design.md section 3) at world_from_camera, sampled bilinearly from
-  /// `level` with the values cv::warpAffine(INTER_LINEAR) gives on the assembled level (its
-  /// fixed-point arithmetic, repeated). A pixel is mapped when every level pixel of non-zero
-  /// bilinear weight is. Loads only the tiles under the view; keeps a per-thread buffer of
-  /// about twice the view's footprint between calls.
-  RenderedView RenderView(const core::Pose2& world_from_camera, int width_px, int height_px, double mm_per_px,
-                          int level) const;
   /// The pixels [col0, col0 + cols) x [row0, row0 + rows) of a level, as stored.
   RasterPatch Region(int level, std::int64_t col0, std::int64_t row0, int cols, int rows) const;
   /// The same into caller-owned pixels, for readers that fetch blocks every frame:

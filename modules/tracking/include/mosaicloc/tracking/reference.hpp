@@ -46,6 +46,17 @@ class ReferenceRaster {
   Eigen::Matrix<double, 2, 3> WorldToRaster() const;
 };
 
+/// A reference halved up to a number of times: `raster` is the coarsest reached (the
+/// reference itself after no halving), `halvings` how many were made and `owner` holds the
+/// coarser raster when there is one.
+struct CoarseReference {
+  std::unique_ptr<const ReferenceRaster> owner;
+  const ReferenceRaster* raster = nullptr;
+  int halvings = 0;
+};
+/// `reference` halved up to `levels` times (fewer where it has no coarser level).
+CoarseReference Coarsen(const ReferenceRaster& reference, int levels);
+
 /// One level of the mosaic map.
 class MapReference final : public ReferenceRaster {
  public:

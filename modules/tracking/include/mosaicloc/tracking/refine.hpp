@@ -75,11 +75,4 @@ struct RefinedMatch {
 RefinedMatch RefineTemplate(const cv::Mat& frame, const cv::Rect& rect, const ReferenceRaster& reference,
                             const Eigen::Matrix<double, 2, 3>& frame_to_raster, const RefineOptions& options);
 
-/// Renders the reference as the frame would see it: pixel (x, y) of the result shows raster
-/// point frame_to_raster * (origin + (x, y)). Bilinear in double precision (no fixed-point
-/// position rounding), rounded to 8 bits. `mask` (optional) is 255 where all four source
-/// pixels are known.
-cv::Mat RenderWindow(const ReferenceRaster& reference, const Eigen::Matrix<double, 2, 3>& frame_to_raster,
-                     const cv::Point& origin, const cv::Size& size, cv::Mat* mask = nullptr);
-
 }  // namespace mosaicloc::tracking

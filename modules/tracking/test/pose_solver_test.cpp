@@ -1,0 +1,226 @@
+#include <random>
+#include <vector>
+
+#include <ceres/ceres.h>
+#include <gtest/gtest.h>
+
+#include "mosaicloc/tracking/pose_solver.hpp"
+#include "tracking_test_support.hpp"
+
+namespace mosaicloc::tracking {
+namespace {
+
+TEST(PoseSolver, AnalyticJacobianMatchesNumeric) {
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<double> u(-100.0, 100.0);
+  for (int trial = 0; trial < 20; ++trial) {
+    Correspondence c;
+    c.camera_mm = {u(rng), u(rng)};
+    c.world_mm = {u(rng), u(rng)};
+    const double pose[3] = {u(rng), u(rng), u(rng) * 0.03};
+    const double scale = 0.5 + std::abs(u(rng)) / 100.0;
+    double r[2], j[6];
+    PlanarResidual(pose, c, scale, r, j);
+    for (int p = 0; p < 3; ++p) {
+      const double h = 1e-6;
+      double plus[3] = {pose[0], pose[1], pose[2]}, minus[3] = {pose[0], pose[1], pose[2]};
+      plus[p] += h;
+      minus[p] -= h;
+      double rp[2], rm[2];
+      PlanarResidual(plus, c, scale, rp, nullptr);
+      PlanarResidual(minus, c, scale, rm, nullptr);
+      for (int k = 0; k < 2; ++k) {
+        EXPECT_NEAR(j[k * 3 + p], (rp[k] - rm[k]) / (2 * h), 1e-6) << "residual " << k << " parameter " << p;
+      }
+    }
+  }
+}
+
+std::vector<Correspondence> MakeCorrespondences(const Pose2& truth, int n, double noise_mm, std::mt19937* rng) {
+  std::uniform_real_distribution<double> u(-80.0, 80.0);
+  std::normal_distribution<double> g(0.0, noise_mm);
+  std::vector<Correspondence> cs;
+  for (int i = 0; i < n; ++i) {
+    Correspondence c;
+    c.camera_mm = {u(*rng), u(*rng) * 0.75};
+    c.world_mm = truth * c.camera_mm + Eigen::Vector2d(g(*rng), g(*rng));
+    c.sigma_mm = std::max(noise_mm, 1e-6);
+    cs.push_back(c);
+  }
+  return cs;
+}
+
+TEST(PoseSolver, ThirtyPercentOutliersDoNotMoveThePose) {
+  std::mt19937 rng(9);
+  const Pose2 truth(1234.5, -678.9, 0.7);
+  std::vector<Correspondence> cs = MakeCorrespondences(truth, 20, 0.0, &rng);
+  const PoseSolution clean = SolvePlanarPose(cs, Pose2(1234.0, -679.5, 0.69), PoseSolverOptions{});
+  ASSERT_TRUE(clean.ok());
+  std::uniform_real_distribution<double> wild(-5.0, 5.0);
+  for (int i = 0; i < 6; ++i)
+    cs[static_cast<std::size_t>(3 * i)].world_mm += Eigen::Vector2d(wild(rng), wild(rng)) + Eigen::Vector2d(1.0, 0.0);
+  const PoseSolution solution = SolvePlanarPose(cs, Pose2(1234.0, -679.5, 0.69), PoseSolverOptions{});
+  ASSERT_TRUE(solution.ok()) << ToString(solution.failure);
+  EXPECT_LT(Distance(solution.world_from_camera, truth), 0.01);
+  EXPECT_LT(std::abs(YawDifference(solution.world_from_camera, truth)), 1e-5);
+  EXPECT_EQ(solution.inliers, 14);
+  for (int i = 0; i < 6; ++i) EXPECT_FALSE(solution.inlier[static_cast<std::size_t>(3 * i)]);
+}
+
+TEST(PoseSolver, CovarianceFollowsTheNoise) {
+  std::mt19937 rng(10);
+  const Pose2 truth(10.0, 20.0, -0.2);
+  // Empirical scatter over repeated noisy solves against the reported covariance.
+  const double noise_mm = 0.01;
+  double sum_sq = 0.0, reported = 0.0;
+  const int trials = 200;
+  for (int t = 0; t < trials; ++t) {
+    const std::vector<Correspondence> cs = MakeCorrespondences(truth, 8, noise_mm, &rng);
+    const PoseSolution s = SolvePlanarPose(cs, truth, PoseSolverOptions{});
+    ASSERT_TRUE(s.ok());
+    sum_sq += std::pow(s.world_from_camera.x_mm() - truth.x_mm(), 2);
+    reported += s.covariance(0, 0);
+  }
+  const double ratio = std::sqrt(sum_sq / trials) / std::sqrt(reported / trials);
+  EXPECT_NEAR(ratio, 1.0, 0.2);
+}
+
+// One correspondence as a Ceres cost, for comparisons with ceres::Solve and ceres::Covariance.
+class PlanarCeresCost final : public ceres::SizedCostFunction<2, 3> {
+ public:
+  explicit PlanarCeresCost(const Correspondence& c) : c_(c) {}
+  bool Evaluate(double const* const* p, double* r, double** j) const override {
+    PlanarResidual(p[0], c_, 1.0, r, j != nullptr ? j[0] : nullptr);
+    return true;
+  }
+
+ private:
+  Correspondence c_;
+};
+
+ceres::LossFunction* CeresLoss(RobustLoss loss, double scale) {
+  if (loss == RobustLoss::kHuber) return new ceres::HuberLoss(scale);
+  if (loss == RobustLoss::kCauchy) return new ceres::CauchyLoss(scale);
+  return nullptr;
+}
+
+// The reweighted rounds reach the optimum ceres::Solve reaches on the same robust problem,
+// with a quarter of the correspondences off by several loss scales.
+TEST(PoseSolver, OptimumEqualsCeresSolve) {
+  std::mt19937 rng(15);
+  const Pose2 truth(-812.0, 95.0, 1.1);
+  for (const RobustLoss loss : {RobustLoss::kNone, RobustLoss::kHuber, RobustLoss::kCauchy}) {
+    PoseSolverOptions options;
+    options.loss = loss;
+    options.outlier_threshold_mm = 10.0;  // keep every correspondence: compare the robust solve itself
+    std::vector<Correspondence> cs = MakeCorrespondences(truth, 12, 0.02, &rng);
+    for (std::size_t i = 0; i < cs.size(); i += 4) cs[i].world_mm += Eigen::Vector2d(0.3, -0.2);
+    const Pose2 start(-811.6, 95.3, 1.098);
+    const PoseSolution s = SolvePlanarPose(cs, start, options);
+    ASSERT_TRUE(s.ok()) << ToString(s.failure);
+    double pose[3] = {start.x_mm(), start.y_mm(), start.yaw_rad()};
+    ceres::Problem problem;
+    for (const Correspondence& c : cs) {
+      problem.AddResidualBlock(new PlanarCeresCost(c), CeresLoss(loss, options.loss_scale_mm), pose);
+    }
+    ceres::Solver::Options solver_options;
+    solver_options.function_tolerance = solver_options.parameter_tolerance = 1e-14;
+    solver_options.gradient_tolerance = 1e-16;
+    solver_options.max_num_iterations = 200;
+    solver_options.logging_type = ceres::SILENT;
+    ceres::Solver::Summary summary;
+    ceres::Solve(solver_options, &problem, &summary);
+    EXPECT_NEAR(s.world_from_camera.x_mm(), pose[0], 1e-8) << static_cast<int>(loss);
+    EXPECT_NEAR(s.world_from_camera.y_mm(), pose[1], 1e-8) << static_cast<int>(loss);
+    EXPECT_NEAR(s.world_from_camera.yaw_rad(), pose[2], 1e-10) << static_cast<int>(loss);
+  }
+}
+
+// The covariance is ceres::Covariance's on the same problem at the solution: residuals near
+// the loss scale, so the robust loss's correction of the Jacobian counts.
+TEST(PoseSolver, CovarianceEqualsCeresCovariance) {
+  std::mt19937 rng(14);
+  const Pose2 truth(321.0, -45.0, 0.4);
+  for (const RobustLoss loss : {RobustLoss::kNone, RobustLoss::kHuber, RobustLoss::kCauchy}) {
+    PoseSolverOptions options;
+    options.loss = loss;
+    options.loss_scale_mm = 0.02;
+    options.outlier_threshold_mm = 1.0;  // keep every correspondence
+    const std::vector<Correspondence> cs = MakeCorrespondences(truth, 7, 0.03, &rng);
+    const PoseSolution s = SolvePlanarPose(cs, truth, options);
+    ASSERT_TRUE(s.ok());
+    ASSERT_EQ(s.inliers, 7);
+    double pose[3] = {s.world_from_camera.x_mm(), s.world_from_camera.y_mm(), s.world_from_camera.yaw_rad()};
+    ceres::Problem problem;
+    for (const Correspondence& c : cs) {
+      problem.AddResidualBlock(new PlanarCeresCost(c), CeresLoss(loss, options.loss_scale_mm), pose);
+    }
+    ceres::Covariance::Options covariance_options;
+    covariance_options.algorithm_type = ceres::DENSE_SVD;
+    ceres::Covariance covariance(covariance_options);
+    const std::vector<std::pair<const double*, const double*>> blocks = {{pose, pose}};
+    ASSERT_TRUE(covariance.Compute(blocks, &problem));
+    Eigen::Matrix<double, 3, 3, Eigen::RowMajor> expected;
+    ASSERT_TRUE(covariance.GetCovarianceBlock(pose, pose, expected.data()));
+    // Every sigma is the same, so the solver's unit is sigma^2.
+    const Eigen::Matrix3d got = s.covariance / (0.03 * 0.03);
+    EXPECT_LT((got - expected).norm(), 1e-9 * expected.norm()) << static_cast<int>(loss) << "\n"
+                                                               << got << "\n" << expected;
+  }
+}
+
+// Without the covariance the solve is the same; the covariance says it was not computed.
+TEST(PoseSolver, SkippingTheCovarianceLeavesThePose) {
+  std::mt19937 rng(12);
+  const Pose2 truth(-4.0, 7.0, 0.3);
+  const std::vector<Correspondence> cs = MakeCorrespondences(truth, 6, 0.01, &rng);
+  PoseSolverOptions options;
+  const PoseSolution with = SolvePlanarPose(cs, Pose2(-3.9, 7.05, 0.29), options);
+  options.compute_covariance = false;
+  const PoseSolution without = SolvePlanarPose(cs, Pose2(-3.9, 7.05, 0.29), options);
+  ASSERT_TRUE(with.ok());
+  ASSERT_TRUE(without.ok());
+  EXPECT_EQ(with.world_from_camera.x_mm(), without.world_from_camera.x_mm());
+  EXPECT_EQ(with.world_from_camera.y_mm(), without.world_from_camera.y_mm());
+  EXPECT_EQ(with.world_from_camera.yaw_rad(), without.world_from_camera.yaw_rad());
+  EXPECT_EQ(with.inlier, without.inlier);
+  EXPECT_TRUE(with.covariance.allFinite());
+  EXPECT_TRUE(without.covariance.array().isNaN().all());
+}
+
+// Correspondences all at one point of the frame fix the translation but not the yaw: the
+// covariance says the yaw is unknown rather than exact.
+TEST(PoseSolver, CorrespondencesAtOnePointLeaveTheYawUndetermined) {
+  const Pose2 truth(5.0, -3.0, 0.1);
+  std::vector<Correspondence> cs(4);
+  for (Correspondence& c : cs) {
+    c.camera_mm = {12.0, -7.0};
+    c.world_mm = truth * c.camera_mm;
+    c.sigma_mm = 0.001;
+  }
+  const PoseSolution s = SolvePlanarPose(cs, Pose2(5.1, -3.1, 0.1), PoseSolverOptions{});
+  ASSERT_TRUE(s.ok()) << ToString(s.failure);
+  EXPECT_LT((s.world_from_camera * cs[0].camera_mm - cs[0].world_mm).norm(), 1e-6);
+  EXPECT_TRUE(std::isinf(s.covariance(2, 2))) << s.covariance;
+  // Two distinct points determine it, with a finite variance.
+  cs[1].camera_mm = {-30.0, 20.0};
+  cs[1].world_mm = truth * cs[1].camera_mm;
+  const PoseSolution two = SolvePlanarPose(cs, Pose2(5.1, -3.1, 0.1), PoseSolverOptions{});
+  ASSERT_TRUE(two.ok());
+  EXPECT_TRUE(two.covariance.allFinite()) << two.covariance;
+  EXPECT_GT(two.covariance(2, 2), 0.0);
+}
+
+TEST(PoseSolver, SaysWhyItFailed) {
+  std::mt19937 rng(11);
+  const std::vector<Correspondence> two = MakeCorrespondences(Pose2(), 2, 0.0, &rng);
+  EXPECT_EQ(SolvePlanarPose(two, Pose2(), PoseSolverOptions{}).failure, PoseFailure::kTooFewInliers);
+  // Three correspondences that disagree by millimetres: nothing is an inlier of anything.
+  std::vector<Correspondence> scattered = MakeCorrespondences(Pose2(), 3, 0.0, &rng);
+  scattered[0].world_mm.x() += 3.0;
+  scattered[1].world_mm.y() -= 3.0;
+  EXPECT_EQ(SolvePlanarPose(scattered, Pose2(), PoseSolverOptions{}).failure, PoseFailure::kTooFewInliers);
+}
+
+}  // namespace
+}  // namespace mosaicloc::tracking
