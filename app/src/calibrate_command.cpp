@@ -1,8 +1,6 @@
 // mosaicloc calibrate: the installation steps that make a vehicle's camera ideal
 // (tutorials/calibration): print a board, calibrate the intrinsics, the ground plane and the
 // camera's place on the vehicle, rectify, verify.
-#include <glob.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -14,6 +12,7 @@
 
 #include "commands.hpp"
 #include "mosaicloc/calibration/board_detection.hpp"
+#include "mosaicloc/calibration/board_images.hpp"
 #include "mosaicloc/calibration/ground.hpp"
 #include "mosaicloc/calibration/intrinsics.hpp"
 #include "mosaicloc/calibration/vehicle_drive.hpp"
@@ -28,56 +27,6 @@
 
 namespace mosaicloc::app {
 namespace {
-
-// Files matching a shell pattern, sorted; bad input if none.
-std::vector<std::filesystem::path> Glob(const std::string& pattern) {
-  glob_t found{};
-  const int status = ::glob(pattern.c_str(), 0, nullptr, &found);
-  std::vector<std::filesystem::path> files;
-  if (status == 0) {
-    for (std::size_t i = 0; i < found.gl_pathc; ++i) {
-      if (std::filesystem::is_regular_file(found.gl_pathv[i])) files.emplace_back(found.gl_pathv[i]);
-    }
-  }
-  ::globfree(&found);
-  if (files.empty()) core::ThrowInvalidInput("no images match '" + pattern + "'");
-  std::sort(files.begin(), files.end());
-  return files;
-}
-
-cv::Mat ReadGrey(const std::filesystem::path& file) {
-  const cv::Mat image = cv::imread(file.string(), cv::IMREAD_GRAYSCALE);
-  if (image.empty()) core::ThrowInvalidInput(file.string() + ": cannot be read as an image");
-  return image;
-}
-
-void WritePng(const std::filesystem::path& file, const cv::Mat& image) {
-  std::vector<unsigned char> png;
-  if (!cv::imencode(".png", image, png)) core::ThrowRuntime(file.string() + ": cannot encode PNG");
-  core::WriteFileAtomically(file, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
-}
-
-// Detects the board in every image, all of the same size.
-std::vector<calibration::BoardView> DetectAll(const std::vector<std::filesystem::path>& files,
-                                         const camera::BoardSpec& board, int* width, int* height) {
-  std::vector<calibration::BoardView> views;
-  for (const std::filesystem::path& file : files) {
-    const cv::Mat image = ReadGrey(file);
-    if (views.empty()) {
-      *width = image.cols;
-      *height = image.rows;
-    } else if (image.cols != *width || image.rows != *height) {
-      core::ThrowInvalidInput(file.string() + ": " + std::to_string(image.cols) + "x" + std::to_string(image.rows) +
-                              " differs from the first image's " + std::to_string(*width) + "x" +
-                              std::to_string(*height));
-    }
-    calibration::BoardView view;
-    view.name = file.filename().string();
-    if (const auto detection = calibration::DetectBoard(image, board)) view.detection = *detection;
-    views.push_back(std::move(view));
-  }
-  return views;
-}
 
 nlohmann::json IntrinsicsJson(const calibration::IntrinsicsEstimate& e) {
   const calibration::Intrinsics& k = e.intrinsics;
@@ -96,7 +45,7 @@ struct BoardArgs {
 void RunBoard(const BoardArgs& args, const GlobalOptions& global) {
   const camera::BoardSpec board = camera::ParseBoardSpec(args.board);
   const cv::Mat image = camera::DrawBoard(board, args.px_per_mm);
-  WritePng(args.out, image);
+  dataset::WritePng(args.out, image);
   const double width_mm = image.cols / args.px_per_mm, height_mm = image.rows / args.px_per_mm;
   if (global.json) {
     std::printf("%s\n", nlohmann::json{{"board", board.ToString()}, {"png", args.out.string()},
@@ -121,18 +70,11 @@ struct IntrinsicsArgs {
 
 void RunIntrinsics(const IntrinsicsArgs& args, const GlobalOptions& global) {
   const camera::BoardSpec board = camera::ParseBoardSpec(args.board);
-  const std::vector<std::filesystem::path> files = Glob(args.images);
-  int width = 0, height = 0;
-  const std::vector<calibration::BoardView> views = DetectAll(files, board, &width, &height);
-  if (std::none_of(views.begin(), views.end(), [](const auto& v) { return !v.detection.points_px.empty(); })) {
-    core::ThrowInvalidInput("board " + board.ToString() + " not found in any of the " + std::to_string(files.size()) +
-                            " images matching '" + args.images + "'");
-  }
-  const calibration::IntrinsicsResult result = calibration::CalibrateIntrinsics(views, board, width, height, {});
-  calibration::WriteVispCameraXml(args.out, result.visp.intrinsics, args.camera_name,
-                             "mosaicloc calibrate intrinsics, board " + board.ToString() + ", " +
-                                 std::to_string(result.used.size()) + " images, RMS " +
-                                 std::to_string(result.visp.rms_px) + " px");
+  const calibration::ImagesIntrinsics calibrated =
+      calibration::CalibrateIntrinsicsFromImages(args.images, board, args.out, args.camera_name);
+  const calibration::IntrinsicsResult& result = calibrated.result;
+  const int width = calibrated.width_px, height = calibrated.height_px;
+  const std::size_t images_found = result.views.size();
   if (global.json) {
     nlohmann::json images = nlohmann::json::array();
     std::size_t used_index = 0;
@@ -154,7 +96,7 @@ void RunIntrinsics(const IntrinsicsArgs& args, const GlobalOptions& global) {
     std::printf("%s\n", out.dump(2).c_str());
     return;
   }
-  std::printf("%zu of %zu images used (board %s, %dx%d px)\n", result.used.size(), views.size(),
+  std::printf("%zu of %zu images used (board %s, %dx%d px)\n", result.used.size(), images_found,
               board.ToString().c_str(), width, height);
   std::printf("  %-28s %12s %12s\n", "image", "ViSP rms px", "OpenCV rms px");
   std::size_t used_index = 0;
@@ -193,22 +135,9 @@ struct GroundArgs {
 
 void RunGround(const GroundArgs& args, const GlobalOptions& global) {
   const camera::BoardSpec board = camera::ParseBoardSpec(args.board);
-  const calibration::Intrinsics intrinsics = calibration::ReadVispCameraXml(args.intrinsics, args.camera_name);
-  std::string why;
-  if (!args.options.Check(&why)) core::ThrowInvalidInput(why);
-  const std::vector<std::filesystem::path> files = Glob(args.images);
-  int width = 0, height = 0;
-  const std::vector<calibration::BoardView> views = DetectAll(files, board, &width, &height);
-  if (width != intrinsics.width_px || height != intrinsics.height_px) {
-    core::ThrowInvalidInput(files.front().string() + ": images are " + std::to_string(width) + "x" +
-                            std::to_string(height) + " but " + args.intrinsics.string() + " is for " +
-                            std::to_string(intrinsics.width_px) + "x" + std::to_string(intrinsics.height_px));
-  }
-  const calibration::GroundResult result = calibration::CalibrateGround(views, board, intrinsics, args.options);
-  calibration::WriteGroundCalibration(args.out, result.calibration,
-                                 "mosaicloc calibrate ground, board " + board.ToString() + ", " +
-                                     std::to_string(views.size()) + " images, intrinsics " +
-                                     args.intrinsics.filename().string());
+  const calibration::GroundResult result =
+      calibration::CalibrateGroundFromImages(args.images, board, args.intrinsics, args.camera_name, args.options, args.out);
+  const std::size_t image_count = result.views.size();
   const calibration::GroundCalibration& c = result.calibration;
   if (global.json) {
     nlohmann::json images = nlohmann::json::array();
@@ -232,7 +161,7 @@ void RunGround(const GroundArgs& args, const GlobalOptions& global) {
     return;
   }
   std::printf("floor %.3f mm below the camera, optical axis %.3f deg from vertical (%zu images)\n", c.height_mm(),
-              c.tilt_rad() * 180.0 / M_PI, views.size());
+              c.tilt_rad() * 180.0 / M_PI, image_count);
   std::printf("  %-28s %14s %14s %14s\n", "image", "residual mm", "max mm", "scale error %");
   for (const auto& view : result.views) {
     std::printf("  %-28s %14.4f %14.4f %14.4f\n", view.name.c_str(), view.residual_rms_mm, view.residual_max_mm,
@@ -259,21 +188,8 @@ struct RectifyArgs {
 
 void RunRectify(const RectifyArgs& args, const GlobalOptions& global) {
   const calibration::Rectifier rectifier(calibration::ReadGroundCalibration(args.ground));
-  const std::vector<std::filesystem::path> files = Glob(args.images);
-  std::vector<cv::Mat> rectified;
-  for (const std::filesystem::path& file : files) {
-    cv::Mat ideal;
-    if (!rectifier.Rectify(ReadGrey(file), &ideal)) {
-      core::ThrowInvalidInput(file.string() + ": not the calibrated raw size " +
-                              std::to_string(rectifier.calibration().intrinsics.width_px) + "x" +
-                              std::to_string(rectifier.calibration().intrinsics.height_px));
-    }
-    rectified.push_back(ideal);
-  }
-  std::filesystem::create_directories(args.out_dir);
-  for (std::size_t i = 0; i < files.size(); ++i) {
-    WritePng(args.out_dir / files[i].filename().replace_extension(".png"), rectified[i]);
-  }
+  const std::vector<std::filesystem::path> files = calibration::MatchImages(args.images);
+  calibration::RectifyImages(files, rectifier, args.out_dir);
   if (global.json) {
     std::printf("%s\n", nlohmann::json{{"images", files.size()}, {"out", args.out_dir.string()}}.dump(2).c_str());
   } else {
@@ -284,18 +200,12 @@ void RunRectify(const RectifyArgs& args, const GlobalOptions& global) {
 void RunVerify(const RectifyArgs& args, const GlobalOptions& global) {
   const camera::BoardSpec board = camera::ParseBoardSpec(args.board);
   const calibration::Rectifier rectifier(calibration::ReadGroundCalibration(args.ground));
-  const std::vector<std::filesystem::path> files = Glob(args.images);
+  const std::vector<std::filesystem::path> files = calibration::MatchImages(args.images);
   nlohmann::json images = nlohmann::json::array();
   double worst_scale = 0.0;
   if (!global.json) std::printf("  %-28s %14s %14s %14s\n", "image", "scale error %", "residual mm", "max mm");
   for (const std::filesystem::path& file : files) {
-    cv::Mat ideal;
-    if (!rectifier.Rectify(ReadGrey(file), &ideal)) {
-      core::ThrowInvalidInput(file.string() + ": not the calibrated raw size");
-    }
-    const auto detection = calibration::DetectBoard(ideal, board);
-    if (!detection) core::ThrowInvalidInput(file.string() + ": board " + board.ToString() + " not found once rectified");
-    const calibration::IdealBoardMeasurement m = calibration::MeasureIdealBoard(*detection, board, rectifier.calibration().ideal);
+    const calibration::IdealBoardMeasurement m = calibration::MeasureRectifiedBoard(file, rectifier, board);
     worst_scale = std::max(worst_scale, std::abs(m.scale_error));
     images.push_back({{"image", file.filename().string()},
                       {"scale_error_percent", 100.0 * m.scale_error},

@@ -8,44 +8,10 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
-#include "mosaicloc/core/yaml.hpp"
 #include "mosaicloc/localizer/speed_limits.hpp"
 
 namespace mosaicloc::app {
 namespace {
-
-localizer::SpeedLimitOptions ReadLimitsConfig(const std::filesystem::path& file) {
-  using core::InRange;
-  using core::Positive;
-  localizer::SpeedLimitOptions o;
-  core::YamlProblems problems;
-  core::YamlMap root = core::YamlMap::Root(core::LoadYamlFile(file), file.string(), &problems);
-  core::YamlMap camera = root.OptionalMap("camera");
-  camera.Optional("width_px", &o.width_px, core::IntegerInRange(16, 65536));
-  camera.Optional("height_px", &o.height_px, core::IntegerInRange(16, 65536));
-  camera.Optional("mm_per_px", &o.mm_per_px, Positive());
-  camera.Optional("frame_rate_hz", &o.frame_rate_hz, InRange(0.01, 100000.0));
-  camera.Optional("exposure_us", &o.exposure_us, InRange(0.001, 1e6));
-  camera.Optional("height_mm", &o.camera_height_mm, Positive());
-  double yaw_rad = -o.travel_direction_rad;
-  camera.Optional("vehicle_from_camera_yaw_rad", &yaw_rad, InRange(-10.0, 10.0));
-  o.travel_direction_rad = -yaw_rad;
-  camera.Finish();
-  core::YamlMap floor = root.OptionalMap("floor");
-  floor.Optional("depth_gradient", &o.depth_gradient, InRange(1e-9, 1.0));
-  floor.Finish();
-  core::YamlMap tracker = root.OptionalMap("tracker");
-  tracker.Optional("required_overlap", &o.required_overlap, InRange(0.0, 0.99));
-  tracker.Optional("distortion_tolerance_px", &o.distortion_tolerance_px, Positive());
-  tracker.Optional("max_blur_px", &o.max_blur_px, Positive());
-  tracker.Optional("search_range_px", &o.search_range_px, Positive());
-  tracker.Optional("odometry_error", &o.odometry_error, InRange(1e-6, 0.99));
-  tracker.Finish();
-  root.Optional("speed_mps", &o.speed_mps, InRange(0.0, 1000.0));
-  root.Finish();
-  problems.ThrowIfAny();
-  return o;
-}
 
 void PrintLimits(const localizer::SpeedLimitOptions& o, const localizer::SpeedLimits& l) {
   std::printf("setup: %dx%d px at %.4g mm/px, %.4g Hz (T_cyc %.2f ms), exposure %.4g us, camera %.4g mm above the floor\n",
@@ -94,7 +60,7 @@ Action AddLimitsCommand(CLI::App& app, const GlobalOptions& global) {
       ->check(CLI::Range(0.0, 1000.0));
   return [args, &global] {
     localizer::SpeedLimitOptions options;
-    if (!args->config.empty()) options = ReadLimitsConfig(args->config);
+    if (!args->config.empty()) options = localizer::LoadSpeedLimitConfig(args->config);
     if (args->speed_mps) options.speed_mps = *args->speed_mps;
     const localizer::SpeedLimits limits = localizer::AnalyseSpeedLimits(options);
     if (!global.json) {

@@ -11,13 +11,9 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
-#include "mosaicloc/camera/ideal_camera.hpp"
 #include "mosaicloc/core/error.hpp"
-#include "mosaicloc/io/v4l2_camera.hpp"
 #include "mosaicloc/runtime/live_run.hpp"
-#include "mosaicloc/runtime/live_sources.hpp"
 #include "mosaicloc/runtime/run_config.hpp"
-#include "mosaicloc/sim/config.hpp"
 
 namespace mosaicloc::app {
 namespace {
@@ -55,32 +51,8 @@ void Run(const RunArgs& args, const GlobalOptions& global) {
   if (!args.record.empty() && std::filesystem::exists(args.record)) {
     core::ThrowInvalidInput("run: --record " + args.record.string() + " exists; give a new directory");
   }
-  std::unique_ptr<io::FrameSource> source;
-  dataset::CameraInfo camera = config.camera;
-  dataset::VehicleInfo vehicle = config.vehicle;
-  std::unique_ptr<runtime::SimulatedDrive> drive;
-  if (config.camera_source == "simulator") {
-    drive = std::make_unique<runtime::SimulatedDrive>(sim::SimulatorConfigOrDefaults(config.simulator_config));
-  }
-  if (config.camera_source == "dataset" || drive) {
-    // A recording (or a simulated drive) carries its own camera and vehicle calibration.
-    auto played = std::make_unique<runtime::DatasetFrameSource>(drive ? drive->directory() : config.dataset,
-                                                       config.dataset_start_unix_s);
-    camera = played->info().camera;
-    vehicle = played->info().vehicle;
-    source = std::move(played);
-  } else {
-    source = std::make_unique<io::V4l2Camera>(config.v4l2);
-  }
-  if (config.ground_calibration) {
-    // A real camera: its raw frames are made ideal, and the ideal image is the camera.
-    const camera::IdealCameraOptions& ideal = config.ground_calibration->ideal;
-    camera.width_px = ideal.width_px;
-    camera.height_px = ideal.height_px;
-    camera.mm_per_px = ideal.mm_per_px;
-    source = std::make_unique<runtime::RectifyingFrameSource>(std::move(source), *config.ground_calibration);
-  }
-  runtime::LiveRun run(config, std::move(source), camera, vehicle, args.record);
+  runtime::LiveSource source = runtime::OpenLiveSource(config);
+  runtime::LiveRun run(config, std::move(source.frames), source.camera, source.vehicle, args.record);
   g_signal = 0;
   std::signal(SIGINT, OnSignal);
   std::signal(SIGTERM, OnSignal);

@@ -18,7 +18,7 @@ expect_exit 0 "$MOSAICLOC" --quiet map export "$SCRATCH/a.mosaic" --out "$SCRATC
 expect_exit 0 "$MOSAICLOC" map export "$SCRATCH/a.mosaic" --out "$SCRATCH/r.png" --region 0,-50,100,50
 expect_in "$SCRATCH/out" "400 x 400 px"
 expect_exit 2 "$MOSAICLOC" map export "$SCRATCH/a.mosaic" --out "$SCRATCH/r.png" --region 0,50,100
-expect_in "$SCRATCH/err" "--region must be x0,y0,x1,y1"
+expect_in "$SCRATCH/err" "region must be x0,y0,x1,y1"
 
 # A tile damaged on disk: check names it and exits 2; export still works around it.
 cp "$SCRATCH/a.mosaic" "$SCRATCH/b.mosaic"

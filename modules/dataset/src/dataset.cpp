@@ -11,6 +11,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "mosaicloc/core/error.hpp"
+#include "mosaicloc/core/file.hpp"
 #include "mosaicloc/core/yaml.hpp"
 #include "text_fields.hpp"
 
@@ -364,6 +365,12 @@ DatasetInfo DerivedInfo(const DatasetReader& reader, const CameraInfo& camera, c
   info.camera = camera;
   info.provenance["calibration"] = note;
   return info;
+}
+
+void WritePng(const std::filesystem::path& file, const cv::Mat& image) {
+  std::vector<unsigned char> png;
+  if (!cv::imencode(".png", image, png)) core::ThrowRuntime(file.string() + ": cannot encode PNG");
+  core::WriteFileAtomically(file, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
 }
 
 void CopyEncodersAndTruth(const DatasetReader& reader, DatasetWriter* writer) {

@@ -5,6 +5,7 @@
 
 #include "mosaicloc/camera/ideal_camera.hpp"
 #include "mosaicloc/core/error.hpp"
+#include "mosaicloc/core/yaml.hpp"
 
 namespace mosaicloc::localizer {
 
@@ -53,6 +54,41 @@ SpeedLimits AnalyseSpeedLimits(const SpeedLimitOptions& options) {
   limits.blur_px = 1e3 * options.speed_mps * exposure_s / s;
   limits.prediction_error_mm = options.odometry_error * limits.step_mm;
   return limits;
+}
+
+SpeedLimitOptions LoadSpeedLimitConfig(const std::filesystem::path& file) {
+  SpeedLimitOptions o;
+  core::YamlProblems problems;
+  core::YamlMap root = core::YamlMap::Root(core::LoadYamlFile(file), file.string(), &problems);
+  core::YamlMap camera = root.OptionalMap("camera");
+  camera.Optional("width_px", &o.width_px);
+  camera.Optional("height_px", &o.height_px);
+  camera.Optional("mm_per_px", &o.mm_per_px);
+  camera.Optional("frame_rate_hz", &o.frame_rate_hz);
+  camera.Optional("exposure_us", &o.exposure_us);
+  camera.Optional("height_mm", &o.camera_height_mm);
+  double yaw_rad = -o.travel_direction_rad;
+  camera.Optional("vehicle_from_camera_yaw_rad", &yaw_rad);
+  o.travel_direction_rad = -yaw_rad;
+  camera.CheckOwnKeys(o, {{"camera_height_mm", "height_mm"}, {"travel_direction_rad", "vehicle_from_camera_yaw_rad"}});
+  camera.Finish();
+  core::YamlMap floor = root.OptionalMap("floor");
+  floor.Optional("depth_gradient", &o.depth_gradient);
+  floor.CheckOwnKeys(o);
+  floor.Finish();
+  core::YamlMap tracker = root.OptionalMap("tracker");
+  tracker.Optional("required_overlap", &o.required_overlap);
+  tracker.Optional("distortion_tolerance_px", &o.distortion_tolerance_px);
+  tracker.Optional("max_blur_px", &o.max_blur_px);
+  tracker.Optional("search_range_px", &o.search_range_px);
+  tracker.Optional("odometry_error", &o.odometry_error);
+  tracker.CheckOwnKeys(o);
+  tracker.Finish();
+  root.Optional("speed_mps", &o.speed_mps);
+  root.Finish();
+  if (problems.empty()) root.Check(o);
+  problems.ThrowIfAny();
+  return o;
 }
 
 }  // namespace mosaicloc::localizer

@@ -36,6 +36,7 @@
 #include "mosaicloc/runtime/live_sources.hpp"
 #include "mosaicloc/runtime/map_session.hpp"
 #include "mosaicloc/runtime/report.hpp"
+#include "mosaicloc/sim/config.hpp"
 
 namespace mosaicloc::runtime {
 // The live run's parts, named rather than file-local: LiveRun::Impl holds them.
@@ -621,6 +622,38 @@ LiveRun::~LiveRun() = default;
 
 nlohmann::json LiveRun::Run(double duration_s, const StatusCallback& status, const StopCallback& stop_requested) {
   return impl_->Run(duration_s, status, stop_requested);
+}
+
+LiveSource::LiveSource() = default;
+LiveSource::LiveSource(LiveSource&&) noexcept = default;
+LiveSource::~LiveSource() = default;
+
+LiveSource OpenLiveSource(const LiveRunOptions& config) {
+  LiveSource source;
+  source.camera = config.camera;
+  source.vehicle = config.vehicle;
+  if (config.camera_source == "simulator") {
+    source.drive = std::make_unique<SimulatedDrive>(sim::SimulatorConfigOrDefaults(config.simulator_config));
+  }
+  if (config.camera_source == "dataset" || source.drive) {
+    // A recording (or a simulated drive) carries its own camera and vehicle calibration.
+    auto played = std::make_unique<DatasetFrameSource>(source.drive ? source.drive->directory() : config.dataset,
+                                                       config.dataset_start_unix_s);
+    source.camera = played->info().camera;
+    source.vehicle = played->info().vehicle;
+    source.frames = std::move(played);
+  } else {
+    source.frames = std::make_unique<io::V4l2Camera>(config.v4l2);
+  }
+  if (config.ground_calibration) {
+    // A real camera: its raw frames are made ideal, and the ideal image is the camera.
+    const camera::IdealCameraOptions& ideal = config.ground_calibration->ideal;
+    source.camera.width_px = ideal.width_px;
+    source.camera.height_px = ideal.height_px;
+    source.camera.mm_per_px = ideal.mm_per_px;
+    source.frames = std::make_unique<RectifyingFrameSource>(std::move(source.frames), *config.ground_calibration);
+  }
+  return source;
 }
 
 }  // namespace mosaicloc::runtime

@@ -16,12 +16,6 @@
 namespace mosaicloc::sim {
 namespace {
 
-void WritePng(const std::filesystem::path& file, const cv::Mat& image) {
-  std::vector<unsigned char> png;
-  if (!cv::imencode(".png", image, png)) core::ThrowRuntime(file.string() + ": cannot encode PNG");
-  core::WriteFileAtomically(file, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
-}
-
 std::string Numbered(const char* stem, std::size_t index) {
   char name[64];
   std::snprintf(name, sizeof(name), "%s-%02zu.png", stem, index + 1);
@@ -75,9 +69,9 @@ CalibrationPhotographs WriteCalibrationPhotographs(const CalibrationPhotographsO
   }
   std::filesystem::create_directories(out / "intrinsics");
   std::filesystem::create_directories(out / "ground");
-  for (std::size_t i = 0; i < shots.size(); ++i) WritePng(out / "intrinsics" / Numbered("board", i), shots[i].image);
+  for (std::size_t i = 0; i < shots.size(); ++i) dataset::WritePng(out / "intrinsics" / Numbered("board", i), shots[i].image);
   for (std::size_t i = 0; i < floor_images.size(); ++i) {
-    WritePng(out / "ground" / Numbered("floor", i), floor_images[i]);
+    dataset::WritePng(out / "ground" / Numbered("floor", i), floor_images[i]);
   }
   YAML::Emitter yaml;
   yaml.SetDoublePrecision(17);

@@ -156,6 +156,8 @@ class DatasetWriter {
 /// The header of a recording derived from `reader`'s (the same drive through another camera,
 /// or rectified): its info with `camera` in place and `note` as provenance "calibration".
 DatasetInfo DerivedInfo(const DatasetReader& reader, const CameraInfo& camera, const std::string& note);
+/// Writes an image as a lossless PNG, atomically. Throws core::Error naming the file.
+void WritePng(const std::filesystem::path& file, const cv::Mat& image);
 /// Copies `reader`'s encoder samples and ground truth (when it has one) into `writer`.
 void CopyEncodersAndTruth(const DatasetReader& reader, DatasetWriter* writer);
 

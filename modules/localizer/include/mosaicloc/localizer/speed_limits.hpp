@@ -1,5 +1,7 @@
 #pragma once
 
+#include <filesystem>
+
 #include <string>
 
 namespace mosaicloc::localizer {
@@ -78,5 +80,9 @@ struct SpeedLimits {
 
 /// Throws core::Error (invalid input) when the options fail Check().
 SpeedLimits AnalyseSpeedLimits(const SpeedLimitOptions& options);
+
+/// Reads a camera setup (`mosaicloc limits --config`, config/default/limits.yaml) over the
+/// defaults; every problem is reported at once as core::Error naming file, line and key.
+SpeedLimitOptions LoadSpeedLimitConfig(const std::filesystem::path& file);
 
 }  // namespace mosaicloc::localizer

@@ -68,6 +68,22 @@ struct LiveRunOptions {
   LocalizationSettings localizer;
 };
 
+class SimulatedDrive;
+
+/// The frames a live run localizes, as its configuration chooses them: a V4L2 camera, a
+/// recording played in real time or a simulated drive; raw frames made ideal when a ground
+/// calibration is given. A recording or a simulated drive brings its own camera and vehicle.
+struct LiveSource {
+  std::unique_ptr<SimulatedDrive> drive;  ///< the simulated drive's files (kept while it plays)
+  std::unique_ptr<io::FrameSource> frames;
+  dataset::CameraInfo camera;   ///< the ideal camera the frames come from
+  dataset::VehicleInfo vehicle;
+  LiveSource();
+  LiveSource(LiveSource&&) noexcept;
+  ~LiveSource();
+};
+LiveSource OpenLiveSource(const LiveRunOptions& options);
+
 /// The live system: a camera source, the PLC link and the localizer over the map, on threads
 /// of their own (design.md section 1), until the source ends, the duration passes or a stop
 /// is asked for. Optionally records what it saw as a dataset, committed on a clean stop only.

@@ -1,0 +1,69 @@
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "mosaicloc/mosaic/tile_store.hpp"
+
+namespace mosaicloc::runtime {
+
+/// `mosaicloc map build`: every frame of a dataset painted at its pose into a new map.
+struct MapBuildOptions {
+  std::filesystem::path dataset;
+  std::filesystem::path out;
+  std::string poses = "groundtruth";  ///< the dataset's ground truth, or a TUM file of vehicle poses
+  std::string blend = "feather";      ///< mosaic::ParseBlend
+  int tile_size_px = 256;
+  int levels = 6;
+  bool overwrite = false;  ///< replace an existing map
+  bool resume = false;     ///< continue from OUT.checkpoint when there is one
+  double checkpoint_s = 10.0;  ///< how often progress is saved
+};
+
+struct MapBuildSummary {
+  std::int64_t frames = 0;
+  std::int64_t painted = 0;
+  std::int64_t without_pose = 0;
+  std::int64_t resumed_after = 0;  ///< frames a resumed build took from its checkpoint
+  std::int64_t tiles = 0;
+  std::int64_t level0_tiles = 0;
+};
+
+/// Writes the map under a temporary name and renames it into place at the end: an
+/// interrupted build leaves no map (or the previous one). Progress is saved in OUT.checkpoint
+/// as it goes; a resumed build continues from there, and since the saved accumulators are
+/// exact, its map equals that of an uninterrupted build. The checkpoint is tied to the
+/// inputs (their CRCs), so it is never resumed against changed ones. Throws core::Error
+/// (invalid input) when OUT exists without `overwrite` or no frame has a pose.
+MapBuildSummary BuildMap(const MapBuildOptions& options, const std::function<void(double)>& progress = {});
+
+/// A level's tiled area, level pixels, inclusive.
+struct MapExtent {
+  std::int64_t col0 = 0, row0 = 0, col1 = -1, row1 = -1;
+  bool empty() const { return col1 < col0; }
+};
+MapExtent LevelExtent(const mosaic::TileStore& store, int level);
+
+/// Reads every tile; the problems of the damaged ones. *tiles gets the number read.
+std::vector<std::string> CheckMap(const std::filesystem::path& map, std::size_t* tiles,
+                                  const std::function<void(double)>& progress = {});
+
+/// `mosaicloc map export`: a level of the map (or a region of it) as one PNG.
+struct MapExportOptions {
+  std::filesystem::path map;
+  std::filesystem::path out;
+  int level = -1;      ///< -1: the finest level that fits in 8192 px (level 0 with a region)
+  std::string region;  ///< "x0,y0,x1,y1" in mm, or empty for all of the level
+};
+struct MapExportSummary {
+  int level = 0;
+  double mm_per_px = 0.0;
+  std::int64_t cols = 0, rows = 0;
+  bool damaged = false;  ///< damaged tiles were left black
+};
+MapExportSummary ExportMap(const MapExportOptions& options);
+
+}  // namespace mosaicloc::runtime

@@ -1,0 +1,209 @@
+#include "mosaicloc/runtime/map_jobs.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iterator>
+#include <map>
+#include <memory>
+#include <limits>
+#include <sstream>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "mosaicloc/core/error.hpp"
+#include "mosaicloc/core/file.hpp"
+#include "mosaicloc/dataset/dataset.hpp"
+#include "mosaicloc/mosaic/build_checkpoint.hpp"
+#include "mosaicloc/mosaic/builder.hpp"
+#include "mosaicloc/mosaic/renderer.hpp"
+
+namespace mosaicloc::runtime {
+namespace {
+
+namespace fs = std::filesystem;
+
+// CRC32 of a file's bytes, in hex: part of a build's identity, so a checkpoint is never
+// resumed against changed inputs.
+std::string FileCrc(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) core::ThrowInvalidInput(file.string() + ": cannot be read");
+  const std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  char text[16];
+  std::snprintf(text, sizeof(text), "%08x", mosaic::TileStore::Crc32(bytes));
+  return text;
+}
+
+}  // namespace
+
+// Paints every frame at its pose into a new map, written under a temporary name and renamed
+// into place at the end: an interrupted build leaves no map (or the previous one). Progress
+// is saved in MAP.checkpoint as it goes; --resume continues from there, and since the saved
+// accumulators are exact, the map equals that of an uninterrupted build.
+MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(double)>& progress) {
+  const dataset::DatasetReader reader(args.dataset);
+  const dataset::DatasetInfo& info = reader.info();
+  const dataset::Trajectory poses =
+      args.poses == "groundtruth" ? reader.GroundTruth() : dataset::ReadTum(args.poses);
+  std::error_code ec;
+  if (fs::exists(args.out, ec) && !args.overwrite) {
+    core::ThrowInvalidInput(args.out.string() + ": already exists (add --overwrite to replace it)");
+  }
+  if (!(args.checkpoint_s >= 0.0)) core::ThrowInvalidInput("--checkpoint-s must be >= 0");
+  mosaic::MapGrid grid;
+  grid.mm_per_px = info.camera.mm_per_px;
+  grid.tile_size_px = args.tile_size_px;
+  grid.levels = args.levels;
+  mosaic::MapBuilder builder(grid, mosaic::ParseBlend(args.blend));
+
+  std::int64_t total = 0;
+  for (auto count = reader.Frames(); count.Next(false);) ++total;
+  const fs::path poses_file = args.poses == "groundtruth" ? args.dataset / "groundtruth" / "data.tum" : fs::path(args.poses);
+  const std::map<std::string, std::string> identity = {
+      {"dataset", fs::absolute(args.dataset).lexically_normal().string()},
+      {"frames", std::to_string(total)},
+      {"frame_list_crc32", FileCrc(args.dataset / "cam0" / "data.csv")},
+      {"dataset_yaml_crc32", FileCrc(args.dataset / "dataset.yaml")},
+      {"poses", args.poses == "groundtruth" ? "groundtruth" : fs::absolute(args.poses).lexically_normal().string()},
+      {"poses_crc32", FileCrc(poses_file)},
+      {"blend", args.blend},
+      {"tile_size_px", std::to_string(args.tile_size_px)},
+      {"levels", std::to_string(args.levels)}};
+  const fs::path checkpoint_file = args.out.string() + ".checkpoint";
+  std::unique_ptr<mosaic::BuildCheckpoint> checkpoint;
+  std::int64_t painted = 0;
+  std::int64_t skipped = 0;
+  std::int64_t resumed_after = 0;
+  if (args.resume && fs::exists(checkpoint_file, ec)) {
+    checkpoint = mosaic::BuildCheckpoint::Open(checkpoint_file, identity);
+    checkpoint->Restore(builder);
+    resumed_after = checkpoint->frames_done();
+    painted = checkpoint->counter("painted");
+    skipped = checkpoint->counter("skipped");
+  } else {
+    checkpoint = mosaic::BuildCheckpoint::Create(checkpoint_file, identity);
+  }
+  const auto save = [&](std::int64_t frames_done) {
+    checkpoint->Save(builder, frames_done, {{"painted", painted}, {"skipped", skipped}});
+  };
+  auto frames = reader.Frames();
+  std::int64_t done = 0;
+  for (; done < resumed_after && frames.Next(false); ++done) {
+  }
+  auto last_save = std::chrono::steady_clock::now();
+  while (const auto frame = frames.Next()) {
+    const auto pose = dataset::PoseAt(poses, frame->time, std::chrono::milliseconds(100));
+    if (pose) {
+      builder.AddFrame(frame->image, *pose * info.camera.vehicle_from_camera, info.camera.mm_per_px);
+      ++painted;
+    } else {
+      ++skipped;
+    }
+    ++done;
+    if (std::chrono::duration<double>(std::chrono::steady_clock::now() - last_save).count() >= args.checkpoint_s) {
+      save(done);
+      last_save = std::chrono::steady_clock::now();
+    }
+    if (progress) progress(0.8 * static_cast<double>(done) / static_cast<double>(std::max<std::int64_t>(total, 1)));
+  }
+  if (painted == 0) core::ThrowInvalidInput(args.dataset.string() + ": no frame has a pose in " + args.poses);
+  save(done);  // every frame painted: a build killed while writing resumes with the writing
+
+  const fs::path partial = args.out.string() + ".partial";
+  for (const char* suffix : {"", "-wal", "-shm"}) fs::remove(partial.string() + suffix, ec);
+  {
+    auto store = mosaic::TileStore::Create(partial, grid);
+    builder.Write(*store, [&](double fraction) {
+      if (progress) progress(0.8 + 0.2 * fraction);
+    });
+    // The renamed file must hold the whole map: its log stays behind under the old name.
+    store->Checkpoint();
+  }
+  for (const char* suffix : {"-wal", "-shm"}) fs::remove(partial.string() + suffix, ec);
+  fs::rename(partial, args.out, ec);
+  if (ec) core::ThrowRuntime(args.out.string() + ": cannot move the new map into place (" + ec.message() + ")");
+  checkpoint.reset();
+  mosaic::BuildCheckpoint::Remove(checkpoint_file);
+  const auto store = mosaic::TileStore::Open(args.out, false);
+  return {total, painted, skipped, resumed_after, store->Count(), store->Count(0)};
+}
+
+MapExtent LevelExtent(const mosaic::TileStore& store, int level) {
+  MapExtent extent{std::numeric_limits<std::int64_t>::max(), std::numeric_limits<std::int64_t>::max(),
+                std::numeric_limits<std::int64_t>::min(), std::numeric_limits<std::int64_t>::min()};
+  const std::int64_t t = store.grid().tile_size_px;
+  for (const auto& key : store.List(level)) {
+    extent.col0 = std::min(extent.col0, key.col * t);
+    extent.row0 = std::min(extent.row0, key.row * t);
+    extent.col1 = std::max(extent.col1, (key.col + 1) * t - 1);
+    extent.row1 = std::max(extent.row1, (key.row + 1) * t - 1);
+  }
+  return extent;
+}
+
+std::vector<std::string> CheckMap(const std::filesystem::path& map, std::size_t* tiles,
+                                  const std::function<void(double)>& progress) {
+  const auto store = mosaic::TileStore::Open(map, false);
+  const auto keys = store->List();
+  std::vector<std::string> problems;
+  for (std::size_t i = 0; i < keys.size(); ++i) {
+    const mosaic::TileRead read = store->Read(keys[i]);
+    if (read.status == mosaic::TileStatus::kCorrupt) problems.push_back(read.problem);
+    if (progress) progress(static_cast<double>(i + 1) / static_cast<double>(keys.size()));
+  }
+  *tiles = keys.size();
+  return problems;
+}
+
+MapExportSummary ExportMap(const MapExportOptions& args) {
+  const auto store = mosaic::TileStore::Open(args.map, false);
+  const mosaic::MapGrid& grid = store->grid();
+  MapExtent extent;
+  int level = args.level;
+  if (!args.region.empty()) {
+    double x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+    char c1 = 0, c2 = 0, c3 = 0;
+    std::istringstream in(args.region);
+    if (!(in >> x0 >> c1 >> y0 >> c2 >> x1 >> c3 >> y1) || c1 != ',' || c2 != ',' || c3 != ',' || x1 <= x0 || y1 <= y0) {
+      core::ThrowInvalidInput("region must be x0,y0,x1,y1 in mm with x0 < x1 and y0 < y1, got '" + args.region + "'");
+    }
+    if (level < 0) level = 0;
+    const Eigen::Vector2d a = grid.WorldToRaster({x0, y1}, level);
+    const Eigen::Vector2d b = grid.WorldToRaster({x1, y0}, level);
+    extent = {static_cast<std::int64_t>(std::floor(a.x() + 0.5)), static_cast<std::int64_t>(std::floor(a.y() + 0.5)),
+              static_cast<std::int64_t>(std::ceil(b.x() - 0.5)), static_cast<std::int64_t>(std::ceil(b.y() - 0.5))};
+  } else {
+    // Default: the finest level that fits in 8192 px.
+    if (level < 0) {
+      level = grid.levels - 1;
+      for (int k = 0; k < grid.levels; ++k) {
+        const MapExtent e = LevelExtent(*store, k);
+        if (!e.empty() && e.col1 - e.col0 < 8192 && e.row1 - e.row0 < 8192) {
+          level = k;
+          break;
+        }
+      }
+    }
+    extent = LevelExtent(*store, level);
+    if (extent.empty()) core::ThrowInvalidInput(args.map.string() + ": level " + std::to_string(level) + " has no tiles");
+  }
+  if (level >= grid.levels) core::ThrowInvalidInput("level must be below " + std::to_string(grid.levels));
+  const std::int64_t cols = extent.col1 - extent.col0 + 1;
+  const std::int64_t rows = extent.row1 - extent.row0 + 1;
+  if (cols > 32768 || rows > 32768) {
+    core::ThrowInvalidInput("the export would be " + std::to_string(cols) + " x " + std::to_string(rows) +
+                            " px: choose a coarser --level or a smaller --region");
+  }
+  mosaic::TileCache cache(*store, std::size_t{64} << 20);
+  const mosaic::MapRenderer renderer(cache);
+  const mosaic::RasterPatch patch =
+      renderer.Region(level, extent.col0, extent.row0, static_cast<int>(cols), static_cast<int>(rows));
+  std::vector<unsigned char> png;
+  if (!cv::imencode(".png", patch.image, png)) core::ThrowRuntime("cannot encode the export");
+  core::WriteFileAtomically(args.out, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+  return {level, grid.LevelMmPerPx(level), cols, rows, !patch.problems.empty()};
+}
+
+}  // namespace mosaicloc::runtime

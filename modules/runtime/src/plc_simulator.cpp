@@ -1,0 +1,228 @@
+#include "mosaicloc/runtime/plc_simulator.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <deque>
+#include <mutex>
+#include <numbers>
+#include <thread>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+#include <fmt/format.h>
+
+#include "mosaicloc/core/error.hpp"
+#include "mosaicloc/core/file.hpp"
+#include "mosaicloc/dataset/dataset.hpp"
+#include "mosaicloc/dataset/evaluation.hpp"
+#include "mosaicloc/io/register_server.hpp"
+#include "mosaicloc/runtime/live_sources.hpp"
+#include "mosaicloc/sim/config.hpp"
+
+namespace mosaicloc::runtime {
+namespace {
+
+// One write of the fix registers, as the PLC saw it.
+struct ReceivedFix {
+  core::Timestamp time;  // monotonic
+  io::PlcOutputs fix;
+};
+
+std::uint32_t Masked(std::uint32_t value, const io::RegisterField& field) {
+  return field.width_bits == 32 ? value : value & 0xFFFFU;
+}
+
+}  // namespace
+
+PlcSimulatorSummary RunPlcSimulator(const PlcSimulatorOptions& args, const PlcSimulatorCallbacks& callbacks) {
+  const io::RegisterMap& map = args.registers;
+  std::unique_ptr<SimulatedDrive> drive;
+  if (args.simulate) drive = std::make_unique<SimulatedDrive>(sim::SimulatorConfigOrDefaults(*args.simulate));
+  const std::filesystem::path played = drive ? drive->directory() : args.dataset;
+  if (played.empty()) core::ThrowInvalidInput("plc-sim: give --dataset DIR or --simulate [YAML]");
+  const dataset::DatasetReader reader(played);
+  const std::optional<dataset::Trajectory> groundtruth =
+      reader.HasGroundTruth() ? std::optional<dataset::Trajectory>(reader.GroundTruth()) : std::nullopt;
+  const Playback playback = Playback::Of(reader, args.start_unix_s);
+
+  std::vector<const io::RegisterField*> fields = map.Inputs();
+  const std::vector<const io::RegisterField*> outputs = map.Outputs();
+  fields.insert(fields.end(), outputs.begin(), outputs.end());
+  int low = 65536, high = 0;
+  for (const io::RegisterField* f : fields) {
+    low = std::min(low, f->address);
+    high = std::max(high, f->address + f->words());
+  }
+  io::PlcLinkOptions server_options;
+  server_options.role = "server";
+  server_options.host = args.host;
+  server_options.port = args.port;
+  server_options.unit_id = args.unit;
+  server_options.registers = map;
+
+  std::mutex received_mutex;
+  std::deque<ReceivedFix> received;
+  std::atomic<io::RegisterServer*> server_ptr{nullptr};  // set once the server exists
+  std::vector<std::uint16_t> scratch(static_cast<std::size_t>(high - low));
+  auto server_owner = std::make_unique<io::RegisterServer>(server_options, low, high - low, [&](int address, int count,
+                                                                                              core::Timestamp time) {
+    const io::RegisterField& x = map.fix_x;
+    io::RegisterServer* const serving = server_ptr.load();
+    if (!(address < x.address + x.words() && x.address < address + count) || serving == nullptr) return;
+    serving->Get(low, high - low, scratch.data());
+    const auto at = [&](const io::RegisterField& f) { return io::DecodeCount(f, scratch.data() + (f.address - low)); };
+    ReceivedFix r;
+    r.time = time;
+    r.fix.x_mm = static_cast<double>(at(map.fix_x)) * map.fix_x.scale;
+    r.fix.y_mm = static_cast<double>(at(map.fix_y)) * map.fix_y.scale;
+    r.fix.yaw_rad = static_cast<double>(at(map.fix_yaw)) * map.fix_yaw.scale;
+    r.fix.status = static_cast<int>(at(map.fix_status));
+    r.fix.quality = static_cast<int>(at(map.fix_quality));
+    r.fix.request_echo = static_cast<std::uint32_t>(at(map.fix_request_echo));
+    r.fix.heartbeat = static_cast<std::uint32_t>(at(map.heartbeat));
+    const std::lock_guard lock(received_mutex);
+    received.push_back(r);
+  });
+  io::RegisterServer& server = *server_owner;
+  server_ptr = &server;
+  if (callbacks.serving) callbacks.serving(played);
+
+  auto encoders = reader.Encoders();
+  std::optional<dataset::EncoderSample> pending = encoders.Next();
+  if (!pending) core::ThrowInvalidInput(played.string() + ": no encoder samples");
+  dataset::EncoderSample current = *pending;  // the counters hold the first sample until playback starts
+  core::Timestamp last_sample_time = current.time;
+  std::uint32_t heartbeat = 0, request = 0;
+  std::optional<core::Timestamp> request_time;
+  bool request_answered = true;
+  const auto heartbeat_period = core::FromSeconds(args.heartbeat_period_ms * 1e-3);
+  const auto request_period = core::FromSeconds(args.request_period_ms * 1e-3);
+  core::Timestamp next_heartbeat = io::MonotonicNow();
+  core::Timestamp next_request = playback.start + request_period;
+  std::optional<core::Timestamp> ended;
+
+  std::int64_t fixes = 0, requests = 0, answered = 0;
+  std::vector<double> answer_ms, errors_mm, heading_errors_deg;
+  std::vector<std::int64_t> status_counts(5, 0);  // none, tracking, degraded, lost, off-map
+  std::string csv = "#time_s,x_mm,y_mm,yaw_rad,status,quality,request_echo,heartbeat,gt_x_mm,gt_y_mm,error_mm\n";
+  core::Timestamp next_print = io::MonotonicNow() + std::chrono::seconds(1);
+
+  const auto process_received = [&] {
+      std::deque<ReceivedFix> batch;
+      {
+        const std::lock_guard lock(received_mutex);
+        batch.swap(received);
+      }
+      for (const ReceivedFix& r : batch) {
+        ++fixes;
+        ++status_counts[static_cast<std::size_t>(std::clamp(r.fix.status, 0, 4))];
+        if (!request_answered && request_time && r.fix.request_echo == Masked(request, map.fix_request_echo)) {
+          request_answered = true;
+          ++answered;
+          answer_ms.push_back(std::chrono::duration<double, std::milli>(r.time - *request_time).count());
+        }
+        const core::Timestamp dataset_time = playback.ToDataset(r.time);
+        std::optional<core::Pose2> truth;
+        if (groundtruth) truth = dataset::PoseAt(*groundtruth, dataset_time, std::chrono::milliseconds(200));
+        double error = std::nan("");
+        if (truth && r.fix.status != 0) {
+          error = std::hypot(r.fix.x_mm - truth->x_mm(), r.fix.y_mm - truth->y_mm());
+          errors_mm.push_back(error);
+          heading_errors_deg.push_back(std::abs(core::WrapAngle(r.fix.yaw_rad - truth->yaw_rad())) * 180.0 /
+                                       std::numbers::pi);
+        }
+        csv += fmt::format("{:.6f},{:.2f},{:.2f},{:.6f},{},{},{},{},{},{},{}\n", dataset_time.seconds(), r.fix.x_mm,
+                           r.fix.y_mm, r.fix.yaw_rad, r.fix.status, r.fix.quality, r.fix.request_echo, r.fix.heartbeat,
+                           truth ? fmt::format("{:.2f}", truth->x_mm()) : "", truth ? fmt::format("{:.2f}", truth->y_mm()) : "",
+                           std::isnan(error) ? "" : fmt::format("{:.3f}", error));
+      }
+  };
+  while (!(callbacks.stop && callbacks.stop())) {
+    const core::Timestamp now = io::MonotonicNow();
+    while (pending && playback.ToMonotonic(pending->time) <= now) {
+      current = *pending;
+      last_sample_time = pending->time;
+      pending = encoders.Next();
+    }
+    if (!pending && !ended) ended = now;
+    if (now >= next_heartbeat) {
+      ++heartbeat;
+      next_heartbeat = next_heartbeat + heartbeat_period;
+    }
+    if (args.request_period_ms > 0.0 && now >= next_request) {
+      ++request;
+      ++requests;
+      request_time = now;
+      request_answered = false;
+      next_request = next_request + request_period;
+    }
+    server.Update([&](std::uint16_t* table) {
+      const auto put = [&](const io::RegisterField& f, std::int64_t count) {
+        io::EncodeCount(f, count, table + (f.address - low));
+      };
+      // The counters as a PLC holds them: raw, wrapping at the field's width.
+      const auto wrap = [](std::int64_t v, const io::RegisterField& f) {
+        const std::int64_t modulus = std::int64_t{1} << f.width_bits;
+        std::int64_t w = ((v % modulus) + modulus) % modulus;
+        return f.is_signed && w > f.MaxCount() ? w - modulus : w;
+      };
+      put(map.left_ticks, wrap(std::llround(current.left_ticks / map.left_ticks.scale), map.left_ticks));
+      put(map.right_ticks, wrap(std::llround(current.right_ticks / map.right_ticks.scale), map.right_ticks));
+      put(map.plc_heartbeat, wrap(heartbeat, map.plc_heartbeat));
+      put(map.fix_request, wrap(request, map.fix_request));
+    });
+
+    process_received();
+    if (now >= next_print) {
+      next_print = next_print + std::chrono::seconds(1);
+      if (callbacks.every_second) {
+        PlcSimulatorStatus status;
+        status.seconds = core::ToSeconds(now - playback.start);
+        status.clients = server.clients();
+        status.left_ticks = current.left_ticks;
+        status.right_ticks = current.right_ticks;
+        status.heartbeat = heartbeat;
+        status.requests = requests;
+        status.answered = answered;
+        status.fixes = fixes;
+        if (!errors_mm.empty()) status.last_error_mm = errors_mm.back();
+        callbacks.every_second(status);
+      }
+    }
+    if (ended && now - *ended > core::FromSeconds(args.linger_s)) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  (void)last_sample_time;
+  // Stop serving, then take in what the last requests wrote.
+  server_owner.reset();
+  process_received();
+
+  if (!args.fixes_out.empty()) core::WriteFileAtomically(args.fixes_out, csv);
+  PlcSimulatorSummary summary;
+  summary.fixes_received = fixes;
+  summary.status_counts = status_counts;
+  summary.requests = requests;
+  summary.answered = answered;
+  std::sort(answer_ms.begin(), answer_ms.end());
+  if (!answer_ms.empty()) {
+    summary.answer_p50_ms = dataset::Percentile(answer_ms, 50.0);
+    summary.answer_p99_ms = dataset::Percentile(answer_ms, 99.0);
+    summary.answer_max_ms = answer_ms.back();
+  }
+  if (!errors_mm.empty()) {
+    double sum2 = 0.0;
+    for (const double e : errors_mm) sum2 += e * e;
+    summary.position_rms_mm = std::sqrt(sum2 / static_cast<double>(errors_mm.size()));
+    std::sort(errors_mm.begin(), errors_mm.end());
+    summary.position_p50_mm = dataset::Percentile(errors_mm, 50.0);
+    summary.position_max_mm = errors_mm.back();
+    summary.heading_max_deg = *std::max_element(heading_errors_deg.begin(), heading_errors_deg.end());
+  }
+  return summary;
+}
+
+}  // namespace mosaicloc::runtime
