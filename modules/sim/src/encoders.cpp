@@ -9,10 +9,9 @@ namespace mosaicloc::sim {
 
 bool EncoderOptions::Check(std::string* why) const {
   if (!(rate_hz > 0.0 && rate_hz <= 10000.0)) {
-    *why = "encoder rate_hz must be in (0, 10000]";
+    *why = "rate_hz must be in (0, 10000]";
     return false;
   }
-  if (!nominal.Check(why)) return false;
   for (const double error : {left_radius_error, right_radius_error, track_width_error}) {
     if (!(std::abs(error) < 0.5)) {
       *why = "radius and track width errors must be within +-0.5 (relative)";
@@ -23,7 +22,8 @@ bool EncoderOptions::Check(std::string* why) const {
     *why = "slip_std must be in [0, 0.5)";
     return false;
   }
-  return true;
+  // The wheels last, so that a complaint about these fields is not hidden by one of theirs.
+  return nominal.Check(why);
 }
 
 EncoderModel::EncoderModel(const EncoderOptions& options, std::uint64_t seed)

@@ -87,8 +87,16 @@ bool RouteOptions::Check(std::string* why) const {
     *why = "loop_width_m and loop_height_m must exceed twice corner_radius_m (> 0)";
     return false;
   }
-  if (!(straight_length_m > 0.0) || !(network_scale > 0.0)) {
-    *why = "straight_length_m and network_scale must be > 0";
+  if (!(straight_length_m > 0.0)) {
+    *why = "straight_length_m must be > 0";
+    return false;
+  }
+  if (!(network_scale >= 0.05 && network_scale <= 100.0)) {
+    *why = "network_scale must be in [0.05, 100]";
+    return false;
+  }
+  if (serpentine_rows > 10000) {
+    *why = "serpentine_rows must be at most 10000";
     return false;
   }
   if (!(lateral_deviation_mm >= 0.0 && lateral_deviation_mm < 100.0)) {

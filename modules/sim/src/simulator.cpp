@@ -47,7 +47,6 @@ std::unique_ptr<Floor> MakeFloor(const FloorChoice& choice) {
 }
 
 bool SimulatorOptions::Check(std::string* why) const {
-  if (!route.Check(why) || !camera.Check(why) || !imaging.Check(why) || !encoders.Check(why)) return false;
   if (!(frame_rate_hz > 0.0 && frame_rate_hz <= 10000.0)) {
     *why = "frame_rate_hz must be in (0, 10000]";
     return false;
@@ -64,11 +63,16 @@ bool SimulatorOptions::Check(std::string* why) const {
     *why = "give frames >= 1 or laps >= 1";
     return false;
   }
+  if (frames > 100'000'000 || laps > 100'000) {
+    *why = "frames must be at most 1e8 and laps at most 1e5";
+    return false;
+  }
   if (threads < 1 || threads > 64) {
     *why = "threads must be in [1, 64]";
     return false;
   }
-  return true;
+  // The parts last, so that a complaint about a field of this struct is not hidden by one of theirs.
+  return route.Check(why) && camera.Check(why) && imaging.Check(why) && encoders.Check(why);
 }
 
 SimulationSummary Simulate(const SimulatorOptions& options, const std::filesystem::path& out, bool overwrite,
