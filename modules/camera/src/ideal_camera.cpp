@@ -10,12 +10,12 @@ namespace mosaicloc::camera {
 
 bool IdealCameraOptions::Check(std::string* why) const {
   if (width_px < 8 || height_px < 8 || width_px > 16384 || height_px > 16384) {
-    *why = "camera width_px and height_px must be in [8, 16384], got " + std::to_string(width_px) + "x" +
+    *why = "width_px and height_px must be in [8, 16384], got " + std::to_string(width_px) + "x" +
            std::to_string(height_px);
     return false;
   }
   if (!(mm_per_px > 0.0 && mm_per_px < 100.0)) {
-    *why = "camera mm_per_px must be in (0, 100), got " + std::to_string(mm_per_px);
+    *why = "mm_per_px must be in (0, 100), got " + std::to_string(mm_per_px);
     return false;
   }
   return true;
@@ -23,7 +23,7 @@ bool IdealCameraOptions::Check(std::string* why) const {
 
 IdealCamera::IdealCamera(const IdealCameraOptions& options) : options_(options) {
   std::string why;
-  if (!options_.Check(&why)) core::ThrowInvalidInput(why);
+  if (!options_.Check(&why)) core::ThrowInvalidInput("ideal camera: " + why);
 }
 
 Eigen::Vector2d IdealCamera::PixelToCamera(const Eigen::Vector2d& pixel) const {
