@@ -26,4 +26,4 @@ cmake -S . -B build/asan -G Ninja -DCMAKE_BUILD_TYPE=Debug "-DCMAKE_CXX_FLAGS_DE
 cmake --build build/asan -j "$JOBS" --target mosaicloc_unit_tests
 echo "== unit tests under sanitizers"
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-  ctest --test-dir build/asan -L unit -j "$JOBS" --output-on-failure --timeout 900
+  ctest --test-dir build/asan -L unit -j "$JOBS" --output-on-failure --timeout 300

@@ -90,15 +90,15 @@ void RegisterServer::Answer(int length) {
     case 0x17: address = word(5); count = word(7); break;
     default: break;
   }
-  int rc = 0;
-  {
-    const std::lock_guard lock(mutex_);
-    rc = modbus_reply(state_->context.get(), request, length, state_->mapping);
-  }
-  ++requests_;
   // libmodbus answers a write outside the table with an exception and changes nothing.
   const bool applied = count > 0 && address >= base_ && address + count <= base_ + count_;
-  if (rc >= 0 && applied && on_write_) on_write_(address, count, MonotonicNow());
+  const core::Timestamp arrived = MonotonicNow();
+  {
+    const std::lock_guard lock(mutex_);
+    const int rc = modbus_reply(state_->context.get(), request, length, state_->mapping);
+    if (rc >= 0 && applied && on_write_) on_write_(address, count, arrived, state_->mapping->tab_registers);
+  }
+  ++requests_;
 }
 
 void RegisterServer::Serve() {
@@ -165,7 +165,7 @@ class ModbusServerLink final : public PlcLink {
     }
     try {
       server_ = std::make_unique<RegisterServer>(options, range_.base, range_.count,
-                                                 [this](int address, int count, core::Timestamp time) {
+                                                 [this](int address, int count, core::Timestamp time, const std::uint16_t*) {
                                                    OnWrite(address, count, time);
                                                  });
     } catch (const core::Error& e) {

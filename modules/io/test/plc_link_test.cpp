@@ -382,13 +382,21 @@ TEST(PlcRtuTest, ClientAndServerOverAPseudoTerminalPair) {
     execlp("socat", "socat", end_a.c_str(), end_b.c_str(), static_cast<char*>(nullptr));
     _exit(127);
   }
+  // socat is stopped however the test ends: a failed assertion returns early, and a socat
+  // left running would hold the test's output open until the test driver's timeout.
+  struct StopSocat {
+    pid_t pid;
+    std::filesystem::path dir;
+    ~StopSocat() {
+      kill(pid, SIGTERM);
+      waitpid(pid, nullptr, 0);
+      std::filesystem::remove_all(dir);
+    }
+  } stop_socat{socat, dir};
   for (int i = 0; i < 100 && !(std::filesystem::exists(a) && std::filesystem::exists(b)); ++i) {
     std::this_thread::sleep_for(10ms);
   }
   if (!(std::filesystem::exists(a) && std::filesystem::exists(b))) {
-    kill(socat, SIGTERM);
-    waitpid(socat, nullptr, 0);
-    std::filesystem::remove_all(dir);
     GTEST_SKIP() << "socat could not create pseudo-terminals here (is /dev/pts mounted?)";
   }
   {
@@ -439,9 +447,6 @@ TEST(PlcRtuTest, ClientAndServerOverAPseudoTerminalPair) {
     EXPECT_EQ(at_client.value().plc_heartbeat, 2U);
     EXPECT_EQ(at_client.value().fix_request, 800U);
   }
-  kill(socat, SIGTERM);
-  waitpid(socat, nullptr, 0);
-  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

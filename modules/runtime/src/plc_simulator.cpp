@@ -66,15 +66,12 @@ PlcSimulatorSummary RunPlcSimulator(const PlcSimulatorOptions& args, const PlcSi
 
   std::mutex received_mutex;
   std::deque<ReceivedFix> received;
-  std::atomic<io::RegisterServer*> server_ptr{nullptr};  // set once the server exists
-  std::vector<std::uint16_t> scratch(static_cast<std::size_t>(high - low));
   auto server_owner = std::make_unique<io::RegisterServer>(server_options, low, high - low, [&](int address, int count,
-                                                                                              core::Timestamp time) {
+                                                                                              core::Timestamp time,
+                                                                                              const std::uint16_t* table) {
     const io::RegisterField& x = map.fix_x;
-    io::RegisterServer* const serving = server_ptr.load();
-    if (!(address < x.address + x.words() && x.address < address + count) || serving == nullptr) return;
-    serving->Get(low, high - low, scratch.data());
-    const auto at = [&](const io::RegisterField& f) { return io::DecodeCount(f, scratch.data() + (f.address - low)); };
+    if (!(address < x.address + x.words() && x.address < address + count)) return;
+    const auto at = [&](const io::RegisterField& f) { return io::DecodeCount(f, table + (f.address - low)); };
     ReceivedFix r;
     r.time = time;
     r.fix.x_mm = static_cast<double>(at(map.fix_x)) * map.fix_x.scale;
@@ -88,7 +85,6 @@ PlcSimulatorSummary RunPlcSimulator(const PlcSimulatorOptions& args, const PlcSi
     received.push_back(r);
   });
   io::RegisterServer& server = *server_owner;
-  server_ptr = &server;
   if (callbacks.serving) callbacks.serving(played);
 
   auto encoders = reader.Encoders();

@@ -18,9 +18,13 @@ namespace mosaicloc::io {
 /// `mosaicloc plc-sim` plays. Requests outside the table get Modbus exceptions.
 class RegisterServer {
  public:
-  /// Called on the server's thread after a peer's write was applied: the registers written
-  /// and when (monotonic clock).
-  using WriteObserver = std::function<void(int address, int count, core::Timestamp time)>;
+  /// Called on the server's thread after a peer's write was applied and answered, still
+  /// under the table's lock: the registers written, when the request arrived (monotonic
+  /// clock) and the whole table (`table[i]` is register base + i). A reader that takes the
+  /// table after the peer has its reply sees what the observer did; the observer must not
+  /// call Get, Set or Update.
+  using WriteObserver =
+      std::function<void(int address, int count, core::Timestamp time, const std::uint16_t* table)>;
 
   /// Serves registers [base, base + count) with the connection settings of `options`
   /// (transport, host/port or device, unit id). Throws core::Error (runtime) naming the
