@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "report.hpp"
 #include "mosaicloc/runtime/registration_bench.hpp"
 #include "progress.hpp"
 
@@ -49,7 +50,7 @@ Action AddBenchCommand(CLI::App& app, const GlobalOptions& global) {
   return [args, &global] {
     ProgressBar progress("registering pairs", global.quiet || global.json);
     const std::vector<runtime::RegistrationBenchRow> rows =
-        runtime::RunRegistrationBench(*args, [&progress](double fraction) { progress.Update(fraction); });
+        runtime::RunRegistrationBench(*args, progress.Callback());
     progress.Finish();
     if (global.json) {
       nlohmann::json out = nlohmann::json::array();
@@ -60,7 +61,7 @@ Action AddBenchCommand(CLI::App& app, const GlobalOptions& global) {
                        {"max_deg", number(r.max_deg)}, {"mean_ms", number(r.mean_ms)}, {"p50_ms", number(r.p50_ms)},
                        {"time_vs_ecc", number(r.time_vs_ecc)}});
       }
-      std::printf("%s\n", out.dump(2).c_str());
+      PrintJson(out);
       return;
     }
     std::printf("%zu texture(s) x %d pairs, 640x480, offsets up to +-%.1f px and +-%.1f deg, noise %.1f DN, "

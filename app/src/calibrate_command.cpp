@@ -8,22 +8,19 @@
 #include <optional>
 
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include "commands.hpp"
-#include "mosaicloc/calibration/board_detection.hpp"
 #include "mosaicloc/calibration/board_images.hpp"
 #include "mosaicloc/calibration/ground.hpp"
 #include "mosaicloc/calibration/intrinsics.hpp"
 #include "mosaicloc/calibration/vehicle_drive.hpp"
 #include "mosaicloc/camera/board.hpp"
-#include "mosaicloc/core/error.hpp"
-#include "mosaicloc/core/file.hpp"
 #include "mosaicloc/sim/calibration_drive.hpp"
 #include "mosaicloc/sim/raw_recordings.hpp"
 #include "mosaicloc/sim/simulator.hpp"
-#include "progress.hpp"
 #include "mosaicloc/sim/config.hpp"
+#include "progress.hpp"
+#include "report.hpp"
 
 namespace mosaicloc::app {
 namespace {
@@ -48,10 +45,8 @@ void RunBoard(const BoardArgs& args, const GlobalOptions& global) {
   dataset::WritePng(args.out, image);
   const double width_mm = image.cols / args.px_per_mm, height_mm = image.rows / args.px_per_mm;
   if (global.json) {
-    std::printf("%s\n", nlohmann::json{{"board", board.ToString()}, {"png", args.out.string()},
-                                       {"width_mm", width_mm}, {"height_mm", height_mm}}
-                            .dump(2)
-                            .c_str());
+    PrintJson({{"board", board.ToString()}, {"png", args.out.string()}, {"width_mm", width_mm},
+               {"height_mm", height_mm}});
   } else {
     std::printf("board %s: %s, %dx%d px, print at %.1f x %.1f mm (%.0f dpi) and check one square with a ruler\n",
                 board.ToString().c_str(), args.out.string().c_str(), image.cols, image.rows, width_mm, height_mm,
@@ -77,34 +72,25 @@ void RunIntrinsics(const IntrinsicsArgs& args, const GlobalOptions& global) {
   const std::size_t images_found = result.views.size();
   if (global.json) {
     nlohmann::json images = nlohmann::json::array();
-    std::size_t used_index = 0;
     for (const calibration::ViewReport& view : result.views) {
-      nlohmann::json entry = {{"image", view.name}, {"used", view.used}};
-      if (view.used) {
-        entry["visp_rms_px"] = result.visp.view_rms_px[used_index];
-        entry["opencv_rms_px"] = result.opencv.view_rms_px[used_index];
-        ++used_index;
-      } else {
-        entry["rejected_because"] = view.rejected_because;
-      }
-      images.push_back(entry);
+      images.push_back(view.used ? nlohmann::json{{"image", view.name}, {"used", true}, {"visp_rms_px", view.visp_rms_px},
+                                                  {"opencv_rms_px", view.opencv_rms_px}}
+                                 : nlohmann::json{{"image", view.name}, {"used", false},
+                                                  {"rejected_because", view.rejected_because}});
     }
     const nlohmann::json out = {{"camera_xml", args.out.string()}, {"width_px", width},
                                 {"height_px", height},             {"board", board.ToString()},
                                 {"visp", IntrinsicsJson(result.visp)}, {"opencv", IntrinsicsJson(result.opencv)},
                                 {"images", images}};
-    std::printf("%s\n", out.dump(2).c_str());
+    PrintJson(out);
     return;
   }
   std::printf("%zu of %zu images used (board %s, %dx%d px)\n", result.used.size(), images_found,
               board.ToString().c_str(), width, height);
   std::printf("  %-28s %12s %12s\n", "image", "ViSP rms px", "OpenCV rms px");
-  std::size_t used_index = 0;
   for (const calibration::ViewReport& view : result.views) {
     if (view.used) {
-      std::printf("  %-28s %12.4f %12.4f\n", view.name.c_str(), result.visp.view_rms_px[used_index],
-                  result.opencv.view_rms_px[used_index]);
-      ++used_index;
+      std::printf("  %-28s %12.4f %12.4f\n", view.name.c_str(), view.visp_rms_px, view.opencv_rms_px);
     } else {
       std::printf("  %-28s rejected: %s\n", view.name.c_str(), view.rejected_because.c_str());
     }
@@ -157,7 +143,7 @@ void RunGround(const GroundArgs& args, const GlobalOptions& global) {
                                 {"flatness_max_mm", result.flatness_max_mm},
                                 {"coverage", result.coverage},
                                 {"images", images}};
-    std::printf("%s\n", out.dump(2).c_str());
+    PrintJson(out);
     return;
   }
   std::printf("floor %.3f mm below the camera, optical axis %.3f deg from vertical (%zu images)\n", c.height_mm(),
@@ -191,7 +177,7 @@ void RunRectify(const RectifyArgs& args, const GlobalOptions& global) {
   const std::vector<std::filesystem::path> files = calibration::MatchImages(args.images);
   calibration::RectifyImages(files, rectifier, args.out_dir);
   if (global.json) {
-    std::printf("%s\n", nlohmann::json{{"images", files.size()}, {"out", args.out_dir.string()}}.dump(2).c_str());
+    PrintJson(nlohmann::json{{"images", files.size()}, {"out", args.out_dir.string()}});
   } else {
     std::printf("%zu images rectified into %s\n", files.size(), args.out_dir.string().c_str());
   }
@@ -217,9 +203,7 @@ void RunVerify(const RectifyArgs& args, const GlobalOptions& global) {
     }
   }
   if (global.json) {
-    std::printf("%s\n", nlohmann::json{{"images", images}, {"worst_scale_error_percent", 100.0 * worst_scale}}
-                            .dump(2)
-                            .c_str());
+    PrintJson(nlohmann::json{{"images", images}, {"worst_scale_error_percent", 100.0 * worst_scale}});
   } else {
     std::printf("rectified images measure the board to within %.4f %% of its printed size\n", 100.0 * worst_scale);
   }
@@ -243,11 +227,8 @@ void RunSimulate(const SimulateArgs& args, const GlobalOptions& global) {
   options.seed = args.seed;
   const sim::CalibrationPhotographs written = sim::WriteCalibrationPhotographs(options, args.out);
   if (global.json) {
-    std::printf("%s\n", nlohmann::json{{"out", args.out.string()},
-                                       {"board_images", written.board_images},
-                                       {"floor_images", written.floor_images}}
-                            .dump(2)
-                            .c_str());
+    PrintJson({{"out", args.out.string()}, {"board_images", written.board_images},
+               {"floor_images", written.floor_images}});
   } else {
     std::printf("%d board photographs in %s, %d of the board on the floor in %s; the truth in %s\n",
                 written.board_images, (args.out / "intrinsics").string().c_str(), written.floor_images,
@@ -265,24 +246,13 @@ struct VehicleArgs {
 
 void RunVehicle(const VehicleArgs& args, const GlobalOptions& global) {
   ProgressBar progress("calibrate vehicle", global.quiet);
-  const calibration::VehicleDriveResult drive = calibration::CalibrateVehicleFromDrive(
-      args.dataset, {}, [&progress](double fraction) { progress.Update(fraction); });
+  const calibration::VehicleDriveResult drive =
+      calibration::CalibrateVehicleFromDrive(args.dataset, {}, progress.Callback());
   progress.Finish();
   const calibration::VehicleCalibrationResult& result = drive.calibration;
-  const core::Pose2& x = result.vehicle_from_camera;
-  const core::WheelGeometry& w = result.wheels;
-  const calibration::VehicleParameters value{x.x_mm(), x.y_mm(), x.yaw_rad(), w.left_wheel_radius_mm,
-                                             w.right_wheel_radius_mm, w.track_width_mm};
-  calibration::VehicleParameters sigma{};
-  for (int i = 0; i < 6; ++i) sigma[static_cast<std::size_t>(i)] = result.sigma(i);
-  if (!args.out.empty()) {
-    calibration::WriteVehicleCalibration(
-        args.out, {x, w, sigma},
-        "mosaicloc vehicle calibration (mosaicloc calibrate vehicle --dataset " + args.dataset.string() + ")\nfrom " +
-            std::to_string(drive.steps) + " registered frame pairs (" + std::to_string(drive.consecutive_steps) +
-            " consecutive); *_sigma are one-sigma uncertainties.\n"
-            "Copy the values into run.yaml (camera.vehicle_from_camera, vehicle.*).");
-  }
+  const calibration::VehicleParameters& value = drive.value;
+  const calibration::VehicleParameters& sigma = drive.sigma;
+  if (!args.out.empty()) calibration::WriteVehicleCalibration(args.out, drive, args.dataset);
   const std::optional<calibration::VehicleParameters>& truth = drive.truth;
   const char* names[6] = {"camera x mm", "camera y mm", "camera yaw deg", "left radius mm", "right radius mm",
                           "track width mm"};
@@ -303,7 +273,7 @@ void RunVehicle(const VehicleArgs& args, const GlobalOptions& global) {
       }
     }
     if (!args.out.empty()) out["out"] = args.out.string();
-    std::printf("%s\n", out.dump(2).c_str());
+    PrintJson(out);
     return;
   }
   std::printf("%d of %d consecutive frame pairs registered, %d pairs in all; residuals %.4f mm, %.5f deg per pair\n",
@@ -337,7 +307,7 @@ void RunSimulateDrive(const DriveArgs& args, const GlobalOptions& global) {
   options.ramp_frames = args.ramp_frames;
   const sim::CalibrationDriveSummary summary = sim::WriteCalibrationDrive(options, args.out, args.overwrite);
   if (global.json) {
-    std::printf("%s\n", nlohmann::json{{"dataset", args.out.string()}, {"frames", summary.frames}}.dump(2).c_str());
+    PrintJson(nlohmann::json{{"dataset", args.out.string()}, {"frames", summary.frames}});
   } else {
     std::printf("calibration drive %s: %d frames, a %.0f mm straight run then a %.0f deg turn in place\n",
                 args.out.string().c_str(), summary.frames, options.straight_mm, options.turn_rad * 180.0 / M_PI);
@@ -360,7 +330,7 @@ struct RawArgs {
 void PrintDataset(const GlobalOptions& global, const std::filesystem::path& out, std::int64_t frames,
                   const char* what, const std::string& detail = "") {
   if (global.json) {
-    std::printf("%s\n", nlohmann::json{{"dataset", out.string()}, {"frames", frames}}.dump(2).c_str());
+    PrintJson(nlohmann::json{{"dataset", out.string()}, {"frames", frames}});
   } else {
     std::printf("%lld %s %s%s\n", static_cast<long long>(frames), what, out.string().c_str(), detail.c_str());
   }
@@ -369,8 +339,8 @@ void PrintDataset(const GlobalOptions& global, const std::filesystem::path& out,
 void RunSimulateRaw(const RawArgs& args, const GlobalOptions& global) {
   const sim::SimulatorOptions options = args.config.empty() ? sim::SimulatorOptions{} : sim::LoadSimulatorConfig(args.config);
   ProgressBar progress("simulate raw", global.quiet);
-  const std::int64_t frames = sim::WriteRawDrive(args.dataset, options, args.out, args.overwrite,
-                                                 [&progress](double fraction) { progress.Update(fraction); });
+  const std::int64_t frames =
+      sim::WriteRawDrive(args.dataset, options, args.out, args.overwrite, progress.Callback());
   progress.Finish();
   PrintDataset(global, args.out, frames, "raw frames in");
 }

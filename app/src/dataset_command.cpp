@@ -3,6 +3,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "report.hpp"
 #include "mosaicloc/dataset/dataset.hpp"
 
 namespace mosaicloc::app {
@@ -23,7 +24,7 @@ Action AddDatasetCommand(CLI::App& app, const GlobalOptions& global) {
                                      {"encoder_samples", summary.encoder_samples},
                                      {"groundtruth_poses", summary.groundtruth_poses},
                                      {"duration_s", summary.duration_s}};
-      std::printf("%s\n", result.dump(2).c_str());
+      PrintJson(result);
     } else {
       std::printf("%s: valid: %lld frames, %lld encoder samples, %lld ground-truth poses, %.2f s\n",
                   directory->string().c_str(), static_cast<long long>(summary.frames),

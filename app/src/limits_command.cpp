@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "report.hpp"
 #include "mosaicloc/localizer/speed_limits.hpp"
 
 namespace mosaicloc::app {
@@ -38,10 +39,9 @@ void PrintLimits(const localizer::SpeedLimitOptions& o, const localizer::SpeedLi
               o.speed_mps, l.step_mm, l.instability_ratio, visual_odometry_max);
   std::printf("  blur %.2f px, odometry drift between fixes %.2f mm against a search half-range of %.1f mm\n",
               l.blur_px, l.prediction_error_mm, o.search_range_px * o.mm_per_px);
-  const bool vo = l.instability_ratio < visual_odometry_max && o.speed_mps < l.distortion_limit_mps;
-  const bool mosaic = o.speed_mps < l.mosaic_limit_mps;
-  std::printf("  frame-to-frame registration: %s; mosaic tracking: %s\n", vo ? "within its limits" : "beyond its limits",
-              mosaic ? "within its limits" : "beyond its limits");
+  const auto verdict = [](bool holds) { return holds ? "within its limits" : "beyond its limits"; };
+  std::printf("  frame-to-frame registration: %s; mosaic tracking: %s\n", verdict(l.frame_to_frame_holds),
+              verdict(l.mosaic_holds));
 }
 
 }  // namespace
@@ -81,8 +81,10 @@ Action AddLimitsCommand(CLI::App& app, const GlobalOptions& global) {
         {"step_mm", limits.step_mm},
         {"instability_ratio", limits.instability_ratio},
         {"blur_px", limits.blur_px},
-        {"prediction_error_mm", limits.prediction_error_mm}};
-    std::printf("%s\n", json.dump().c_str());
+        {"prediction_error_mm", limits.prediction_error_mm},
+        {"frame_to_frame_holds", limits.frame_to_frame_holds},
+        {"mosaic_holds", limits.mosaic_holds}};
+    PrintJson(json);
   };
 }
 

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "report.hpp"
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/mosaic/tile_store.hpp"
 #include "mosaicloc/runtime/map_jobs.hpp"
@@ -25,14 +26,13 @@ struct MapArgs {
 
 void Build(const runtime::MapBuildOptions& args, const GlobalOptions& global) {
   ProgressBar progress("map build", global.quiet);
-  const runtime::MapBuildSummary r =
-      runtime::BuildMap(args, [&progress](double fraction) { progress.Update(fraction); });
+  const runtime::MapBuildSummary r = runtime::BuildMap(args, progress.Callback());
   progress.Finish();
   if (global.json) {
     const nlohmann::json result = {{"map", fs::absolute(args.out).string()}, {"frames_painted", r.painted},
                                    {"frames_without_pose", r.without_pose}, {"tiles", r.tiles},
                                    {"level0_tiles", r.level0_tiles}, {"resumed_after_frames", r.resumed_after}};
-    std::printf("%s\n", result.dump(2).c_str());
+    PrintJson(result);
     return;
   }
   std::printf("map %s: %lld frames painted (%lld without a pose), %lld tiles (%lld at level 0)",
@@ -46,53 +46,42 @@ void Build(const runtime::MapBuildOptions& args, const GlobalOptions& global) {
 }
 
 void Info(const MapArgs& args, const GlobalOptions& global) {
-  const auto store = mosaic::TileStore::Open(args.map, false);
-  const mosaic::MapGrid& grid = store->grid();
-  const runtime::MapExtent extent = runtime::LevelExtent(*store, 0);
-  std::uintmax_t bytes = 0;
-  std::error_code ec;
-  for (const char* suffix : {"", "-wal"}) {
-    const auto size = fs::file_size(args.map.string() + suffix, ec);
-    if (!ec) bytes += size;
-  }
+  const runtime::MapInfo info = runtime::InspectMap(args.map);
+  const mosaic::MapGrid& grid = info.grid;
   nlohmann::json levels = nlohmann::json::array();
   for (int k = 0; k < grid.levels; ++k) {
-    levels.push_back({{"level", k}, {"mm_per_px", grid.LevelMmPerPx(k)}, {"tiles", store->Count(k)}});
+    levels.push_back({{"level", k}, {"mm_per_px", grid.LevelMmPerPx(k)}, {"tiles", info.tiles_per_level[k]}});
   }
-  const Eigen::Vector2d low = grid.RasterToWorld({static_cast<double>(extent.col0) - 0.5, static_cast<double>(extent.row1) + 0.5}, 0);
-  const Eigen::Vector2d high = grid.RasterToWorld({static_cast<double>(extent.col1) + 0.5, static_cast<double>(extent.row0) - 0.5}, 0);
   if (global.json) {
     nlohmann::json result = {{"map", args.map.string()}, {"format_version", mosaic::kMapFormatVersion},
                              {"mm_per_px", grid.mm_per_px}, {"origin_x_mm", grid.origin_x_mm},
                              {"origin_y_mm", grid.origin_y_mm}, {"tile_size_px", grid.tile_size_px},
-                             {"levels", levels}, {"tiles", store->Count()}, {"bytes_on_disk", bytes}};
-    if (!extent.empty()) result["extent_mm"] = {low.x(), low.y(), high.x(), high.y()};
-    std::printf("%s\n", result.dump(2).c_str());
+                             {"levels", levels}, {"tiles", info.tiles}, {"bytes_on_disk", info.bytes_on_disk}};
+    if (!info.extent_mm.empty()) result["extent_mm"] = info.extent_mm;
+    PrintJson(result);
     return;
   }
   std::printf("map %s: format %d, %.4g mm/px, tiles of %d px, %d levels, %lld tiles, %.1f MiB on disk\n",
               args.map.string().c_str(), mosaic::kMapFormatVersion, grid.mm_per_px, grid.tile_size_px, grid.levels,
-              static_cast<long long>(store->Count()), static_cast<double>(bytes) / (1 << 20));
-  if (!extent.empty()) {
-    std::printf("  extent x %.1f .. %.1f mm, y %.1f .. %.1f mm (%lld x %lld px at level 0)\n", low.x(), high.x(),
-                low.y(), high.y(), static_cast<long long>(extent.col1 - extent.col0 + 1),
-                static_cast<long long>(extent.row1 - extent.row0 + 1));
+              static_cast<long long>(info.tiles), static_cast<double>(info.bytes_on_disk) / (1 << 20));
+  if (const std::vector<double>& e = info.extent_mm; !e.empty()) {
+    std::printf("  extent x %.1f .. %.1f mm, y %.1f .. %.1f mm (%.0f x %.0f px at level 0)\n", e[0], e[2], e[1], e[3],
+                (e[2] - e[0]) / grid.mm_per_px, (e[3] - e[1]) / grid.mm_per_px);
   }
-  for (const auto& level : levels) {
-    std::printf("  level %d: %.4g mm/px, %lld tiles\n", level["level"].get<int>(), level["mm_per_px"].get<double>(),
-                static_cast<long long>(level["tiles"].get<std::int64_t>()));
+  for (int k = 0; k < grid.levels; ++k) {
+    std::printf("  level %d: %.4g mm/px, %lld tiles\n", k, grid.LevelMmPerPx(k),
+                static_cast<long long>(info.tiles_per_level[k]));
   }
 }
 
 void Check(const MapArgs& args, const GlobalOptions& global) {
   ProgressBar progress("map check", global.quiet);
   std::size_t tiles = 0;
-  const std::vector<std::string> problems =
-      runtime::CheckMap(args.map, &tiles, [&progress](double fraction) { progress.Update(fraction); });
+  const std::vector<std::string> problems = runtime::CheckMap(args.map, &tiles, progress.Callback());
   progress.Finish();
   if (global.json) {
     const nlohmann::json result = {{"map", args.map.string()}, {"tiles", tiles}, {"damaged", problems}};
-    std::printf("%s\n", result.dump(2).c_str());
+    PrintJson(result);
   }
   if (!problems.empty()) {
     std::string message = std::to_string(problems.size()) + " of " + std::to_string(tiles) + " tiles damaged:";

@@ -1,7 +1,5 @@
 // mosaicloc plc-sim: a Modbus TCP PLC on this machine that plays a drive's encoder counters
 // and shows the fixes it gets back (runtime::RunPlcSimulator), for trying a run without a PLC.
-#include <atomic>
-#include <csignal>
 #include <cstdio>
 #include <memory>
 #include <optional>
@@ -11,15 +9,14 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "mosaicloc/core/stop_signals.hpp"
+#include "report.hpp"
 #include "mosaicloc/core/yaml.hpp"
 #include "mosaicloc/runtime/plc_simulator.hpp"
 #include "mosaicloc/runtime/run_config.hpp"
 
 namespace mosaicloc::app {
 namespace {
-
-std::atomic<int> g_plc_signal{0};
-extern "C" void OnPlcSignal(int signal) { g_plc_signal = signal; }
 
 struct PlcSimArgs {
   runtime::PlcSimulatorOptions options;
@@ -49,13 +46,9 @@ void RunPlcSim(PlcSimArgs args, const GlobalOptions& global) {
                 s.last_error_mm ? fmt::format("{:.3f} mm", *s.last_error_mm).c_str() : "-");
     std::fflush(stdout);
   };
-  callbacks.stop = [] { return g_plc_signal != 0; };
-  g_plc_signal = 0;
-  std::signal(SIGINT, OnPlcSignal);
-  std::signal(SIGTERM, OnPlcSignal);
+  callbacks.stop = [] { return core::StopSignals::Reason().has_value(); };
+  const core::StopSignals signals;
   const runtime::PlcSimulatorSummary r = runtime::RunPlcSimulator(o, callbacks);
-  std::signal(SIGINT, SIG_DFL);
-  std::signal(SIGTERM, SIG_DFL);
   const nlohmann::json summary = {{"fixes_received", r.fixes_received},
                                   {"status_counts", r.status_counts},
                                   {"requests", r.requests},
@@ -68,7 +61,7 @@ void RunPlcSim(PlcSimArgs args, const GlobalOptions& global) {
                                   {"position_max_mm", Optional(r.position_max_mm)},
                                   {"heading_max_deg", Optional(r.heading_max_deg)}};
   if (global.json) {
-    std::printf("%s\n", summary.dump(2).c_str());
+    PrintJson(summary);
   } else {
     std::printf("fixes received %lld, requests %lld, answered %lld (p50 %s ms), position error rms %s mm, max %s mm\n",
                 static_cast<long long>(r.fixes_received), static_cast<long long>(r.requests),

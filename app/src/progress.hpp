@@ -1,6 +1,7 @@
 #pragma once
 
 #include <chrono>
+#include <functional>
 #include <string>
 
 namespace mosaicloc::app {
@@ -12,6 +13,10 @@ class ProgressBar {
   ProgressBar(std::string label, bool quiet);
   ~ProgressBar();
   void Update(double fraction);
+  /// Update as the progress callback a library job takes.
+  std::function<void(double)> Callback() {
+    return [this](double fraction) { Update(fraction); };
+  }
   void Finish();
 
  private:

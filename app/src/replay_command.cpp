@@ -6,7 +6,6 @@
 #include "commands.hpp"
 #include "mosaicloc/runtime/localization_config.hpp"
 #include "mosaicloc/core/error.hpp"
-#include "mosaicloc/core/log.hpp"
 #include "mosaicloc/runtime/replay.hpp"
 #include "progress.hpp"
 #include "report.hpp"
@@ -36,9 +35,7 @@ void Run(const ReplayArgs& args, const GlobalOptions& global) {
   options.dataset = args.dataset;
   options.map = args.map;
   options.out = args.out;
-  options.mode = mode == "dead-reckoning"    ? runtime::ReplayMode::kDeadReckoning
-                 : mode == "visual-odometry" ? runtime::ReplayMode::kVisualOdometry
-                                             : runtime::ReplayMode::kMosaic;
+  options.mode = *runtime::ParseReplayMode(mode);  // CLI11 checked the name
   // Dead reckoning has nothing to configure but the overlap the speed limit is quoted for.
   if (!args.config.empty() && options.mode != runtime::ReplayMode::kDeadReckoning) {
     options.settings = runtime::LoadLocalizerConfig(args.config);
@@ -52,14 +49,8 @@ void Run(const ReplayArgs& args, const GlobalOptions& global) {
   options.prefetch = args.prefetch;
 
   ProgressBar progress("replay", global.quiet);
-  const runtime::ReplaySummary summary = runtime::Replay(options, [&progress](double f) { progress.Update(f); });
+  const runtime::ReplaySummary summary = runtime::Replay(options, progress.Callback());
   progress.Finish();
-  if (options.mode == runtime::ReplayMode::kMosaic) {
-    core::Log().info("map cache: {} tiles loaded, {} relocalizations", summary.tiles_loaded, summary.relocalizations);
-    const Eigen::Vector2d scale = 100.0 * summary.wheel_scale_error, sigma = 100.0 * summary.wheel_scale_sigma;
-    core::Log().info("wheel scale errors learnt: left {:+.3f} % (sigma {:.3f}), right {:+.3f} % (sigma {:.3f})",
-                     scale.x(), sigma.x(), scale.y(), sigma.y());
-  }
   PrintMetrics(summary.report, summary.metrics, global.json);
 }
 
@@ -67,6 +58,8 @@ void Run(const ReplayArgs& args, const GlobalOptions& global) {
 
 Action AddReplayCommand(CLI::App& app, const GlobalOptions& global) {
   auto args = std::make_shared<ReplayArgs>();
+  std::vector<std::string> modes;
+  for (const runtime::ReplayMode mode : runtime::kReplayModes) modes.emplace_back(runtime::ToString(mode));
   CLI::App* command = app.add_subcommand("replay", "Localize a recorded or simulated dataset and write a report");
   command->add_option("--dataset", args->dataset, "Dataset directory")->required();
   command->add_option("--map", args->map, "Mosaic map (*.mosaic) to localize against")->check(CLI::ExistingFile);
@@ -77,7 +70,7 @@ Action AddReplayCommand(CLI::App& app, const GlobalOptions& global) {
                       "mosaic (default with --map): localize against the map; "
                       "dead-reckoning: wheel odometry only (the baseline); "
                       "visual-odometry: frame to frame, no map")
-      ->check(CLI::IsMember({"mosaic", "dead-reckoning", "visual-odometry"}));
+      ->check(CLI::IsMember(modes));
   command->add_option("--required-overlap", args->required_overlap,
                       "Fraction of image overlap the tracker needs (beta of the overlap speed limit)")
       ->check(CLI::Range(0.0, 0.95));

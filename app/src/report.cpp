@@ -9,12 +9,14 @@
 
 namespace mosaicloc::app {
 
+void PrintJson(const nlohmann::json& result) { std::printf("%s\n", result.dump(2).c_str()); }
+
 void PrintMetrics(const std::filesystem::path& directory, const dataset::Metrics& metrics, bool json) {
   if (json) {
     std::ifstream in(directory / "metrics.json");
     const nlohmann::json parsed = nlohmann::json::parse(in);
     nlohmann::json result = {{"report", std::filesystem::absolute(directory).string()}, {"metrics", parsed}};
-    std::printf("%s\n", result.dump(2).c_str());
+    PrintJson(result);
     return;
   }
   const auto show = [](const char* name, const auto& value, const char* unit) {

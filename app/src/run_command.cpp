@@ -1,8 +1,6 @@
 // mosaicloc run: loads the run configuration, opens the camera source, and runs
 // runtime::LiveRun, printing its status lines and summary; SIGINT and SIGTERM stop it.
 
-#include <atomic>
-#include <csignal>
 #include <cstdio>
 #include <memory>
 #include <optional>
@@ -11,15 +9,13 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "mosaicloc/core/stop_signals.hpp"
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/runtime/live_run.hpp"
 #include "mosaicloc/runtime/run_config.hpp"
 
 namespace mosaicloc::app {
 namespace {
-
-std::atomic<int> g_signal{0};
-extern "C" void OnSignal(int signal) { g_signal = signal; }
 
 // A status line of the live run, as JSON or as text.
 void PrintStatus(const nlohmann::json& line, bool json) {
@@ -53,17 +49,10 @@ void Run(const RunArgs& args, const GlobalOptions& global) {
   }
   runtime::LiveSource source = runtime::OpenLiveSource(config);
   runtime::LiveRun run(config, std::move(source.frames), source.camera, source.vehicle, args.record);
-  g_signal = 0;
-  std::signal(SIGINT, OnSignal);
-  std::signal(SIGTERM, OnSignal);
   runtime::LiveRun::StatusCallback status;
   if (!global.quiet) status = [&global](const nlohmann::json& line) { PrintStatus(line, global.json); };
-  const nlohmann::json summary = run.Run(args.duration_s, status, []() -> std::optional<std::string> {
-    if (g_signal == 0) return std::nullopt;
-    return g_signal == SIGINT ? "interrupted (SIGINT)" : "terminated (SIGTERM)";
-  });
-  std::signal(SIGINT, SIG_DFL);
-  std::signal(SIGTERM, SIG_DFL);
+  const core::StopSignals signals;
+  const nlohmann::json summary = run.Run(args.duration_s, status, &core::StopSignals::Reason);
   if (global.json) {
     // One JSON object per line: the status lines, then this summary.
     std::printf("%s\n", nlohmann::json{{"summary", summary}}.dump().c_str());

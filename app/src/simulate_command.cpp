@@ -4,7 +4,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
-#include "mosaicloc/core/log.hpp"
+#include "report.hpp"
 #include "mosaicloc/sim/simulator.hpp"
 #include "progress.hpp"
 #include "mosaicloc/sim/config.hpp"
@@ -29,14 +29,7 @@ struct SimulateArgs {
 
 void Run(const SimulateArgs& args, const GlobalOptions& global) {
   sim::SimulatorOptions options = args.config.empty() ? sim::SimulatorOptions{} : sim::LoadSimulatorConfig(args.config);
-  if (!args.floor.empty()) {
-    if (args.floor == "procedural") {
-      options.floor.kind = "procedural";
-    } else {
-      options.floor.kind = "image";
-      options.floor.image = args.floor;
-    }
-  }
+  if (!args.floor.empty()) options.floor = sim::FloorChoice::Named(args.floor, options.floor);
   if (args.floor_seed >= 0) options.floor.seed = static_cast<std::uint64_t>(args.floor_seed);
   if (args.floor_mm_per_texel > 0.0) options.floor.mm_per_texel = args.floor_mm_per_texel;
   if (!args.route.empty()) options.route.name = args.route;
@@ -51,7 +44,7 @@ void Run(const SimulateArgs& args, const GlobalOptions& global) {
 
   ProgressBar progress("simulate", global.quiet);
   const sim::SimulationSummary summary =
-      sim::Simulate(options, args.out, args.overwrite, [&](double fraction) { progress.Update(fraction); });
+      sim::Simulate(options, args.out, args.overwrite, progress.Callback());
   progress.Finish();
 
   if (global.json) {
@@ -64,7 +57,7 @@ void Run(const SimulateArgs& args, const GlobalOptions& global) {
                                    {"lap_length_m", summary.lap_length_m},
                                    {"laps_driven", summary.laps_driven},
                                    {"max_speed_mps", summary.max_speed_mps}};
-    std::printf("%s\n", result.dump(2).c_str());
+    PrintJson(result);
   } else {
     std::printf("dataset %s: %lld frames (%lld dropped), %lld encoder samples, %.1f s, %.2f m driven"
                 " (%.2f laps of %.2f m), top speed %.2f m/s\n",

@@ -1,5 +1,5 @@
 # A vehicle that leaves the mapped lanes over a repeating floor (design.md section 7): a
-# network of lanes mapped in one slow lap, then driven for two laps at 2 m/s with wheels 2 %
+# network of lanes mapped in one lap at 1 m/s, then driven for two laps at 2 m/s with wheels 2 %
 # and 2.5 % larger than calibrated; the second lap takes lanes the first did not, so the view
 # leaves the map for a second or more at a time. The floor repeats (asphalt every 512 mm,
 # brick every 256 mm), so off the lanes the view matches copies of the floor on mapped lanes
@@ -16,7 +16,7 @@ printf 'route: {network_scale: 0.5}\n' > "$SCRATCH/map.yaml"
 printf 'route: {network_scale: 0.5}\nencoders: {left_radius_error: 0.02, right_radius_error: 0.025}\n' \
   > "$SCRATCH/drive.yaml"
 expect_exit 0 "$MOSAICLOC" --quiet simulate --out "$SCRATCH/map" --floor "$FLOOR" --route network --laps 1 \
-  --speed-mps 0.5 --seed 81 --config "$SCRATCH/map.yaml"
+  --speed-mps 1.0 --seed 81 --config "$SCRATCH/map.yaml"
 expect_exit 0 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/map" --out "$SCRATCH/floor.mosaic"
 expect_exit 0 "$MOSAICLOC" --quiet simulate --out "$SCRATCH/drive" --floor "$FLOOR" --route network --laps 2 \
   --speed-mps 2.0 --seed 82 --config "$SCRATCH/drive.yaml"

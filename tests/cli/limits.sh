@@ -24,6 +24,10 @@ json_near "$SCRATCH/defaults.json" distortion_speed_limit_mps 3.75
 json_near "$SCRATCH/defaults.json" blur_speed_limit_mps 7.5
 json_near "$SCRATCH/defaults.json" prediction_speed_limit_mps 36
 json_near "$SCRATCH/defaults.json" instability_ratio 1.5
+# At 1 m/s frame-to-frame registration is beyond its limits (S / Lambda = 1.5), the mosaic not.
+python3 -c 'import json,sys; d=json.load(open(sys.argv[1]));
+assert d["frame_to_frame_holds"] is False and d["mosaic_holds"] is True' "$SCRATCH/defaults.json" ||
+  fail "the verdicts at 1 m/s are wrong in $(cat "$SCRATCH/defaults.json")"
 
 # A faster camera mounted across the vehicle: the footprint along the travel is the image
 # height (120 mm), so at 60 Hz the overlap limit is 120 mm x 0.5 x 60 Hz = 3.6 m/s.

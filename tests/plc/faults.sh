@@ -48,4 +48,8 @@ $PYTHON -c 'import json,sys; d=json.load(open(sys.argv[1])); d.pop("fixes"); pri
 # After everything, the vehicle standing at the end of the run is where the PLC is told.
 json_check "$SCRATCH/second.json" 'd["answered"] >= 3' 'd["still_fixes"] >= 3' 'd["still_max_error_mm"] <= 0.1' \
   'd["fixes"][-1]["status"] == 1'
+if [ "$FAILURES" -gt 0 ]; then  # what the run said, to tell a slow machine from a defect
+  echo "--- the run's log (last 60 lines):" >&2; tail -60 "$SCRATCH/run.err" >&2
+  echo "--- the restarted PLC's log:" >&2; tail -20 "$SCRATCH/second.err" >&2
+fi
 finish

@@ -183,6 +183,10 @@ IntrinsicsResult CalibrateIntrinsics(const std::vector<BoardView>& views, const 
   result.visp.rms_px = final_answer.rms_px;
   result.visp.view_rms_px = final_answer.view_rms_px;
   result.opencv = CalibrateWithOpenCv(usable, board, width_px, height_px);
+  for (std::size_t i = 0; i < usable.size(); ++i) {
+    report_of(usable[i]).visp_rms_px = result.visp.view_rms_px.at(i);
+    report_of(usable[i]).opencv_rms_px = result.opencv.view_rms_px.at(i);
+  }
   return result;
 }
 

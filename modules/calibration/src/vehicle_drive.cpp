@@ -81,27 +81,6 @@ core::Pose2 NominalMotion(const VehicleCalibrationOptions& nominal, const WheelT
   return x.Inverse() * core::Pose2(d, 0.0, theta) * x;
 }
 
-// The truth a simulated calibration drive records (sim::WriteCalibrationDrive).
-std::optional<VehicleParameters> RecordedTruth(const dataset::DatasetInfo& info) {
-  const auto& p = info.provenance;
-  if (!p.count("truth_vehicle_from_camera") || !p.count("truth_left_wheel_radius_mm") ||
-      !p.count("truth_right_wheel_radius_mm") || !p.count("truth_track_width_mm")) {
-    return std::nullopt;
-  }
-  VehicleParameters t{};
-  if (std::sscanf(p.at("truth_vehicle_from_camera").c_str(), "%lf %lf %lf", &t[0], &t[1], &t[2]) != 3) {
-    return std::nullopt;
-  }
-  try {
-    t[3] = std::stod(p.at("truth_left_wheel_radius_mm"));
-    t[4] = std::stod(p.at("truth_right_wheel_radius_mm"));
-    t[5] = std::stod(p.at("truth_track_width_mm"));
-  } catch (const std::exception&) {
-    return std::nullopt;
-  }
-  return t;
-}
-
 // The tracker's matcher, set for accuracy rather than speed: the whole frame cut into
 // templates (every part of the overlap used), and a wider low-pass, which keeps the
 // sub-pixel estimate from locking onto the pixel grid (a bias that repeats with the same
@@ -247,8 +226,18 @@ VehicleDriveResult CalibrateVehicleFromDrive(const std::filesystem::path& datase
                             " (" + std::to_string(result.consecutive_steps) + " consecutive frame pairs registered, " +
                             std::to_string(result.not_registered) + " not)");
   }
-  result.truth = RecordedTruth(info);
+  result.value = ToVehicleParameters(result.calibration.vehicle_from_camera, result.calibration.wheels);
+  for (std::size_t i = 0; i < result.sigma.size(); ++i) result.sigma[i] = result.calibration.sigma(static_cast<int>(i));
+  if (const std::optional<dataset::VehicleTruth> truth = dataset::RecordedVehicleTruth(info)) {
+    result.truth = ToVehicleParameters(truth->vehicle_from_camera, truth->wheels);
+  }
   return result;
+}
+
+VehicleParameters ToVehicleParameters(const core::Pose2& vehicle_from_camera, const core::WheelGeometry& wheels) {
+  const core::Pose2& x = vehicle_from_camera;
+  return {x.x_mm(), x.y_mm(), x.yaw_rad(), wheels.left_wheel_radius_mm, wheels.right_wheel_radius_mm,
+          wheels.track_width_mm};
 }
 
 void WriteVehicleCalibration(const std::filesystem::path& file, const VehicleCalibrationFile& calibration,
@@ -278,6 +267,16 @@ void WriteVehicleCalibration(const std::filesystem::path& file, const VehicleCal
   yaml << YAML::EndMap;
   if (!yaml.good()) core::ThrowRuntime(file.string() + ": cannot write YAML: " + yaml.GetLastError());
   core::WriteFileAtomically(file, std::string(yaml.c_str()) + "\n");
+}
+
+void WriteVehicleCalibration(const std::filesystem::path& file, const VehicleDriveResult& drive,
+                             const std::filesystem::path& dataset) {
+  WriteVehicleCalibration(
+      file, {drive.calibration.vehicle_from_camera, drive.calibration.wheels, drive.sigma},
+      "mosaicloc vehicle calibration (mosaicloc calibrate vehicle --dataset " + dataset.string() + ")\nfrom " +
+          std::to_string(drive.steps) + " registered frame pairs (" + std::to_string(drive.consecutive_steps) +
+          " consecutive); *_sigma are one-sigma uncertainties.\n"
+          "Copy the values into run.yaml (camera.vehicle_from_camera, vehicle.*).");
 }
 
 VehicleCalibrationFile ReadVehicleCalibration(const std::filesystem::path& file) {

@@ -142,8 +142,15 @@ std::string YamlMap::Where() const {
 }
 
 void YamlMap::AddProblem(std::string_view key, const std::string& reason) {
-  const auto child = (!key.empty() && !absent_ && node_.IsMap()) ? node_[std::string(key)] : YAML::Node();
-  problems_->Add(Location(child && child.IsDefined() ? child : node_, key) + reason);
+  if (!key.empty() && !absent_ && node_.IsMap()) {
+    const YAML::Node child = node_[std::string(key)];
+    if (child.IsDefined()) {
+      problems_->Add(Location(child, key) + reason);
+      return;
+    }
+  }
+  // A problem of the mapping as a whole, or of a key it lacks: at the line naming the mapping.
+  problems_->Add(Location(node_, key) + reason);
 }
 
 bool YamlMap::AddCheckProblem(const std::string& why,

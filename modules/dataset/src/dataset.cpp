@@ -367,6 +367,46 @@ DatasetInfo DerivedInfo(const DatasetReader& reader, const CameraInfo& camera, c
   return info;
 }
 
+void RecordVehicleTruth(const VehicleTruth& truth, DatasetInfo* info) {
+  const auto number = [](double value) {
+    std::ostringstream out;
+    out.precision(9);
+    out << value;
+    return out.str();
+  };
+  const core::Pose2& x = truth.vehicle_from_camera;
+  info->provenance["truth_vehicle_from_camera"] = number(x.x_mm()) + " " + number(x.y_mm()) + " " + number(x.yaw_rad());
+  info->provenance["truth_left_wheel_radius_mm"] = number(truth.wheels.left_wheel_radius_mm);
+  info->provenance["truth_right_wheel_radius_mm"] = number(truth.wheels.right_wheel_radius_mm);
+  info->provenance["truth_track_width_mm"] = number(truth.wheels.track_width_mm);
+}
+
+std::optional<VehicleTruth> RecordedVehicleTruth(const DatasetInfo& info) {
+  const char* const keys[] = {"truth_vehicle_from_camera", "truth_left_wheel_radius_mm", "truth_right_wheel_radius_mm",
+                              "truth_track_width_mm"};
+  const std::size_t values[] = {3, 1, 1, 1};
+  double v[6] = {};
+  std::size_t next = 0;
+  for (std::size_t k = 0; k < 4; ++k) {
+    const auto found = info.provenance.find(keys[k]);
+    if (found == info.provenance.end()) return std::nullopt;
+    std::istringstream in(found->second);
+    for (std::size_t i = 0; i < values[k]; ++i) {
+      if (!(in >> v[next++])) {
+        core::ThrowInvalidInput(std::string("dataset provenance ") + keys[k] + ": expected " +
+                                (values[k] == 1 ? "a number" : "three numbers") + ", got '" + found->second + "'");
+      }
+    }
+  }
+  VehicleTruth truth;
+  truth.vehicle_from_camera = core::Pose2(v[0], v[1], v[2]);
+  truth.wheels = info.vehicle;
+  truth.wheels.left_wheel_radius_mm = v[3];
+  truth.wheels.right_wheel_radius_mm = v[4];
+  truth.wheels.track_width_mm = v[5];
+  return truth;
+}
+
 void WritePng(const std::filesystem::path& file, const cv::Mat& image) {
   std::vector<unsigned char> png;
   if (!cv::imencode(".png", image, png)) core::ThrowRuntime(file.string() + ": cannot encode PNG");

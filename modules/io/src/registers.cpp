@@ -7,6 +7,8 @@
 
 namespace mosaicloc::io {
 
+const char* ToString(WordOrder order) { return order == WordOrder::kHighFirst ? "high_first" : "low_first"; }
+
 std::int64_t RegisterField::MinCount() const {
   if (!is_signed) return 0;
   return width_bits == 32 ? -(std::int64_t{1} << 31) : -(std::int64_t{1} << 15);

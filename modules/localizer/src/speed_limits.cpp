@@ -53,6 +53,9 @@ SpeedLimits AnalyseSpeedLimits(const SpeedLimitOptions& options) {
   limits.instability_ratio = limits.step_mm / limits.footprint_along_mm;
   limits.blur_px = 1e3 * options.speed_mps * exposure_s / s;
   limits.prediction_error_mm = options.odometry_error * limits.step_mm;
+  limits.frame_to_frame_holds =
+      limits.instability_ratio < 1.0 - options.required_overlap && options.speed_mps < limits.distortion_limit_mps;
+  limits.mosaic_holds = options.speed_mps < limits.mosaic_limit_mps;
   return limits;
 }
 

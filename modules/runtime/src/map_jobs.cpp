@@ -143,6 +143,28 @@ MapExtent LevelExtent(const mosaic::TileStore& store, int level) {
   return extent;
 }
 
+MapInfo InspectMap(const std::filesystem::path& map) {
+  const auto store = mosaic::TileStore::Open(map, false);
+  MapInfo info;
+  info.grid = store->grid();
+  for (int k = 0; k < info.grid.levels; ++k) info.tiles_per_level.push_back(store->Count(k));
+  info.tiles = store->Count();
+  for (const char* suffix : {"", "-wal"}) {
+    std::error_code ec;
+    const auto size = fs::file_size(map.string() + suffix, ec);
+    if (!ec) info.bytes_on_disk += size;
+  }
+  const MapExtent e = LevelExtent(*store, 0);
+  if (!e.empty()) {
+    const auto at = [&](std::int64_t col, std::int64_t row, double outward) {
+      return info.grid.RasterToWorld({static_cast<double>(col) + outward, static_cast<double>(row) - outward}, 0);
+    };
+    const Eigen::Vector2d low = at(e.col0, e.row1, -0.5), high = at(e.col1, e.row0, 0.5);
+    info.extent_mm = {low.x(), low.y(), high.x(), high.y()};
+  }
+  return info;
+}
+
 std::vector<std::string> CheckMap(const std::filesystem::path& map, std::size_t* tiles,
                                   const std::function<void(double)>& progress) {
   const auto store = mosaic::TileStore::Open(map, false);

@@ -306,6 +306,10 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
   summary.relocalizations = localizer.relocalizations();
   summary.wheel_scale_error = localizer.wheel_scale_error();
   summary.wheel_scale_sigma = localizer.wheel_scale_sigma();
+  core::Log().info("map cache: {} tiles loaded, {} relocalizations", summary.tiles_loaded, summary.relocalizations);
+  const Eigen::Vector2d scale = 100.0 * summary.wheel_scale_error, sigma = 100.0 * summary.wheel_scale_sigma;
+  core::Log().info("wheel scale errors learnt: left {:+.3f} % (sigma {:.3f}), right {:+.3f} % (sigma {:.3f})",
+                   scale.x(), sigma.x(), scale.y(), sigma.y());
   summary.metrics = record.Finish(options, info, settings.required_overlap, localizer.lock().losses(),
                                   "mosaic localization", localizer.relocalizations());
   return summary;
@@ -381,6 +385,22 @@ ReplaySummary ReplayVisualOdometry(const ReplayOptions& options, const std::func
 }
 
 }  // namespace
+
+const char* ToString(ReplayMode mode) {
+  switch (mode) {
+    case ReplayMode::kMosaic: return "mosaic";
+    case ReplayMode::kDeadReckoning: return "dead-reckoning";
+    case ReplayMode::kVisualOdometry: return "visual-odometry";
+  }
+  return "unknown";
+}
+
+std::optional<ReplayMode> ParseReplayMode(std::string_view name) {
+  for (const ReplayMode mode : kReplayModes) {
+    if (name == ToString(mode)) return mode;
+  }
+  return std::nullopt;
+}
 
 ReplaySummary Replay(const ReplayOptions& options, const std::function<void(double)>& progress) {
   switch (options.mode) {

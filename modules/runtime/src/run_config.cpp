@@ -21,9 +21,7 @@ void ReadField(core::YamlMap* registers, const char* key, io::RegisterField* fie
   m.Optional("width_bits", &field->width_bits, IntegerInRange(16, 32));
   m.Optional("signed", &field->is_signed);
   m.Optional("scale", &field->scale, Positive());
-  std::string order = field->word_order == io::WordOrder::kHighFirst ? "high_first" : "low_first";
-  m.Optional("word_order", &order, core::OneOf({"high_first", "low_first"}));
-  field->word_order = order == "high_first" ? io::WordOrder::kHighFirst : io::WordOrder::kLowFirst;
+  m.OptionalEnum("word_order", &field->word_order, io::kWordOrders);
   m.Finish();
 }
 
@@ -32,9 +30,8 @@ void ReadField(core::YamlMap* registers, const char* key, io::RegisterField* fie
 bool ReadRegisters(core::YamlMap* parent, core::YamlMap* registers, io::RegisterMap* map) {
   // One word order for every 32-bit field, unless a field says otherwise.
   if (registers->Has("word_order")) {
-    std::string order;
-    registers->Optional("word_order", &order, core::OneOf({"high_first", "low_first"}));
-    const io::WordOrder word_order = order == "high_first" ? io::WordOrder::kHighFirst : io::WordOrder::kLowFirst;
+    io::WordOrder word_order = io::WordOrder::kHighFirst;
+    registers->OptionalEnum("word_order", &word_order, io::kWordOrders);
     for (io::RegisterField* field : {&map->left_ticks, &map->right_ticks, &map->plc_heartbeat, &map->fix_request,
                                      &map->relocalize_request,
                                      &map->fix_x, &map->fix_y, &map->fix_yaw, &map->fix_status, &map->fix_quality,

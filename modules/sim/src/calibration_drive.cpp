@@ -11,12 +11,6 @@
 namespace mosaicloc::sim {
 namespace {
 
-std::string Number(double value) {
-  char text[40];
-  std::snprintf(text, sizeof(text), "%.9g", value);
-  return text;
-}
-
 // Distances covered after each frame by a vehicle that speeds up from rest to `cruise` per
 // frame over `ramp` frames, cruises and slows down to rest the same way, ending at `total`
 // (a trapezoidal speed profile; ramp 0 = constant speed from the start).
@@ -86,13 +80,8 @@ CalibrationDriveSummary WriteCalibrationDrive(const CalibrationDriveOptions& opt
   info.camera.mm_per_px = options.camera.mm_per_px;
   info.camera.vehicle_from_camera = options.nominal_vehicle_from_camera;
   info.vehicle = options.nominal_vehicle;
-  const core::Pose2& x = options.vehicle_from_camera;
-  info.provenance = {{"generator", "calibration drive: straight run, then turn in place"},
-                     {"floor", floor->Describe()},
-                     {"truth_vehicle_from_camera", Number(x.x_mm()) + " " + Number(x.y_mm()) + " " + Number(x.yaw_rad())},
-                     {"truth_left_wheel_radius_mm", Number(options.vehicle.left_wheel_radius_mm)},
-                     {"truth_right_wheel_radius_mm", Number(options.vehicle.right_wheel_radius_mm)},
-                     {"truth_track_width_mm", Number(options.vehicle.track_width_mm)}};
+  info.provenance = {{"generator", "calibration drive: straight run, then turn in place"}, {"floor", floor->Describe()}};
+  dataset::RecordVehicleTruth({options.vehicle_from_camera, options.vehicle}, &info);
   dataset::DatasetWriter writer(out, info, overwrite);
 
   // Wheel angles accumulate exactly; the encoders count whole ticks of the true wheels.

@@ -13,18 +13,19 @@ void ReadSimulatorConfig(const YAML::Node& node, const std::string& file_name, S
   core::YamlMap root = core::YamlMap::Root(node, file_name, &problems);
 
   core::YamlMap floor = root.OptionalMap("floor");
-  floor.Optional("kind", &options->floor.kind, core::OneOf({"procedural", "image"}));
+  floor.Optional("kind", &options->floor.kind);
   std::int64_t floor_seed = static_cast<std::int64_t>(options->floor.seed);
   floor.Optional("seed", &floor_seed, IntegerInRange(0, INT64_MAX));
   options->floor.seed = static_cast<std::uint64_t>(floor_seed);
   std::string image = options->floor.image.string();
   floor.Optional("image", &image);
   options->floor.image = image;
-  floor.Optional("mm_per_texel", &options->floor.mm_per_texel, InRange(0.0, 100.0));
-  floor.Finish();
-
+  floor.Optional("mm_per_texel", &options->floor.mm_per_texel);
   // The ranges are the options' Check()s, run per section so that a complaint names its key
   // and line, then over the whole.
+  floor.Check(options->floor);
+  floor.Finish();
+
   core::YamlMap route = root.OptionalMap("route");
   RouteOptions& r = options->route;
   route.Optional("name", &r.name);

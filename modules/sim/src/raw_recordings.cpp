@@ -21,18 +21,6 @@ std::string Numbered(const char* stem, std::size_t index) {
   std::snprintf(name, sizeof(name), "%s-%02zu.png", stem, index + 1);
   return name;
 }
-
-// A simulated calibration drive records nominal values in dataset.yaml and its truth in
-// the provenance; the raw images must be made at the true mounting.
-core::Pose2 TrueMounting(const dataset::DatasetInfo& info) {
-  const auto truth = info.provenance.find("truth_vehicle_from_camera");
-  double x = 0.0, y = 0.0, yaw = 0.0;
-  if (truth != info.provenance.end() && std::sscanf(truth->second.c_str(), "%lf %lf %lf", &x, &y, &yaw) == 3) {
-    return core::Pose2(x, y, yaw);
-  }
-  return info.camera.vehicle_from_camera;
-}
-
 }  // namespace
 
 bool CalibrationPhotographsOptions::Check(std::string* why) const {
@@ -97,7 +85,11 @@ std::int64_t WriteRawDrive(const std::filesystem::path& drive, const SimulatorOp
   if (!reader.HasGroundTruth()) core::ThrowInvalidInput(drive.string() + ": needs ground truth");
   const auto floor = MakeFloor(simulator.floor);
   const dataset::Trajectory truth = reader.GroundTruth();
-  const core::Pose2 vehicle_from_camera = TrueMounting(reader.info());
+  // A simulated calibration drive records nominal values in dataset.yaml and its truth in
+  // the provenance; the raw images must be made at the true mounting.
+  const std::optional<dataset::VehicleTruth> recorded = dataset::RecordedVehicleTruth(reader.info());
+  const core::Pose2 vehicle_from_camera =
+      recorded ? recorded->vehicle_from_camera : reader.info().camera.vehicle_from_camera;
   const camera::RealCamera raw_camera(CalibrationTruthCamera());
   RawImagingOptions imaging;
   imaging.noise_std_dn = simulator.imaging.noise_std_dn;

@@ -30,7 +30,31 @@ std::string Number(double value) {
 
 }  // namespace
 
+FloorChoice FloorChoice::Named(const std::string& name, FloorChoice base) {
+  base.kind = name == "procedural" ? "procedural" : "image";
+  base.image = name == "procedural" ? std::filesystem::path() : std::filesystem::path(name);
+  return base;
+}
+
+bool FloorChoice::Check(std::string* why) const {
+  if (kind != "procedural" && kind != "image") {
+    *why = "kind must be procedural or image, got '" + kind + "'";
+    return false;
+  }
+  if (kind == "image" && image.empty()) {
+    *why = "image must name an image file when kind is image";
+    return false;
+  }
+  if (!(mm_per_texel >= 0.0 && mm_per_texel <= 100.0)) {
+    *why = "mm_per_texel must be in [0, 100] (0: the floor's default)";
+    return false;
+  }
+  return true;
+}
+
 std::unique_ptr<Floor> MakeFloor(const FloorChoice& choice) {
+  std::string why;
+  if (!choice.Check(&why)) core::ThrowInvalidInput("floor: " + why);
   if (choice.kind == "procedural") {
     ProceduralFloorOptions options;
     options.seed = choice.seed;
@@ -43,7 +67,7 @@ std::unique_ptr<Floor> MakeFloor(const FloorChoice& choice) {
     if (choice.mm_per_texel > 0.0) options.mm_per_texel = choice.mm_per_texel;
     return MakeImageFloor(options);
   }
-  core::ThrowInvalidInput("floor must be 'procedural' or an image file, got kind '" + choice.kind + "'");
+  core::ThrowInvalidInput("floor: kind '" + choice.kind + "'");  // Check() refused it above
 }
 
 bool SimulatorOptions::Check(std::string* why) const {
@@ -72,6 +96,10 @@ bool SimulatorOptions::Check(std::string* why) const {
     return false;
   }
   // The parts last, so that a complaint about a field of this struct is not hidden by one of theirs.
+  if (!floor.Check(why)) {
+    *why = "floor." + *why;
+    return false;
+  }
   return route.Check(why) && camera.Check(why) && imaging.Check(why) && encoders.Check(why);
 }
 

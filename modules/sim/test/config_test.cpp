@@ -78,6 +78,40 @@ TEST(SimulatorConfig, TypoIsRejectedWithFileLineAndSuggestion) {
   }
 }
 
+TEST(SimulatorConfig, FloorComplaintsNameTheirLines) {
+  SimulatorOptions options;
+  const YAML::Node node = YAML::Load("floor:\n  kind: carpet\n  mm_per_texel: -2\n");
+  try {
+    ReadSimulatorConfig(node, "site.yaml", &options);
+    FAIL();
+  } catch (const core::Error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("site.yaml:2: floor.kind: must be procedural or image, got 'carpet'"));
+  }
+  options = SimulatorOptions{};
+  try {
+    ReadSimulatorConfig(YAML::Load("floor:\n  kind: image\n"), "site.yaml", &options);
+    FAIL();
+  } catch (const core::Error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("site.yaml:1: floor: image must name an image file when kind is image"));
+  }
+}
+
+TEST(FloorChoiceTest, ACommandLineNamesProceduralOrAnImage) {
+  FloorChoice base;
+  base.seed = 7;
+  base.mm_per_texel = 0.5;
+  const FloorChoice image = FloorChoice::Named("/data/brick.png", base);
+  EXPECT_EQ(image.kind, "image");
+  EXPECT_EQ(image.image, "/data/brick.png");
+  EXPECT_EQ(image.seed, 7U);
+  EXPECT_EQ(image.mm_per_texel, 0.5);
+  const FloorChoice procedural = FloorChoice::Named("procedural", image);
+  EXPECT_EQ(procedural.kind, "procedural");
+  EXPECT_TRUE(procedural.image.empty());
+  std::string why;
+  EXPECT_TRUE(procedural.Check(&why)) << why;
+}
+
 TEST(SimulatorConfig, OverridesApply) {
   SimulatorOptions options;
   ReadSimulatorConfig(YAML::Load("route: {name: network, speed_mps: 2.5}\nrun: {laps: 3}\n"), "x.yaml", &options);

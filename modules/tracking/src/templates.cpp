@@ -10,6 +10,7 @@
 
 #include "area_halve.hpp"
 #include "mosaicloc/core/error.hpp"
+#include "ranking_map.hpp"
 #include "simd.hpp"
 
 #ifdef MOSAICLOC_TRACKING_AVX2
@@ -166,17 +167,10 @@ T* Grown(std::vector<T>& v, std::size_t size) {
   return v.data();
 }
 
-// The ranking map, `cells` (the frame in 8 x 8 px cells) of CV_64F: at each cell the smallest
-// eigenvalue of the structure tensor of the quarter-resolution frame averaged over the k x k
-// cells from it towards larger indices, the last row and column replicated past the edge.
-// That is MinEigen of the float maps of
-//   quarter = resize(half, INTER_AREA); gx, gy = Sobel(quarter, CV_32F, scale 1/8);
-//   sxx = resize(gx gx, INTER_AREA to cells) (and gx gy, gy gy);
-//   mxx = boxFilter(sxx, k x k, anchor (0, 0), normalized, BORDER_REPLICATE),
-// computed exactly: each cell holds (sum of Gx^2 over its 2x2 quarter pixels) / 256, the box
-// sum in double of such values is exact, and boxFilter scales it by 1 / k^2 in double before
-// rounding to float, as done here. `half`'s sides must be multiples of 4, so that both
-// halvings are exact.
+}  // namespace
+
+namespace detail {
+
 void RankingMap(const cv::Mat& half, int k, cv::Mat* eigen) {
   const Kernels kernels = ChooseKernels();
   const int qw = half.cols / 2, qh = half.rows / 2, cw = qw / 2, ch = qh / 2;
@@ -258,7 +252,6 @@ void RankingMap(const cv::Mat& half, int k, cv::Mat* eigen) {
   }
 }
 
-// The same map through OpenCV, for frames whose halving does not come out even.
 void RankingMapOpenCv(const cv::Mat& half, int k, cv::Mat* eigen) {
   cv::Mat quarter, gx, gy, product, sxx, sxy, syy, mxx, mxy, myy;
   cv::resize(half, quarter, cv::Size(half.cols / 2, half.rows / 2), 0, 0, cv::INTER_AREA);
@@ -282,7 +275,7 @@ void RankingMapOpenCv(const cv::Mat& half, int k, cv::Mat* eigen) {
   }
 }
 
-}  // namespace
+}  // namespace detail
 
 const char* ToString(TemplateMode mode) {
   switch (mode) {
@@ -407,9 +400,9 @@ std::vector<TemplateSpot> SelectTemplates(const cv::Mat& frame, const cv::Mat& h
   const int k = std::max(1, s / (4 * kCell));
   thread_local cv::Mat eigen;  // reused frame to frame
   if (half.cols % 4 == 0 && half.rows % 4 == 0) {
-    RankingMap(half, k, &eigen);
+    detail::RankingMap(half, k, &eigen);
   } else {
-    RankingMapOpenCv(half, k, &eigen);
+    detail::RankingMapOpenCv(half, k, &eigen);
   }
   const cv::Size cells = eigen.size();
 

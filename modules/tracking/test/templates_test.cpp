@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
+#include "../src/ranking_map.hpp"
 #include "../src/simd.hpp"
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/tracking/templates.hpp"
@@ -50,26 +51,16 @@ TEST(Templates, OneTexturedSpotIsChosenOnce) {
   }
 }
 
-// The ranking as OpenCV computes it (2x2 area average, Sobel with scale 1/8, products
-// area-averaged into 8 px cells, box filter over a template), to check SelectTemplates' exact
-// integer version against: the same template in every cell.
+// The templates SelectTemplates should choose, from the ranking map as OpenCV computes it
+// (RankingMapOpenCv: 2x2 area average, Sobel with scale 1/8, products area-averaged into
+// 8 px cells, box filter over a template), to check its exact integer version against: the
+// same template in every cell.
 std::vector<cv::Rect> OpenCvRanking(const cv::Mat& frame, const TemplateOptions& options, cv::Size grid) {
-  cv::Mat half, quarter, gx, gy, product, sxx, sxy, syy, mxx, mxy, myy;
+  cv::Mat half, eigen;
   cv::resize(frame, half, cv::Size(frame.cols / 2, frame.rows / 2), 0, 0, cv::INTER_AREA);
-  cv::resize(half, quarter, cv::Size(half.cols / 2, half.rows / 2), 0, 0, cv::INTER_AREA);
-  cv::Sobel(quarter, gx, CV_32F, 1, 0, 3, 0.125);
-  cv::Sobel(quarter, gy, CV_32F, 0, 1, 3, 0.125);
-  const cv::Size cells(quarter.cols / 2, quarter.rows / 2);
-  cv::multiply(gx, gx, product);
-  cv::resize(product, sxx, cells, 0, 0, cv::INTER_AREA);
-  cv::multiply(gx, gy, product);
-  cv::resize(product, sxy, cells, 0, 0, cv::INTER_AREA);
-  cv::multiply(gy, gy, product);
-  cv::resize(product, syy, cells, 0, 0, cv::INTER_AREA);
   const int s = options.size_px & ~1, b = (options.border_px + 1) & ~1, k = std::max(1, s / 8);
-  cv::boxFilter(sxx, mxx, -1, cv::Size(k, k), cv::Point(0, 0), true, cv::BORDER_REPLICATE);
-  cv::boxFilter(sxy, mxy, -1, cv::Size(k, k), cv::Point(0, 0), true, cv::BORDER_REPLICATE);
-  cv::boxFilter(syy, myy, -1, cv::Size(k, k), cv::Point(0, 0), true, cv::BORDER_REPLICATE);
+  detail::RankingMapOpenCv(half, k, &eigen);
+  const cv::Size cells = eigen.size();
   const int max_x = (frame.cols - b - s) & ~1, max_y = (frame.rows - b - s) & ~1;
   std::vector<cv::Rect> rects;
   for (int gr = 0; gr < grid.height; ++gr) {
@@ -84,8 +75,7 @@ std::vector<cv::Rect> OpenCvRanking(const cv::Mat& frame, const TemplateOptions&
       for (int y = y_lo; y <= y_hi; y += 8) {
         for (int x = x_lo; x <= x_hi; x += 8) {
           const int sx = std::min(x / 8, cells.width - 1), sy = std::min(y / 8, cells.height - 1);
-          const double a = mxx.at<float>(sy, sx), m = mxy.at<float>(sy, sx), c = myy.at<float>(sy, sx);
-          const double e = 0.5 * (a + c) - std::sqrt(0.25 * (a - c) * (a - c) + m * m);
+          const double e = eigen.at<double>(sy, sx);
           const cv::Rect candidate(x & ~1, y & ~1, s, s);
           // Not more than half covered by a window another cell chose.
           const bool taken = std::any_of(rects.begin(), rects.end(), [&](const cv::Rect& r) {
@@ -134,7 +124,22 @@ TEST(Templates, RankingEqualsOpenCvsAndTextureItsStrength) {
   }
 }
 
-// A frame whose halves do not halve evenly takes OpenCV's own pipeline; it must rank alike.
+// The exact integer ranking map is OpenCV's, bit for bit, at every template size.
+TEST(Templates, IntegerRankingMapIsOpenCvsExactly) {
+  cv::Mat frame(480, 640, CV_8UC1), half;
+  cv::RNG(29).fill(frame, cv::RNG::UNIFORM, 0, 256);
+  cv::GaussianBlur(frame, frame, cv::Size(0, 0), 1.0);
+  cv::resize(frame, half, cv::Size(frame.cols / 2, frame.rows / 2), 0, 0, cv::INTER_AREA);
+  for (const int k : {1, 4, 12, 16}) {
+    cv::Mat exact, opencv;
+    detail::RankingMap(half, k, &exact);
+    detail::RankingMapOpenCv(half, k, &opencv);
+    ASSERT_EQ(exact.size(), opencv.size()) << "k " << k;
+    EXPECT_EQ(cv::norm(exact, opencv, cv::NORM_INF), 0.0) << "k " << k;
+  }
+}
+
+// A frame whose halves do not halve evenly takes OpenCV's own pipeline; it must select alike.
 TEST(Templates, RankingOfAnUnevenFrameEqualsOpenCvs) {
   cv::Mat frame(470, 628, CV_8UC1);
   cv::RNG(23).fill(frame, cv::RNG::UNIFORM, 0, 256);

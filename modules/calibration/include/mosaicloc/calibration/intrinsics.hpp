@@ -62,6 +62,9 @@ struct ViewReport {
   std::string rejected_because;
   /// Reprojection RMS with ViSP's first calibration on all views, px.
   double first_pass_rms_px = 0.0;
+  /// Reprojection RMS of the final ViSP and OpenCV calibrations, px (used views only).
+  double visp_rms_px = 0.0;
+  double opencv_rms_px = 0.0;
 };
 
 struct IntrinsicsResult {

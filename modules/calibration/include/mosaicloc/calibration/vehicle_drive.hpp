@@ -37,9 +37,14 @@ struct VehicleDriveResult {
   int steps = 0;                 ///< registered pairs, all baselines
   int consecutive_steps = 0;     ///< registered pairs of consecutive frames
   int not_registered = 0;        ///< consecutive pairs that failed to register
+  VehicleParameters value{};  ///< the calibrated values, from `calibration`
+  VehicleParameters sigma{};  ///< their one-sigma uncertainties
   /// The truth a simulated drive records in its provenance, when it does.
   std::optional<VehicleParameters> truth;
 };
+
+/// The six values of a mounting and wheel geometry, in VehicleParameters' order.
+VehicleParameters ToVehicleParameters(const core::Pose2& vehicle_from_camera, const core::WheelGeometry& wheels);
 
 /// Calibrates the camera's place on the vehicle and the wheel geometry from a recorded
 /// calibration drive (ideal images and encoders: a straight run, then a turn in place).
@@ -62,6 +67,10 @@ struct VehicleCalibrationFile {
 /// Writes the file atomically; `comment` goes at its top.
 void WriteVehicleCalibration(const std::filesystem::path& file, const VehicleCalibrationFile& calibration,
                              const std::string& comment);
+/// Writes what a calibration drive of `dataset` found, with a comment saying where it came
+/// from and where its values go.
+void WriteVehicleCalibration(const std::filesystem::path& file, const VehicleDriveResult& drive,
+                             const std::filesystem::path& dataset);
 /// Reads and checks it; throws core::Error naming the file, line and key on bad input.
 VehicleCalibrationFile ReadVehicleCalibration(const std::filesystem::path& file);
 

@@ -156,6 +156,18 @@ class DatasetWriter {
 /// The header of a recording derived from `reader`'s (the same drive through another camera,
 /// or rectified): its info with `camera` in place and `note` as provenance "calibration".
 DatasetInfo DerivedInfo(const DatasetReader& reader, const CameraInfo& camera, const std::string& note);
+/// The vehicle a simulated drive was really driven with, as the simulator records it in the
+/// provenance (truth_vehicle_from_camera "x_mm y_mm yaw_rad", truth_left_wheel_radius_mm,
+/// truth_right_wheel_radius_mm, truth_track_width_mm): what a calibration is checked
+/// against. Localization never reads it.
+struct VehicleTruth {
+  core::Pose2 vehicle_from_camera;
+  core::WheelGeometry wheels;  ///< ticks_per_revolution is the dataset's
+};
+void RecordVehicleTruth(const VehicleTruth& truth, DatasetInfo* info);
+/// The recorded truth, or nothing when the provenance holds none. Throws core::Error (invalid
+/// input) naming the key when a value is not a number.
+std::optional<VehicleTruth> RecordedVehicleTruth(const DatasetInfo& info);
 /// Writes an image as a lossless PNG, atomically. Throws core::Error naming the file.
 void WritePng(const std::filesystem::path& file, const cv::Mat& image);
 /// Copies `reader`'s encoder samples and ground truth (when it has one) into `writer`.

@@ -11,6 +11,9 @@ namespace mosaicloc::io {
 /// Which 16-bit word of a 32-bit value comes first (at the lower address). Modbus itself
 /// says nothing about it: Siemens and most PLCs put the high word first, some put it last.
 enum class WordOrder { kHighFirst, kLowFirst };
+inline constexpr WordOrder kWordOrders[] = {WordOrder::kHighFirst, WordOrder::kLowFirst};
+/// "high_first" or "low_first", as the run configuration names them.
+const char* ToString(WordOrder order);
 
 /// One value in the PLC's holding registers: where it is and how it is encoded.
 /// `scale` is the engineering unit per count (tick, mm or rad): a fix x of 1234.56 mm with

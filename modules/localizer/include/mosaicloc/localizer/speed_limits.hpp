@@ -76,6 +76,10 @@ struct SpeedLimits {
   double instability_ratio = 0.0;  ///< S / Lambda: frame-to-frame registration needs < 1 - beta
   double blur_px = 0.0;            ///< V T_exp / s
   double prediction_error_mm = 0.0;  ///< epsilon S
+  /// Whether speed_mps is within frame-to-frame registration's limits (instability ratio and
+  /// distortion) and within the mosaic tracker's.
+  bool frame_to_frame_holds = false;
+  bool mosaic_holds = false;
 };
 
 /// Throws core::Error (invalid input) when the options fail Check().

@@ -47,6 +47,17 @@ struct MapExtent {
 };
 MapExtent LevelExtent(const mosaic::TileStore& store, int level);
 
+/// `mosaicloc map info`: what a map holds, read without touching its tiles' pixels.
+struct MapInfo {
+  mosaic::MapGrid grid;
+  std::vector<std::int64_t> tiles_per_level;  ///< index: level
+  std::int64_t tiles = 0;
+  std::uintmax_t bytes_on_disk = 0;  ///< the database and its write-ahead log
+  /// The tiled area of level 0 in world mm (x0, y0, x1, y1); empty for a map without tiles.
+  std::vector<double> extent_mm;
+};
+MapInfo InspectMap(const std::filesystem::path& map);
+
 /// Reads every tile; the problems of the damaged ones. *tiles gets the number read.
 std::vector<std::string> CheckMap(const std::filesystem::path& map, std::size_t* tiles,
                                   const std::function<void(double)>& progress = {});

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <functional>
 #include <optional>
+#include <string_view>
 #include <string>
 
 #include <Eigen/Core>
@@ -19,6 +20,11 @@ enum class ReplayMode {
   kDeadReckoning,   ///< wheel odometry alone, from the start pose
   kVisualOdometry,  ///< frame-to-frame registration chained without a map
 };
+inline constexpr ReplayMode kReplayModes[] = {ReplayMode::kMosaic, ReplayMode::kDeadReckoning,
+                                              ReplayMode::kVisualOdometry};
+/// "mosaic", "dead-reckoning", "visual-odometry": the names `replay --mode` takes.
+const char* ToString(ReplayMode mode);
+std::optional<ReplayMode> ParseReplayMode(std::string_view name);
 
 struct ReplayOptions {
   std::filesystem::path dataset;

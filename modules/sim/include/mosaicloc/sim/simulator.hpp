@@ -22,6 +22,9 @@ struct FloorChoice {
   std::filesystem::path image;      ///< for "image": any image file, tiled over the floor
   /// Texel size, mm. 0 picks the default: 0.125 for procedural, 0.25 for an image.
   double mm_per_texel = 0.0;
+  /// The floor a command line names: "procedural", or an image file for kind "image".
+  static FloorChoice Named(const std::string& name, FloorChoice base);
+  bool Check(std::string* why) const;
 };
 
 /// Builds the floor; throws core::Error (invalid input) naming the image file or option.
