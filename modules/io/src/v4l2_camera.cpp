@@ -42,6 +42,8 @@ bool V4l2Options::Check(std::string* why) const {
   if (pixel_format != "auto" && !ParsePixelFormat(pixel_format)) return fail("pixel_format must be auto, grey, yuyv or mjpeg");
   if (!(frame_rate_hz > 0.0)) return fail("frame_rate_hz must be positive");
   if (buffers < 2 || buffers > 32) return fail("buffers must be in 2-32");
+  if (!(exposure_us >= -1.0 && exposure_us <= 1e7)) return fail("exposure_us must be in [-1, 1e7] (-1: the camera's own)");
+  if (gain < -1 || gain > (1 << 20)) return fail("gain must be in [-1, 1048576] (-1: the camera's own)");
   return true;
 }
 

@@ -39,6 +39,32 @@
 #include "mosaicloc/sim/config.hpp"
 
 namespace mosaicloc::runtime {
+
+bool LiveRunOptions::Check(std::string* why) const {
+  const auto fail = [why](const std::string& message) {
+    if (why != nullptr) *why = message;
+    return false;
+  };
+  const auto in = [](double value, double low, double high) { return value >= low && value <= high; };
+  if (camera_source != "v4l2" && camera_source != "dataset" && camera_source != "simulator") {
+    return fail("camera_source must be v4l2, dataset or simulator, got '" + camera_source + "'");
+  }
+  if (camera.width_px < 16 || camera.width_px > 16384) return fail("width_px must be in [16, 16384]");
+  if (camera.height_px < 16 || camera.height_px > 16384) return fail("height_px must be in [16, 16384]");
+  if (!in(camera.mm_per_px, 1e-4, 100.0)) return fail("mm_per_px must be in [0.0001, 100]");
+  if (!in(dataset_start_unix_s, 0.0, 1e11)) return fail("dataset_start_unix_s must be in [0, 1e11]");
+  if (!in(plc_cycle_ms, 1.0, 10000.0)) return fail("plc_cycle_ms must be in [1, 10000]");
+  if (!in(fix_period_ms, 0.0, 600000.0)) return fail("fix_period_ms must be in [0, 600000]");
+  if (!in(heartbeat_timeout_ms, 0.0, 600000.0)) return fail("heartbeat_timeout_ms must be in [0, 600000]");
+  if (!in(encoder_latency_ms, 0.0, 1000.0)) return fail("encoder_latency_ms must be in [0, 1000]");
+  if (!in(encoder_timing_sigma_ms, 0.0, 1000.0)) return fail("encoder_timing_sigma_ms must be in [0, 1000]");
+  if (!in(stationary_after_ms, 1.0, 60000.0)) return fail("stationary_after_ms must be in [1, 60000]");
+  if (!in(counter_period_ms, 0.0, 10000.0)) return fail("counter_period_ms must be in [0, 10000]");
+  if (!in(start_sigma_mm, 1e-3, 1e5)) return fail("start_sigma_mm must be in [0.001, 100000]");
+  if (!in(start_sigma_deg, 1e-4, 180.0)) return fail("start_sigma_deg must be in [0.0001, 180]");
+  if (!in(max_encoder_wait_ms, 0.0, 10000.0)) return fail("max_encoder_wait_ms must be in [0, 10000]");
+  return true;
+}
 // The live run's parts, named rather than file-local: LiveRun::Impl holds them.
 namespace live_run_detail {
 

@@ -98,17 +98,20 @@ RunConfig LoadRunConfig(const std::filesystem::path& file) {
   root.Optional("localizer", &localizer);
 
   core::YamlMap camera = root.OptionalMap("camera");
-  camera.Optional("source", &config.camera_source, core::OneOf({"v4l2", "dataset", "simulator"}));
-  camera.Optional("width_px", &config.camera.width_px, IntegerInRange(16, 16384));
-  camera.Optional("height_px", &config.camera.height_px, IntegerInRange(16, 16384));
-  camera.Optional("mm_per_px", &config.camera.mm_per_px, InRange(1e-4, 100.0));
+  // The ranges are the options' Check()s, run per section so that a complaint names its key
+  // and line.
+  camera.Optional("source", &config.camera_source);
+  camera.Optional("width_px", &config.camera.width_px);
+  camera.Optional("height_px", &config.camera.height_px);
+  camera.Optional("mm_per_px", &config.camera.mm_per_px);
+  camera.CheckOwnKeys(config, {{"camera_source", "source"}});
   ReadPose(&camera, "vehicle_from_camera", &config.camera.vehicle_from_camera);
   core::YamlMap v4l2 = camera.OptionalMap("v4l2");
   v4l2.Optional("device", &config.v4l2.device);
-  v4l2.Optional("pixel_format", &config.v4l2.pixel_format, core::OneOf({"auto", "grey", "yuyv", "mjpeg"}));
+  v4l2.Optional("pixel_format", &config.v4l2.pixel_format);
   v4l2.Optional("frame_rate_hz", &config.v4l2.frame_rate_hz);
-  v4l2.Optional("exposure_us", &config.v4l2.exposure_us, InRange(-1.0, 1e7));
-  v4l2.Optional("gain", &config.v4l2.gain, IntegerInRange(-1, 1 << 20));
+  v4l2.Optional("exposure_us", &config.v4l2.exposure_us);
+  v4l2.Optional("gain", &config.v4l2.gain);
   v4l2.Optional("buffers", &config.v4l2.buffers);
   v4l2.CheckOwnKeys(config.v4l2);
   v4l2.Finish();
@@ -116,13 +119,15 @@ RunConfig LoadRunConfig(const std::filesystem::path& file) {
   std::string dataset;
   recording.Optional("path", &dataset);
   config.dataset = resolve(dataset);
-  recording.Optional("start_unix_s", &config.dataset_start_unix_s, InRange(0.0, 1e11));
+  recording.Optional("start_unix_s", &config.dataset_start_unix_s);
+  recording.CheckOwnKeys(config, {{"dataset_start_unix_s", "start_unix_s"}});
   recording.Finish();
   core::YamlMap simulator = camera.OptionalMap("simulator");
   std::string simulator_config;
   simulator.Optional("config", &simulator_config);
   config.simulator_config = resolve(simulator_config);
-  simulator.Optional("start_unix_s", &config.dataset_start_unix_s, InRange(0.0, 1e11));
+  simulator.Optional("start_unix_s", &config.dataset_start_unix_s);
+  simulator.CheckOwnKeys(config, {{"dataset_start_unix_s", "start_unix_s"}});
   simulator.Finish();
   std::string ground;
   camera.Optional("ground", &ground);
@@ -173,13 +178,14 @@ RunConfig LoadRunConfig(const std::filesystem::path& file) {
   plc.Optional("response_timeout_ms", &link.response_timeout_ms);
   plc.Optional("reconnect_min_ms", &link.reconnect_min_ms);
   plc.Optional("reconnect_max_ms", &link.reconnect_max_ms);
-  plc.Optional("cycle_ms", &config.plc_cycle_ms, InRange(1.0, 10000.0));
-  plc.Optional("fix_period_ms", &config.fix_period_ms, InRange(0.0, 600000.0));
-  plc.Optional("heartbeat_timeout_ms", &config.heartbeat_timeout_ms, InRange(0.0, 600000.0));
-  plc.Optional("encoder_latency_ms", &config.encoder_latency_ms, InRange(0.0, 1000.0));
-  plc.Optional("encoder_timing_sigma_ms", &config.encoder_timing_sigma_ms, InRange(0.0, 1000.0));
-  plc.Optional("stationary_after_ms", &config.stationary_after_ms, InRange(1.0, 60000.0));
-  plc.Optional("counter_period_ms", &config.counter_period_ms, InRange(0.0, 10000.0));
+  plc.Optional("cycle_ms", &config.plc_cycle_ms);
+  plc.Optional("fix_period_ms", &config.fix_period_ms);
+  plc.Optional("heartbeat_timeout_ms", &config.heartbeat_timeout_ms);
+  plc.Optional("encoder_latency_ms", &config.encoder_latency_ms);
+  plc.Optional("encoder_timing_sigma_ms", &config.encoder_timing_sigma_ms);
+  plc.Optional("stationary_after_ms", &config.stationary_after_ms);
+  plc.Optional("counter_period_ms", &config.counter_period_ms);
+  plc.CheckOwnKeys(config, {{"plc_cycle_ms", "cycle_ms"}});
   core::YamlMap registers = plc.OptionalMap("registers");
   const bool registers_ok = ReadRegisters(&plc, &registers, &link.registers);
   // The link's ranges are its Check()'s; the register map reports its own problems above.
@@ -190,12 +196,14 @@ RunConfig LoadRunConfig(const std::filesystem::path& file) {
   start.Optional("x_mm", &x, InRange(-1e9, 1e9));
   start.Optional("y_mm", &y, InRange(-1e9, 1e9));
   start.Optional("yaw_deg", &yaw_deg, InRange(-360.0, 360.0));
-  start.Optional("sigma_mm", &config.start_sigma_mm, InRange(1e-3, 1e5));
-  start.Optional("sigma_deg", &config.start_sigma_deg, InRange(1e-4, 180.0));
+  start.Optional("sigma_mm", &config.start_sigma_mm);
+  start.Optional("sigma_deg", &config.start_sigma_deg);
+  start.CheckOwnKeys(config, {{"start_sigma_mm", "sigma_mm"}, {"start_sigma_deg", "sigma_deg"}});
   start.Finish();
   config.start = core::Pose2(x, y, yaw_deg * std::numbers::pi / 180.0);
 
-  root.Optional("max_encoder_wait_ms", &config.max_encoder_wait_ms, InRange(0.0, 10000.0));
+  root.Optional("max_encoder_wait_ms", &config.max_encoder_wait_ms);
+  root.CheckOwnKeys(config);
   root.Finish();
   problems.ThrowIfAny();
 

@@ -112,6 +112,27 @@ TEST(RunConfig, ProblemsNameFileLineAndKey) {
   EXPECT_NE(source.find("needs dataset.path"), std::string::npos) << source;
 }
 
+// The ranges are RunConfig::Check()'s (and the V4L2 options'); a complaint lands on the
+// line of the key the file calls the field by.
+TEST(RunConfig, RangesAreTheOptionsChecksAtTheirLines) {
+  const std::pair<const char*, const char*> cases[] = {
+      {"map: a.mosaic\ncamera:\n  source: usb\n", ":3: camera.source: must be v4l2, dataset or simulator, got 'usb'"},
+      {"map: a.mosaic\ncamera:\n  width_px: 8\n", ":3: camera.width_px: must be in [16, 16384]"},
+      {"map: a.mosaic\ncamera:\n  dataset: {path: d, start_unix_s: -5}\n",
+       ":3: camera.dataset.start_unix_s: must be in [0, 1e11]"},
+      {"map: a.mosaic\ncamera:\n  v4l2:\n    gain: -7\n", ":4: camera.v4l2.gain: must be in [-1, 1048576]"},
+      {"map: a.mosaic\nplc:\n  role: client\n  cycle_ms: 0\n", ":4: plc.cycle_ms: must be in [1, 10000]"},
+      {"map: a.mosaic\nstart:\n  sigma_deg: 500\n", ":3: start.sigma_deg: must be in [0.0001, 180]"},
+      {"map: a.mosaic\nmax_encoder_wait_ms: -1\n", ":2: max_encoder_wait_ms: must be in [0, 10000]"},
+  };
+  for (const auto& [yaml, expected] : cases) {
+    const std::string error = ErrorOf(yaml);
+    EXPECT_NE(error.find(expected), std::string::npos) << yaml << "\n" << error;
+  }
+  std::string why;
+  EXPECT_TRUE(RunConfig{}.Check(&why)) << why;
+}
+
 TEST(RunConfig, OneWordOrderForEveryField) {
   test::ScratchDir scratch;
   test::WriteFile(scratch / "run.yaml", "map: a.mosaic\nplc:\n  registers:\n    word_order: low_first\n    fix_y: {word_order: high_first}\n");

@@ -66,6 +66,9 @@ struct LiveRunOptions {
   double max_encoder_wait_ms = 100.0;
 
   LocalizationSettings localizer;
+  /// The ranges of this struct's own fields (each complaint starts with the field's name);
+  /// the PLC link, the V4L2 options and the wheels have Check()s of their own.
+  bool Check(std::string* why) const;
 };
 
 class SimulatedDrive;
