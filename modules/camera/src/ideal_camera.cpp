@@ -26,6 +26,12 @@ IdealCamera::IdealCamera(const IdealCameraOptions& options) : options_(options) 
   if (!options_.Check(&why)) core::ThrowInvalidInput("ideal camera: " + why);
 }
 
+IdealCamera IdealCamera::Scaled(double scale) const {
+  IdealCameraOptions options = options_;
+  options.mm_per_px *= scale;
+  return IdealCamera(options);
+}
+
 Eigen::Vector2d IdealCamera::PixelToCamera(const Eigen::Vector2d& pixel) const {
   return {(pixel.x() - cx()) * options_.mm_per_px, -(pixel.y() - cy()) * options_.mm_per_px};
 }

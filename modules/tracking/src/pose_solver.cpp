@@ -12,13 +12,14 @@
 namespace mosaicloc::tracking {
 namespace {
 
-// Residual of one correspondence (p in the camera floor frame C, w in the world, mm):
+// Residual of one correspondence (p in the camera floor frame C, w in the world, mm), with
+// the image scale k as a fourth parameter where it is estimated (1 where it is not):
 //
-//   r(x, y, yaw) = ( R(yaw) p + (x, y) - w ) / s,      R(yaw) = [cos -sin; sin cos],
+//   r(x, y, yaw, k) = ( k R(yaw) p + (x, y) - w ) / s,      R(yaw) = [cos -sin; sin cos],
 //
 // s = the correspondence's relative standard deviation (sigma_i / median sigma), so r stays
 // in mm for a typical correspondence and the loss scale keeps its meaning. Jacobian:
-//   dr/dx = (1, 0) / s,  dr/dy = (0, 1) / s,  dr/dyaw = R'(yaw) p / s,
+//   dr/dx = (1, 0) / s,  dr/dy = (0, 1) / s,  dr/dyaw = k R'(yaw) p / s,  dr/dk = R(yaw) p / s,
 //   R'(yaw) p = (-sin p_x - cos p_y,  cos p_x - sin p_y).
 
 double Median(std::vector<double> values) {
@@ -42,7 +43,8 @@ double LossWeight(const ceres::LossFunction* loss, const double* r) {
 }
 
 // The used correspondences' residuals, each weighted by sqrt(w_i), as a ceres::TinySolver
-// function of (x, y, yaw), or of (x, y) with the yaw held (P = 2).
+// function of (x, y, yaw, k) (P = 4), of (x, y, yaw) with k = 1 (P = 3), or of (x, y) with
+// the yaw held as well (P = 2).
 template <int P>
 struct WeightedResiduals {
   using Scalar = double;
@@ -52,25 +54,26 @@ struct WeightedResiduals {
   const std::vector<double>& root_weight;
   double yaw;
   int NumResiduals() const { return static_cast<int>(2 * cs.size()); }
-  // (x, y, yaw) of the parameters x.
+  // (x, y, yaw, k) of the parameters x.
   void PoseOf(const double* x, double* pose) const {
     pose[0] = x[0];
     pose[1] = x[1];
-    pose[2] = P == 3 ? x[P - 1] : yaw;
+    pose[2] = P >= 3 ? x[2] : yaw;
+    pose[3] = P == 4 ? x[3] : 1.0;
   }
   bool operator()(const double* x, double* residuals, double* jacobian) const {
-    double pose[3];
+    double pose[4];
     PoseOf(x, pose);
     const std::size_t n = 2 * cs.size();
     for (std::size_t i = 0; i < cs.size(); ++i) {
-      double r[2], j[6];
-      PlanarResidual(pose, *cs[i], scale[i], r, jacobian != nullptr ? j : nullptr);
+      double r[2], j[8];
+      SimilarityResidual(pose, *cs[i], scale[i], r, jacobian != nullptr ? j : nullptr);
       residuals[2 * i] = root_weight[i] * r[0];
       residuals[2 * i + 1] = root_weight[i] * r[1];
       if (jacobian == nullptr) continue;
       for (int p = 0; p < P; ++p) {  // column-major, n x P
         jacobian[static_cast<std::size_t>(p) * n + 2 * i] = root_weight[i] * j[p];
-        jacobian[static_cast<std::size_t>(p) * n + 2 * i + 1] = root_weight[i] * j[3 + p];
+        jacobian[static_cast<std::size_t>(p) * n + 2 * i + 1] = root_weight[i] * j[4 + p];
       }
     }
     return true;
@@ -104,11 +107,11 @@ Solved SolveRounds(const std::vector<const Correspondence*>& cs, const std::vect
   for (int p = 0; p < P; ++p) x(p) = pose[p];
   for (int round = 0; round < options.max_iterations; ++round) {
     s.iterations = round + 1;
-    double at[3];
+    double at[4];
     residuals.PoseOf(x.data(), at);
     for (std::size_t i = 0; i < cs.size(); ++i) {
       double r[2];
-      PlanarResidual(at, *cs[i], scale[i], r, nullptr);
+      SimilarityResidual(at, *cs[i], scale[i], r, nullptr);
       root_weight[i] = std::sqrt(LossWeight(loss.get(), r));
     }
     const Eigen::Matrix<double, P, 1> before = x;
@@ -124,9 +127,10 @@ Solved SolveRounds(const std::vector<const Correspondence*>& cs, const std::vect
   return s;
 }
 
-// Solves in place: `pose` is both the start and the result. With !yaw_free the yaw is held.
+// Solves in place: `pose` (x, y, yaw, k) is both the start and the result; `free` of its
+// parameters are estimated (2: the yaw and k held, 3: k held, 4: all).
 Solved Solve(const std::vector<Correspondence>& cs, const std::vector<bool>& use, const std::vector<double>& scale,
-             double* pose, const PoseSolverOptions& options, bool yaw_free) {
+             double* pose, const PoseSolverOptions& options, int free) {
   std::vector<const Correspondence*> used;
   std::vector<double> used_scale;
   for (std::size_t i = 0; i < cs.size(); ++i) {
@@ -134,7 +138,25 @@ Solved Solve(const std::vector<Correspondence>& cs, const std::vector<bool>& use
     used.push_back(&cs[i]);
     used_scale.push_back(scale[i]);
   }
-  return yaw_free ? SolveRounds<3>(used, used_scale, pose, options) : SolveRounds<2>(used, used_scale, pose, options);
+  if (free == 4) return SolveRounds<4>(used, used_scale, pose, options);
+  return free == 3 ? SolveRounds<3>(used, used_scale, pose, options) : SolveRounds<2>(used, used_scale, pose, options);
+}
+
+// How many parameters the used correspondences determine: the yaw needs two distinct points
+// of the frame, the scale (when asked for) three, one more than it needs, so that a wrong
+// match shows as a residual instead of bending the scale.
+int FreeParameters(const std::vector<Correspondence>& cs, const std::vector<bool>& use,
+                   const PoseSolverOptions& options) {
+  std::vector<Eigen::Vector2d> distinct;
+  for (std::size_t i = 0; i < cs.size() && distinct.size() < 3; ++i) {
+    if (!use[i]) continue;
+    const bool seen = std::any_of(distinct.begin(), distinct.end(), [&](const Eigen::Vector2d& p) {
+      return (cs[i].camera_mm - p).squaredNorm() <= 1e-12;
+    });
+    if (!seen) distinct.push_back(cs[i].camera_mm);
+  }
+  if (options.estimate_scale && distinct.size() >= 3) return 4;
+  return distinct.size() >= 2 ? 3 : 2;
 }
 
 // The covariance of the pose at the solution, (J^T J)^-1 of the used residuals, as
@@ -142,40 +164,65 @@ Solved Solve(const std::vector<Correspondence>& cs, const std::vector<bool>& use
 // which for Huber and Cauchy (rho'' <= 0) is a factor sqrt(rho'(|r|^2)). Computed here because
 // ceres::Covariance's set-up costs more than the whole solve of three parameters. False when
 // J^T J is rank deficient (a direction the residuals do not determine).
+// The inverse of the information's leading N x N block into *covariance's; false when it is
+// rank deficient.
+template <int N>
+bool InvertInformation(const Eigen::Matrix4d& information, Eigen::Matrix4d* covariance) {
+  const Eigen::Matrix<double, N, N> block = information.topLeftCorner<N, N>();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, N, N>> eigen(block);
+  const Eigen::Matrix<double, N, 1> values = eigen.eigenvalues();  // ascending
+  if (!(values(0) > 1e-14 * values(N - 1))) return false;
+  covariance->topLeftCorner<N, N>() =
+      eigen.eigenvectors() * values.cwiseInverse().asDiagonal() * eigen.eigenvectors().transpose();
+  return true;
+}
+
+// With the scale estimated (`free` 4) the covariance is of (x, y, yaw, k), else of (x, y, yaw).
 bool PoseCovariance(const std::vector<Correspondence>& cs, const std::vector<bool>& use,
-                    const std::vector<double>& scale, const double* pose, const PoseSolverOptions& options,
-                    Eigen::Matrix3d* covariance) {
+                    const std::vector<double>& scale, const double* pose, const PoseSolverOptions& options, int free,
+                    Eigen::Matrix4d* covariance) {
   const std::unique_ptr<ceres::LossFunction> loss = LossOf(options);
-  Eigen::Matrix3d information = Eigen::Matrix3d::Zero();
+  Eigen::Matrix4d information = Eigen::Matrix4d::Zero();
   for (std::size_t i = 0; i < cs.size(); ++i) {
     if (!use[i]) continue;
     double r[2];
-    Eigen::Matrix<double, 2, 3, Eigen::RowMajor> j;
-    PlanarResidual(pose, cs[i], scale[i], r, j.data());
+    Eigen::Matrix<double, 2, 4, Eigen::RowMajor> j;
+    SimilarityResidual(pose, cs[i], scale[i], r, j.data());
     information += LossWeight(loss.get(), r) * j.transpose() * j;
   }
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(information);
-  const Eigen::Vector3d values = eigen.eigenvalues();  // ascending
-  if (!(values(0) > 1e-14 * values(2))) return false;
-  *covariance = eigen.eigenvectors() * values.cwiseInverse().asDiagonal() * eigen.eigenvectors().transpose();
-  return true;
+  covariance->setZero();
+  return free == 4 ? InvertInformation<4>(information, covariance) : InvertInformation<3>(information, covariance);
 }
 
 }  // namespace
 
-void PlanarResidual(const double* pose, const Correspondence& c, double scale, double* residual,
-                    double* jacobian) {
-  const double cos_yaw = std::cos(pose[2]), sin_yaw = std::sin(pose[2]);
+void SimilarityResidual(const double* pose, const Correspondence& c, double scale, double* residual,
+                        double* jacobian) {
+  const double cos_yaw = std::cos(pose[2]), sin_yaw = std::sin(pose[2]), k = pose[3];
   const double px = c.camera_mm.x(), py = c.camera_mm.y();
-  residual[0] = (cos_yaw * px - sin_yaw * py + pose[0] - c.world_mm.x()) / scale;
-  residual[1] = (sin_yaw * px + cos_yaw * py + pose[1] - c.world_mm.y()) / scale;
+  const double rx = cos_yaw * px - sin_yaw * py, ry = sin_yaw * px + cos_yaw * py;  // R p
+  residual[0] = (k * rx + pose[0] - c.world_mm.x()) / scale;
+  residual[1] = (k * ry + pose[1] - c.world_mm.y()) / scale;
   if (jacobian == nullptr) return;
   jacobian[0] = 1.0 / scale;
   jacobian[1] = 0.0;
-  jacobian[2] = (-sin_yaw * px - cos_yaw * py) / scale;
-  jacobian[3] = 0.0;
-  jacobian[4] = 1.0 / scale;
-  jacobian[5] = (cos_yaw * px - sin_yaw * py) / scale;
+  jacobian[2] = -k * ry / scale;
+  jacobian[3] = rx / scale;
+  jacobian[4] = 0.0;
+  jacobian[5] = 1.0 / scale;
+  jacobian[6] = k * rx / scale;
+  jacobian[7] = ry / scale;
+}
+
+void PlanarResidual(const double* pose, const Correspondence& c, double scale, double* residual,
+                    double* jacobian) {
+  const double similarity[4] = {pose[0], pose[1], pose[2], 1.0};
+  double j[8];
+  SimilarityResidual(similarity, c, scale, residual, jacobian != nullptr ? j : nullptr);
+  if (jacobian == nullptr) return;
+  for (int row = 0; row < 2; ++row) {
+    for (int col = 0; col < 3; ++col) jacobian[3 * row + col] = j[4 * row + col];
+  }
 }
 
 bool PoseSolverOptions::Check(std::string* why) const {
@@ -226,14 +273,15 @@ PoseSolution SolvePlanarPose(const std::vector<Correspondence>& correspondences,
   std::vector<double> scale(n);
   for (std::size_t i = 0; i < n; ++i) scale[i] = sigmas[i] / sigma_ref;
 
-  double pose[3] = {initial.x_mm(), initial.y_mm(), initial.yaw_rad()};
+  double pose[4] = {initial.x_mm(), initial.y_mm(), initial.yaw_rad(), 1.0};
   std::vector<bool> use(n, true);
-  Solved solved = Solve(correspondences, use, scale, pose, options, n >= 2);
+  int free = FreeParameters(correspondences, use, options);
+  Solved solved = Solve(correspondences, use, scale, pose, options, free);
 
   // Outliers by their residual at the robust solution, then a clean solve on the inliers.
   auto residual_of = [&](std::size_t i, const double* at) {
     double r[2];
-    PlanarResidual(at, correspondences[i], 1.0, r, nullptr);
+    SimilarityResidual(at, correspondences[i], 1.0, r, nullptr);
     return std::hypot(r[0], r[1]);
   };
   int inliers = 0;
@@ -248,10 +296,14 @@ PoseSolution SolvePlanarPose(const std::vector<Correspondence>& correspondences,
     return solution;
   }
   if (inliers < static_cast<int>(n)) {
-    solved = Solve(correspondences, use, scale, pose, options, inliers >= 2);
+    free = FreeParameters(correspondences, use, options);
+    pose[3] = 1.0;
+    solved = Solve(correspondences, use, scale, pose, options, free);
   }
   solution.iterations = solved.iterations;
   solution.world_from_camera = core::Pose2(pose[0], pose[1], pose[2]);
+  solution.scale = pose[3];
+  solution.scale_estimated = free == 4;
   solution.inlier = use;
   solution.inliers = inliers;
   double sum_sq = 0.0;
@@ -276,9 +328,11 @@ PoseSolution SolvePlanarPose(const std::vector<Correspondence>& correspondences,
   for (std::size_t i = first + 1; i < n && !spread; ++i) {
     spread = use[i] && (correspondences[i].camera_mm - correspondences[first].camera_mm).squaredNorm() > 1e-12;
   }
-  Eigen::Matrix3d unit;
-  if (spread && PoseCovariance(correspondences, use, scale, pose, options, &unit)) {
-    solution.covariance = unit * sigma_ref * sigma_ref;
+  Eigen::Matrix4d unit;
+  if (spread && PoseCovariance(correspondences, use, scale, pose, options, free, &unit)) {
+    // With the scale estimated, the pose's covariance is its marginal one.
+    solution.covariance = unit.topLeftCorner<3, 3>() * sigma_ref * sigma_ref;
+    if (free == 4) solution.scale_sigma = std::sqrt(unit(3, 3)) * sigma_ref;
   } else {
     // One correspondence, or several at one point: translation only, the yaw undetermined.
     solution.covariance = Eigen::Matrix3d::Zero();

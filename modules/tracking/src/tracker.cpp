@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <utility>
 #include <vector>
@@ -30,8 +31,10 @@ class FrameRegistration {
  public:
   FrameRegistration(const camera::IdealCamera& camera, const TrackerOptions& options, const cv::Mat& frame,
                     const core::Pose2& prior, const Eigen::Matrix3d& prior_covariance,
-                    const ReferenceRaster& reference)
-      : camera_(camera),
+                    const ReferenceRaster& reference, double prior_scale)
+      : calibrated_(camera),
+        camera_(camera.Scaled(prior_scale)),
+        view_scale_(prior_scale),
         options_(options),
         frame_(frame),
         prior_(prior),
@@ -221,6 +224,7 @@ class FrameRegistration {
     }
     pose_ = SolvePlanarPose(coarse_, prior_, coarse_solver);
     if (!pose_.ok()) return Fail(TrackFailure::kTooFewInliers, std::string("coarse pose: ") + ToString(pose_.failure));
+    Rescale(pose_);
     used_ = coarse_template_;
     for (std::size_t i = 0; i < used_.size(); ++i) result_.templates[used_[i]].inlier = pose_.inlier[i];
     return true;
@@ -268,14 +272,18 @@ class FrameRegistration {
       result_.templates[fine_template_[i]].inlier = refined.inlier[i];
       if (!refined.inlier[i]) result_.templates[fine_template_[i]].rejected = "outlier";
     }
-    // Each template's translation absorbs a change of position; only a change of yaw alters
-    // the linearisation, by turning the template against the reference about its centre.
+    // Each template's translation absorbs a change of position; only a change of yaw or of
+    // scale alters the linearisation, by turning or stretching the template against the
+    // reference about its centre.
     double radius_px = 0.0;
     for (const std::size_t index : fine_template_) {
       const cv::Rect& r = result_.templates[index].spot.rect;
       radius_px = std::max(radius_px, 0.5 * std::hypot(r.width, r.height));
     }
-    const double turned_px = std::abs(YawDifference(refined.world_from_camera, pose_.world_from_camera)) * radius_px;
+    const double turned_px =
+        (std::abs(YawDifference(refined.world_from_camera, pose_.world_from_camera)) + std::abs(refined.scale - 1.0)) *
+        radius_px;
+    Rescale(refined);
     pose_ = std::move(refined);
     used_ = fine_template_;
     *turned = !(turned_px < options_.repeat_below_px);
@@ -305,6 +313,15 @@ class FrameRegistration {
     fine_template_.push_back(index);
   }
 
+  // The camera at the scale a solve found (relative to the one its correspondences used).
+  void Rescale(const PoseSolution& solution) {
+    if (!solution.scale_estimated) return;
+    view_scale_ *= solution.scale;
+    view_scale_sigma_ = view_scale_ * solution.scale_sigma;
+    scale_estimated_ = true;
+    camera_ = calibrated_.Scaled(view_scale_);
+  }
+
   bool YawDetermined() {
     if (std::isinf(pose_.covariance(2, 2))) {
       return Fail(TrackFailure::kTooFewInliers, std::to_string(pose_.inliers) +
@@ -318,6 +335,9 @@ class FrameRegistration {
     result_.covariance = pose_.covariance;
     result_.inliers = pose_.inliers;
     result_.rms_residual_mm = pose_.rms_residual_mm;
+    result_.scale = view_scale_;
+    result_.scale_sigma = view_scale_sigma_;
+    result_.scale_estimated = scale_estimated_ && pose_.scale_estimated;
     double zncc_sum = 0.0;
     int zncc_count = 0;
     for (const TemplateReport& report : result_.templates) {
@@ -328,7 +348,11 @@ class FrameRegistration {
     result_.mean_zncc = zncc_count > 0 ? zncc_sum / zncc_count : 0.0;
   }
 
-  const camera::IdealCamera& camera_;
+  const camera::IdealCamera& calibrated_;
+  camera::IdealCamera camera_;  // at view_scale_
+  double view_scale_ = 1.0;
+  double view_scale_sigma_ = std::numeric_limits<double>::infinity();
+  bool scale_estimated_ = false;
   const TrackerOptions& options_;
   const cv::Mat& frame_;
   const core::Pose2& prior_;
@@ -405,8 +429,8 @@ Tracker::Tracker(const camera::IdealCamera& camera, const TrackerOptions& option
 }
 
 TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const Eigen::Matrix3d& prior_covariance,
-                           const ReferenceRaster& reference) const {
-  return FrameRegistration(camera_, options_, frame, prior, prior_covariance, reference).Run();
+                           const ReferenceRaster& reference, double prior_scale) const {
+  return FrameRegistration(camera_, options_, frame, prior, prior_covariance, reference, prior_scale).Run();
 }
 
 TrackResult RegisterFrames(const Tracker& tracker, const cv::Mat& previous, const cv::Mat& current,

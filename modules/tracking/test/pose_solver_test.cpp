@@ -36,6 +36,32 @@ TEST(PoseSolver, AnalyticJacobianMatchesNumeric) {
   }
 }
 
+TEST(PoseSolver, SimilarityJacobianMatchesNumeric) {
+  std::mt19937 rng(18);
+  std::uniform_real_distribution<double> u(-100.0, 100.0);
+  for (int trial = 0; trial < 20; ++trial) {
+    Correspondence c;
+    c.camera_mm = {u(rng), u(rng)};
+    c.world_mm = {u(rng), u(rng)};
+    const double pose[4] = {u(rng), u(rng), u(rng) * 0.03, 1.0 + u(rng) * 1e-3};
+    const double scale = 0.5 + std::abs(u(rng)) / 100.0;
+    double r[2], j[8];
+    SimilarityResidual(pose, c, scale, r, j);
+    for (int p = 0; p < 4; ++p) {
+      const double h = 1e-6;
+      double plus[4] = {pose[0], pose[1], pose[2], pose[3]}, minus[4] = {pose[0], pose[1], pose[2], pose[3]};
+      plus[p] += h;
+      minus[p] -= h;
+      double rp[2], rm[2];
+      SimilarityResidual(plus, c, scale, rp, nullptr);
+      SimilarityResidual(minus, c, scale, rm, nullptr);
+      for (int k = 0; k < 2; ++k) {
+        EXPECT_NEAR(j[k * 4 + p], (rp[k] - rm[k]) / (2 * h), 1e-6) << "residual " << k << " parameter " << p;
+      }
+    }
+  }
+}
+
 std::vector<Correspondence> MakeCorrespondences(const Pose2& truth, int n, double noise_mm, std::mt19937* rng) {
   std::uniform_real_distribution<double> u(-80.0, 80.0);
   std::normal_distribution<double> g(0.0, noise_mm);
@@ -111,6 +137,7 @@ TEST(PoseSolver, OptimumEqualsCeresSolve) {
   const Pose2 truth(-812.0, 95.0, 1.1);
   for (const RobustLoss loss : {RobustLoss::kNone, RobustLoss::kHuber, RobustLoss::kCauchy}) {
     PoseSolverOptions options;
+    options.estimate_scale = false;  // the rigid formulation, as the Ceres problem states it
     options.loss = loss;
     options.outlier_threshold_mm = 10.0;  // keep every correspondence: compare the robust solve itself
     std::vector<Correspondence> cs = MakeCorrespondences(truth, 12, 0.02, &rng);
@@ -143,6 +170,7 @@ TEST(PoseSolver, CovarianceEqualsCeresCovariance) {
   const Pose2 truth(321.0, -45.0, 0.4);
   for (const RobustLoss loss : {RobustLoss::kNone, RobustLoss::kHuber, RobustLoss::kCauchy}) {
     PoseSolverOptions options;
+    options.estimate_scale = false;  // the rigid formulation, as the Ceres problem states it
     options.loss = loss;
     options.loss_scale_mm = 0.02;
     options.outlier_threshold_mm = 1.0;  // keep every correspondence
@@ -209,6 +237,42 @@ TEST(PoseSolver, CorrespondencesAtOnePointLeaveTheYawUndetermined) {
   ASSERT_TRUE(two.ok());
   EXPECT_TRUE(two.covariance.allFinite()) << two.covariance;
   EXPECT_GT(two.covariance(2, 2), 0.0);
+}
+
+// A camera 1 % higher than calibrated: its points are 1 % farther out than camera_mm says.
+// The rigid fit is pulled off; the similarity fit finds the pose and the scale.
+TEST(PoseSolver, ScaleIsEstimatedWhereAsked) {
+  std::mt19937 rng(31);
+  const Pose2 truth(512.25, -77.5, -0.4);
+  const double k = 1.01;
+  std::vector<Correspondence> cs = MakeCorrespondences(truth, 8, 0.002, &rng);
+  for (Correspondence& c : cs) c.world_mm = truth * (k * c.camera_mm) + (c.world_mm - truth * c.camera_mm);
+  PoseSolverOptions options;
+  options.estimate_scale = false;
+  options.outlier_threshold_mm = 5.0;  // the rigid fit's residuals are up to a millimetre
+  const PoseSolution rigid = SolvePlanarPose(cs, Pose2(512.0, -77.0, -0.39), options);
+  ASSERT_TRUE(rigid.ok());
+  EXPECT_FALSE(rigid.scale_estimated);
+  EXPECT_EQ(rigid.scale, 1.0);
+  EXPECT_GT(rigid.rms_residual_mm, 0.1);
+  options.estimate_scale = true;
+  const PoseSolution similar = SolvePlanarPose(cs, Pose2(512.0, -77.0, -0.39), options);
+  ASSERT_TRUE(similar.ok());
+  ASSERT_TRUE(similar.scale_estimated);
+  EXPECT_NEAR(similar.scale, k, 1e-4);
+  EXPECT_GT(similar.scale_sigma, 0.0);
+  EXPECT_LT(similar.scale_sigma, 1e-3);
+  EXPECT_NEAR(similar.world_from_camera.x_mm(), truth.x_mm(), 0.005);
+  EXPECT_NEAR(similar.world_from_camera.y_mm(), truth.y_mm(), 0.005);
+  EXPECT_NEAR(similar.world_from_camera.yaw_rad(), truth.yaw_rad(), 1e-4);
+  EXPECT_LT(similar.rms_residual_mm, 0.01);
+  // Two points of the frame leave no check on the scale: it is held.
+  const std::vector<Correspondence> two(cs.begin(), cs.begin() + 2);
+  options.min_inliers = 2;
+  const PoseSolution held = SolvePlanarPose(two, Pose2(512.0, -77.0, -0.39), options);
+  ASSERT_TRUE(held.ok());
+  EXPECT_FALSE(held.scale_estimated);
+  EXPECT_EQ(held.scale, 1.0);
 }
 
 TEST(PoseSolver, SaysWhyItFailed) {

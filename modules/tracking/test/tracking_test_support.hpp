@@ -38,11 +38,12 @@ class Scene {
     reference_ = std::make_unique<ImageReference>(reference_image_, Pose2::Identity(), kMmPerPx);
   }
 
-  // The live frame at world_from_camera, with gain, offset and Gaussian noise.
+  // The live frame at world_from_camera, with gain, offset and Gaussian noise, seen from
+  // `height_scale` times the calibrated height.
   cv::Mat Frame(const Pose2& world_from_camera, double noise = 0.0, double gain = 1.0, double offset = 0.0,
-                std::uint64_t seed = 1) const {
-    const Affine reference_from_view =
-        ComposeAffine(reference_->WorldToRaster(), camera_.PixelToWorldAffine(world_from_camera));
+                std::uint64_t seed = 1, double height_scale = 1.0) const {
+    const Affine reference_from_view = ComposeAffine(
+        reference_->WorldToRaster(), camera_.Scaled(height_scale).PixelToWorldAffine(world_from_camera));
     cv::Mat exact = sim::ResampleExact(texture_, ComposeAffine(source_from_reference_, reference_from_view),
                                        cv::Size(camera_.width_px(), camera_.height_px()), 2);
     exact = exact * gain + offset;

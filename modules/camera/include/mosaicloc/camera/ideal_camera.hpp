@@ -31,6 +31,9 @@ class IdealCamera {
   double mm_per_px() const { return options_.mm_per_px; }
   double cx() const { return 0.5 * (options_.width_px - 1); }
   double cy() const { return 0.5 * (options_.height_px - 1); }
+  /// The same camera seeing `scale` times as much floor per pixel: the floor `scale` times
+  /// as far below it as calibrated (a pinhole looking straight down).
+  IdealCamera Scaled(double scale) const;
   /// Footprint on the floor, mm.
   double width_mm() const { return options_.width_px * options_.mm_per_px; }
   double height_mm() const { return options_.height_px * options_.mm_per_px; }

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -36,6 +37,10 @@ struct PoseSolverOptions {
   /// false: skip the covariance, for a pose that only seeds a finer one;
   /// PoseSolution::covariance is then NaN.
   bool compute_covariance = true;
+  /// Also estimate the image scale k (camera_mm is k times the true offset of a point from
+  /// the camera: the camera is k times as high over the floor as calibrated) where three or
+  /// more inliers determine it; the pose is then a similarity fit, its covariance marginal.
+  bool estimate_scale = true;
   bool Check(std::string* why) const;
 };
 
@@ -53,6 +58,10 @@ struct PoseSolution {
   int inliers = 0;
   int iterations = 0;
   double rms_residual_mm = 0.0;   ///< over inliers
+  /// The image scale k (1 when not estimated) and its standard deviation (infinite then).
+  double scale = 1.0;
+  double scale_sigma = std::numeric_limits<double>::infinity();
+  bool scale_estimated = false;
 };
 
 /// Planar pose of the camera from correspondences: the robust cost minimised by reweighted
@@ -68,5 +77,9 @@ PoseSolution SolvePlanarPose(const std::vector<Correspondence>& correspondences,
 /// for the Jacobian test. residual = R(yaw) camera + t - world, mm, divided by `scale`.
 void PlanarResidual(const double* pose, const Correspondence& c, double scale, double* residual,
                     double* jacobian_row_major);
+/// The same with the image scale k as a fourth parameter, pose = (x, y, yaw, k):
+/// residual = k R(yaw) camera + t - world; the Jacobian is 2 x 4, row-major.
+void SimilarityResidual(const double* pose, const Correspondence& c, double scale, double* residual,
+                        double* jacobian_row_major);
 
 }  // namespace mosaicloc::tracking

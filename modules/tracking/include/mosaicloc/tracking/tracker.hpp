@@ -1,5 +1,6 @@
 #pragma once
 
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -73,6 +74,12 @@ struct TrackResult {
   int inliers = 0;
   double rms_residual_mm = 0.0;
   double mean_zncc = 0.0;
+  /// The image scale the frame was registered at: the camera's height over the floor under
+  /// it relative to the calibrated one (1.004: 0.4 % higher). Estimated where
+  /// solver.estimate_scale asks for it and the inliers determine it; else the prior's.
+  double scale = 1.0;
+  double scale_sigma = std::numeric_limits<double>::infinity();
+  bool scale_estimated = false;
   std::vector<TemplateReport> templates;
 };
 
@@ -86,10 +93,11 @@ class Tracker {
   Tracker(const camera::IdealCamera& camera, const TrackerOptions& options);
 
   /// `prior` is the predicted world_from_camera and `prior_covariance` its covariance
-  /// (x_mm, y_mm, yaw_rad), which sizes the search. Never throws for a frame that cannot be
-  /// registered: the result says why.
+  /// (x_mm, y_mm, yaw_rad), which sizes the search; `prior_scale` the predicted image scale
+  /// (TrackResult::scale). Never throws for a frame that cannot be registered: the result
+  /// says why.
   TrackResult Track(const cv::Mat& frame, const core::Pose2& prior, const Eigen::Matrix3d& prior_covariance,
-                    const ReferenceRaster& reference) const;
+                    const ReferenceRaster& reference, double prior_scale = 1.0) const;
 
   const camera::IdealCamera& camera() const { return camera_; }
   const TrackerOptions& options() const { return options_; }
