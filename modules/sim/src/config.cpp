@@ -52,7 +52,9 @@ void ReadSimulatorConfig(const YAML::Node& node, const std::string& file_name, S
   camera.Optional("frame_rate_hz", &options->frame_rate_hz);
   camera.Optional("timestamp_jitter_ms", &options->timestamp_jitter_ms);
   camera.Optional("drop_probability", &options->drop_probability);
-  camera.CheckOwnKeys(*options);
+  camera.Optional("height_mm", &options->camera_height_mm);
+  camera.Optional("height_offset_mm", &options->height_offset_mm);
+  camera.CheckOwnKeys(*options, {{"camera_height_mm", "height_mm"}});
   camera.Check(options->camera);
   core::YamlMap mount = camera.OptionalMap("vehicle_from_camera");
   double x_mm = options->vehicle_from_camera.x_mm();

@@ -91,6 +91,14 @@ bool SimulatorOptions::Check(std::string* why) const {
     *why = "frames must be at most 1e8 and laps at most 1e5";
     return false;
   }
+  if (!(camera_height_mm >= 10.0 && camera_height_mm <= 5000.0)) {
+    *why = "camera_height_mm must be in [10, 5000]";
+    return false;
+  }
+  if (!(std::abs(height_offset_mm) <= 0.2 * camera_height_mm)) {
+    *why = "height_offset_mm must be within 20 % of camera_height_mm";
+    return false;
+  }
   if (threads < 1 || threads > 64) {
     *why = "threads must be in [1, 64]";
     return false;
@@ -112,7 +120,10 @@ SimulationSummary Simulate(const SimulatorOptions& options, const std::filesyste
   const int laps = options.laps > 0 ? options.laps
                                     : Drive::LapsForFrames(options.route, options.frames, options.frame_rate_hz);
   const Drive drive(options.route, laps, options.seed);
-  const Imager imager(*floor, camera, options.imaging, options.seed);
+  // The frames as the camera really sees them: from its true height.
+  const camera::IdealCamera seen =
+      camera.Scaled((options.camera_height_mm + options.height_offset_mm) / options.camera_height_mm);
+  const Imager imager(*floor, seen, options.imaging, options.seed);
   EncoderModel encoders(options.encoders, options.seed);
 
   const double period_s = 1.0 / options.frame_rate_hz;

@@ -59,6 +59,8 @@ TEST(SimulatorConfig, DefaultFileEqualsCompiledDefaults) {
   EXPECT_EQ(loaded.encoders.slip_std, defaults.encoders.slip_std);
   EXPECT_EQ(loaded.encoders.initial_left_ticks, defaults.encoders.initial_left_ticks);
   EXPECT_EQ(loaded.encoders.initial_right_ticks, defaults.encoders.initial_right_ticks);
+  EXPECT_EQ(loaded.camera_height_mm, defaults.camera_height_mm);
+  EXPECT_EQ(loaded.height_offset_mm, defaults.height_offset_mm);
   EXPECT_EQ(loaded.seed, defaults.seed);
   EXPECT_EQ(loaded.frames, defaults.frames);
   EXPECT_EQ(loaded.laps, defaults.laps);

@@ -35,6 +35,12 @@ struct SimulatorOptions {
   RouteOptions route;
   camera::IdealCameraOptions camera;
   core::Pose2 vehicle_from_camera{200.0, 0.0, 0.0};
+  /// The camera's height over the floor as calibrated (`camera` images it at mm_per_px), and
+  /// how much higher the real one is: the frames are rendered by a pinhole looking straight
+  /// down from camera_height_mm + height_offset_mm, so they show (h + dh) / h times as much
+  /// floor per pixel as dataset.yaml says (a vehicle on a higher floor shows less).
+  double camera_height_mm = 200.0;
+  double height_offset_mm = 0.0;
   ImagingOptions imaging;
   EncoderOptions encoders;
   double frame_rate_hz = 30.0;
