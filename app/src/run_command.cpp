@@ -23,13 +23,13 @@ void PrintStatus(const nlohmann::json& line, bool json) {
     std::printf("%s\n", line.dump().c_str());
   } else {
     std::printf("%7.1f s  %-8s  fixes %3lld/%-3lld frames  latency %5.2f ms  PLC %-7s rtt %5.2f ms  errors %lld  "
-                "requests %lld/%lld  x %.2f y %.2f mm  yaw %.3f deg\n",
+                "requests %lld/%lld  x %.2f y %.2f mm  yaw %.3f deg  scale %.4f\n",
                 line["t_s"].get<double>(), line["lock"].get<std::string>().c_str(),
                 line["fixes_per_s"].get<long long>(), line["frames_per_s"].get<long long>(),
                 line["latency_p50_ms"].get<double>(), line["plc"].get<std::string>().c_str(),
                 line["plc_round_trip_ms"].get<double>(), line["plc_errors"].get<long long>(),
                 line["answered"].get<long long>(), line["requests"].get<long long>(), line["x_mm"].get<double>(),
-                line["y_mm"].get<double>(), line["yaw_deg"].get<double>());
+                line["y_mm"].get<double>(), line["yaw_deg"].get<double>(), line["scale"].get<double>());
   }
   std::fflush(stdout);
 }
@@ -58,10 +58,10 @@ void Run(const RunArgs& args, const GlobalOptions& global) {
     std::printf("%s\n", nlohmann::json{{"summary", summary}}.dump().c_str());
   } else {
     std::printf("stopped: %s\n", summary["stopped"].get<std::string>().c_str());
-    std::printf("frames %lld, fixes %lld (%.1f %%), dropped %lld, lock losses %lld\n",
+    std::printf("frames %lld, fixes %lld (%.1f %%), dropped %lld, lock losses %lld, image scale %.4f\n",
                 summary["frames"].get<long long>(), summary["fixes"].get<long long>(),
                 100.0 * summary["fix_rate"].get<double>(), summary["frames_dropped"].get<long long>(),
-                summary["lock_losses"].get<long long>());
+                summary["lock_losses"].get<long long>(), summary["scale"].get<double>());
     std::printf("PLC: %lld requests, %lld answered, %lld fix writes, %lld read errors, %lld timeouts, "
                 "%lld odometry outages\n",
                 summary["requests"].get<long long>(), summary["answered"].get<long long>(),

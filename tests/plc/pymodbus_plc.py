@@ -233,6 +233,13 @@ async def serve(plc, args):
     context = ModbusServerContext(slaves=ModbusSlaveContext(hr=block, zero_mode=True), single=True)
     server = await StartAsyncTcpServer(context=context, address=("127.0.0.1", args.port), defer_start=True)
     task = asyncio.create_task(server.serve_forever())
+
+    def served(done):  # a server that stops by itself (it could not listen, say) is a failure
+        if not done.cancelled() and done.exception() is not None:
+            print(f"pymodbus PLC: serving on port {args.port} failed: {done.exception()!r}", file=sys.stderr)
+            os._exit(3)
+
+    task.add_done_callback(served)
     plc.next_request = plc.start + args.request_period_ms * 1e-3
     stop = asyncio.Event()
     asyncio.get_running_loop().add_signal_handler(signal.SIGTERM, stop.set)

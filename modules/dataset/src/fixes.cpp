@@ -14,21 +14,21 @@
 namespace mosaicloc::dataset {
 namespace {
 
-constexpr int kFields = 9;
+constexpr std::size_t kFields = 10;
 
 }  // namespace
 
-std::string FixesCsvHeader() { return "#timestamp_ns,x_mm,y_mm,yaw_rad,status,quality,fix,sigma_mm,reason\n"; }
+std::string FixesCsvHeader() { return "#timestamp_ns,x_mm,y_mm,yaw_rad,status,quality,fix,sigma_mm,scale,reason\n"; }
 
 std::string FixesCsvRow(const FrameReport& report) {
   if (report.reason.find_first_of(",\"\r\n") != std::string::npos) {
     core::ThrowInvalidInput("fixes.csv: reason '" + report.reason + "' holds a comma, quote or line break");
   }
-  return fmt::format("{},{:.4f},{:.4f},{:.7f},{},{},{},{:.4f},{}\n", report.time.nanoseconds(),
+  return fmt::format("{},{:.4f},{:.4f},{:.7f},{},{},{},{:.4f},{:.6f},{}\n", report.time.nanoseconds(),
                      report.world_from_vehicle.x_mm(), report.world_from_vehicle.y_mm(),
                      report.world_from_vehicle.yaw_rad(), report.status,
                      static_cast<int>(std::lround(1000.0 * std::clamp(report.quality, 0.0, 1.0))),
-                     report.fixed ? 1 : 0, report.sigma_mm, report.reason);
+                     report.fixed ? 1 : 0, report.sigma_mm, report.scale, report.reason);
 }
 
 std::vector<FrameReport> ReadFixesCsv(const std::filesystem::path& file) {
@@ -58,10 +58,10 @@ std::vector<FrameReport> ReadFixesCsv(const std::filesystem::path& file) {
     if (!line.empty() && line.back() == '\r') line.pop_back();
     if (line.empty() || line.front() == '#') continue;
     const std::vector<std::string> f = detail::SplitCsv(line);
-    if (static_cast<int>(f.size()) != kFields) {
+    if (f.size() != kFields && f.size() != kFields - 1) {
       detail::LineError(file, number,
                         std::to_string(f.size()) + " fields, " + std::to_string(kFields) +
-                            " expected (timestamp_ns,x_mm,y_mm,yaw_rad,status,quality,fix,sigma_mm,reason)");
+                            " expected (timestamp_ns,x_mm,y_mm,yaw_rad,status,quality,fix,sigma_mm,scale,reason)");
     }
     FrameReport r;
     r.time = core::Timestamp::FromNanoseconds(integer_of(f[0], "timestamp_ns", std::numeric_limits<std::int64_t>::min(),
@@ -73,7 +73,11 @@ std::vector<FrameReport> ReadFixesCsv(const std::filesystem::path& file) {
     r.fixed = integer_of(f[6], "fix", 0, 1) == 1;
     r.sigma_mm = number_of(f[7], "sigma_mm");
     if (r.sigma_mm < 0.0) detail::LineError(file, number, "sigma_mm is negative");
-    r.reason = f[8];
+    if (f.size() == kFields) {
+      r.scale = number_of(f[8], "scale");
+      if (!(r.scale > 0.0 && r.scale < 2.0)) detail::LineError(file, number, "scale " + f[8] + " is outside (0, 2)");
+    }
+    r.reason = f.back();
     reports.push_back(std::move(r));
   }
   return reports;

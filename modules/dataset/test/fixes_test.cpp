@@ -24,6 +24,7 @@ FrameReport Report(double t_s, const Pose2& pose, int status, bool fixed, const 
   r.quality = fixed ? 0.987 : 0.0;
   r.fixed = fixed;
   r.sigma_mm = fixed ? 0.004 : 2.5;
+  r.scale = 1.0 + 0.001 * t_s;
   r.reason = reason;
   return r;
 }
@@ -45,6 +46,7 @@ TEST(FixesCsv, RowsReadBackAsWritten) {
     EXPECT_NEAR(read[i].quality, written[i].quality, 1e-3);
     EXPECT_EQ(read[i].fixed, written[i].fixed);
     EXPECT_NEAR(read[i].sigma_mm, written[i].sigma_mm, 1e-4);
+    EXPECT_NEAR(read[i].scale, written[i].scale, 1e-6);
     EXPECT_EQ(read[i].reason, written[i].reason);
   }
   EXPECT_THROW(FixesCsvRow(Report(0.4, Pose2(), 3, false, "a, b")), core::Error);
@@ -63,11 +65,26 @@ TEST(FixesCsv, BadLinesNameTheFileAndLine) {
     return std::string("no error");
   };
   EXPECT_NE(message("200,1,2,0.1,5,990,1,0.004,\n").find("bad.csv:3: status 5 is outside [0, 4]"), std::string::npos);
-  EXPECT_NE(message("200,1,2,0.1,1,990,1,0.004\n").find("bad.csv:3: 8 fields, 9 expected"), std::string::npos);
+  EXPECT_NE(message("200,1,2,0.1,1,990,1,0.004\n").find("bad.csv:3: 8 fields, 10 expected"), std::string::npos);
+  EXPECT_NE(message("200,1,2,0.1,1,990,1,0.004,2.5,\n").find("bad.csv:3: scale 2.5 is outside (0, 2)"),
+            std::string::npos);
+  EXPECT_NE(message("200,1,2,0.1,1,990,1,0.004,high,\n").find("bad.csv:3: scale 'high' is not a number"),
+            std::string::npos);
   EXPECT_NE(message("200,1,x,0.1,1,990,1,0.004,\n").find("bad.csv:3: y_mm 'x' is not a number"), std::string::npos);
   EXPECT_NE(message("100,1,2,0.1,1,990,1,0.004,\n").find("bad.csv:3: timestamp_ns does not increase"),
             std::string::npos);
   EXPECT_NE(message("200,1,2,0.1,1,990,2,0.004,\n").find("bad.csv:3: fix 2 is outside [0, 1]"), std::string::npos);
+}
+
+// A file from before the scale column (nine fields) reads with scale 1.
+TEST(FixesCsv, RowsWithoutTheScaleReadWithScaleOne) {
+  test::ScratchDir scratch;
+  std::ofstream(scratch.path() / "old.csv") << "#timestamp_ns,x_mm,y_mm,yaw_rad,status,quality,fix,sigma_mm,reason\n"
+                                            << "100,1,2,0.1,4,0,0,2.5,off-map\n";
+  const std::vector<FrameReport> read = ReadFixesCsv(scratch.path() / "old.csv");
+  ASSERT_EQ(read.size(), 1U);
+  EXPECT_EQ(read[0].scale, 1.0);
+  EXPECT_EQ(read[0].reason, "off-map");
 }
 
 // Fixes are checked against the truth at their own time; a fix a floor period off is wrong

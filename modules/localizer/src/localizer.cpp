@@ -83,6 +83,10 @@ bool LocalizerOptions::Check(std::string* why) const {
   if (!(odometry_timing_sigma_ms >= 0.0) || odometry_timing_sigma_ms > 1000.0) {
     return fail("odometry_timing_sigma_ms must be in [0, 1000]");
   }
+  if (!(scale_sigma > 0.0 && scale_sigma <= 0.2)) return fail("scale_sigma must be in (0, 0.2]");
+  if (!(scale_drift_per_sqrt_s >= 0.0 && scale_drift_per_sqrt_s <= 0.1)) {
+    return fail("scale_drift_per_sqrt_s must be in [0, 0.1]");
+  }
   // The parts last, so that a complaint about a field of this struct is not hidden by one of theirs.
   return tracker.Check(why) && relocalize.Check(why) && filter.Check(why) && lock.Check(why) && odometry.Check(why);
 }
@@ -177,6 +181,12 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
     timing.topLeftCorner<2, 2>() = along_mm * along_mm * heading * heading.transpose();
   }
   const Eigen::Matrix3d predicted_covariance = filter_->CovarianceAt(time) + timing;
+  if (!scale_time_) scale_variance_ = options_.scale_sigma * options_.scale_sigma;
+  if (scale_time_ && time > *scale_time_) {
+    const double drift = options_.scale_drift_per_sqrt_s;
+    scale_variance_ += drift * drift * core::ToSeconds(time - *scale_time_);
+  }
+  if (!scale_time_ || time > *scale_time_) scale_time_ = time;
   const core::Pose2 prior_camera = predicted * options_.vehicle_from_camera;
   const Eigen::Matrix3d prior_camera_covariance =
       CameraCovariance(predicted, options_.vehicle_from_camera, predicted_covariance);
@@ -192,7 +202,7 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   if (relocalize) {
     outcome.track = Relocalize(frame, prior_camera, prior_camera_covariance, kidnapped_);
   } else {
-    outcome.track = tracker_.Track(frame, prior_camera, prior_camera_covariance, reference_);
+    outcome.track = tracker_.Track(frame, prior_camera, prior_camera_covariance, reference_, scale_);
   }
   if (outcome.track.ok() && options_.edge_templates > 0 && PartlyOffTheMap(outcome.track)) {
     outcome.track = AtTheEdge(frame, std::move(outcome.track));
@@ -234,6 +244,15 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   } else {
     outcome.reason = tracking::ToString(outcome.track.failure) + std::string(": ") + outcome.track.reason;
   }
+  if (outcome.fixed && outcome.track.scale_estimated) {
+    const double measured_variance = options_.fix_covariance_scale * outcome.track.scale_sigma *
+                                     outcome.track.scale_sigma;
+    const double gain = scale_variance_ / (scale_variance_ + measured_variance);
+    scale_ += gain * (outcome.track.scale - scale_);
+    scale_variance_ *= 1.0 - gain;
+  }
+  outcome.scale = scale_;
+  outcome.scale_sigma = std::sqrt(scale_variance_);
   estimation::FrameVerdict verdict = estimation::FrameVerdict::kFixed;
   if (outcome.fixed) {
     unmatched_run_ = 0;
@@ -253,7 +272,8 @@ tracking::TrackResult Localizer::AtTheEdge(const cv::Mat& frame, tracking::Track
   // templates cost about as much as the refinement of the first ones.
   const double sigma_mm = 0.5 * camera_.mm_per_px();
   const Eigen::Matrix3d around = Eigen::Vector3d(sigma_mm * sigma_mm, sigma_mm * sigma_mm, 1e-6).asDiagonal();
-  tracking::TrackResult precise = edge_tracker_.Track(frame, found.world_from_camera, around, reference_);
+  tracking::TrackResult precise =
+      edge_tracker_.Track(frame, found.world_from_camera, around, reference_, found.scale);
   if (!precise.ok() || precise.inliers < found.inliers) return found;
   return precise;
 }

@@ -166,6 +166,7 @@ struct Published {
   estimation::LockState lock = estimation::LockState::kLost;
   bool fixed_once = false;
   double quality = 0.0;
+  double scale = 1.0;  // the image scale the localizer holds (FrameOutcome::scale)
 };
 
 // Counters for the status line and the summary; each written by one thread.
@@ -443,7 +444,7 @@ class LiveRun::Impl {
     wake_.notify_one();
   }
 
-  void Publish(bool fixed, double quality) {
+  void Publish(bool fixed, double quality, std::optional<double> scale = std::nullopt) {
     const estimation::MotionState motion = localizer_->Latest();
     // Each prediction replans the prefetch. Encoder batches come several times a frame, and
     // a prediction every 30 ms is all the loaders need: from frames, or from odometry alone
@@ -460,6 +461,7 @@ class LiveRun::Impl {
       published_.fixed_once = true;
       published_.quality = quality;
     }
+    if (scale) published_.scale = *scale;
   }
 
   void TrackingLoop() {
@@ -510,7 +512,7 @@ class LiveRun::Impl {
       } else {
         core::Log().debug("run: frame {} not fixed: {}", frame->sequence, outcome.reason);
       }
-      Publish(outcome.fixed, outcome.fix_quality);
+      Publish(outcome.fixed, outcome.fix_quality, outcome.scale);
       const std::lock_guard lock(stats_.mutex);
       stats_.frame_latency_ms.push_back(Ms(io::MonotonicNow() - frame->time));
     }
@@ -558,7 +560,8 @@ class LiveRun::Impl {
             {"answered", stats_.answered.load()},
             {"x_mm", pose.x_mm()},
             {"y_mm", pose.y_mm()},
-            {"yaw_deg", pose.yaw_rad() * 180.0 / std::numbers::pi}};
+            {"yaw_deg", pose.yaw_rad() * 180.0 / std::numbers::pi},
+            {"scale", state.scale}};
   }
 
   nlohmann::json Summary(const std::string& why) {
@@ -573,6 +576,11 @@ class LiveRun::Impl {
     };
     const io::PlcLinkStats& link = stats_.link;
     const std::int64_t processed = stats_.processed;
+    double scale = 1.0;
+    {
+      const std::lock_guard published(published_mutex_);
+      scale = published_.scale;
+    }
     nlohmann::json wheel_scale = nullptr;
     if (localizer_->initialized()) {
       const Eigen::Vector2d k = localizer_->wheel_scale_error();
@@ -588,6 +596,7 @@ class LiveRun::Impl {
             {"relocalizations", localizer_->relocalizations()},
             {"relocalize_requests", stats_.relocalize_requests.load()},
             {"wheel_scale_error", wheel_scale},
+            {"scale", scale},
             {"latency_p50_ms", percentile(latency, 50.0)},
             {"latency_p99_ms", percentile(latency, 99.0)},
             {"encoder_samples", stats_.encoder_samples.load()},

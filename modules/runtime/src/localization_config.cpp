@@ -61,7 +61,11 @@ void ReadLocalizerConfig(const YAML::Node& node, const std::string& file_name, L
   solver.Optional("loss_scale_mm", &t.solver.loss_scale_mm);
   solver.Optional("outlier_threshold_mm", &t.solver.outlier_threshold_mm);
   solver.Optional("min_inliers", &t.solver.min_inliers);
+  solver.Optional("estimate_scale", &t.solver.estimate_scale);
+  solver.Optional("scale_sigma", &o.scale_sigma);
+  solver.Optional("scale_drift_per_sqrt_s", &o.scale_drift_per_sqrt_s);
   solver.Check(t.solver);
+  solver.CheckOwnKeys(o);
   solver.Finish();
 
   core::YamlMap filter = root.OptionalMap("filter");

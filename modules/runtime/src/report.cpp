@@ -55,6 +55,7 @@ dataset::FrameReport FrameReportOf(core::Timestamp time, const localizer::FrameO
   report.status = static_cast<int>(outcome.lock);
   report.quality = outcome.fixed ? outcome.fix_quality : 0.0;
   report.sigma_mm = std::sqrt(std::max(outcome.covariance(0, 0), outcome.covariance(1, 1)));
+  report.scale = outcome.scale;
   report.reason = outcome.ReasonWord();
   return report;
 }

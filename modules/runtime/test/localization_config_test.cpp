@@ -24,6 +24,8 @@ TEST(LocalizerConfig, DefaultFileEqualsCompiledDefaults) {
   EXPECT_EQ(a.templates.min_texture, b.templates.min_texture);
   EXPECT_EQ(a.spare_templates, b.spare_templates);
   EXPECT_EQ(loaded.localizer.edge_templates, compiled.localizer.edge_templates);
+  EXPECT_EQ(loaded.localizer.scale_sigma, compiled.localizer.scale_sigma);
+  EXPECT_EQ(loaded.localizer.scale_drift_per_sqrt_s, compiled.localizer.scale_drift_per_sqrt_s);
   EXPECT_EQ(a.search_sigmas, b.search_sigmas);
   EXPECT_EQ(a.min_search_px, b.min_search_px);
   EXPECT_EQ(a.max_search_px, b.max_search_px);
@@ -43,6 +45,7 @@ TEST(LocalizerConfig, DefaultFileEqualsCompiledDefaults) {
   EXPECT_EQ(a.solver.loss_scale_mm, b.solver.loss_scale_mm);
   EXPECT_EQ(a.solver.outlier_threshold_mm, b.solver.outlier_threshold_mm);
   EXPECT_EQ(a.solver.min_inliers, b.solver.min_inliers);
+  EXPECT_EQ(a.solver.estimate_scale, b.solver.estimate_scale);
   const localizer::LocalizerOptions& l = loaded.localizer;
   const localizer::LocalizerOptions& m = compiled.localizer;
   EXPECT_EQ(l.filter.gate_chi2, m.filter.gate_chi2);

@@ -20,6 +20,9 @@ struct FrameReport {
   double quality = 0.0;            ///< 0..1 (written as 0..1000); 0 without a fix
   bool fixed = false;              ///< a visual fix was accepted for this frame
   double sigma_mm = 0.0;           ///< the estimate's position standard deviation after the frame
+  /// The image scale the localizer holds after the frame: the camera's height over the floor
+  /// against the calibrated one (1.0025: 0.5 mm higher at 200 mm); 1 where it is not estimated.
+  double scale = 1.0;
   std::string reason;              ///< why no fix, one word ("off-map", "no-match", ...); empty with one
 };
 
@@ -30,7 +33,8 @@ std::string FixesCsvHeader();
 std::string FixesCsvRow(const FrameReport& report);
 
 /// Reads fixes.csv; every line is validated (field count, numbers, status 0-4, quality
-/// 0-1000, fix 0 or 1, times increasing). Throws core::Error (invalid input) "file:line:
+/// 0-1000, fix 0 or 1, scale in (0, 2), times increasing). Rows of nine fields (written before
+/// the scale column) read with scale 1. Throws core::Error (invalid input) "file:line:
 /// reason" on the first bad line.
 std::vector<FrameReport> ReadFixesCsv(const std::filesystem::path& file);
 

@@ -69,6 +69,12 @@ struct LocalizerOptions {
   /// rejected fixes that are off the prediction by the same amount (within their
   /// uncertainty), the filter restarts from the newest. 0: never.
   int reanchor_after_rejections = 3;
+  /// The image scale (the camera's height over the floor against the calibrated one), where
+  /// tracker.solver.estimate_scale measures it: a scalar Kalman filter of the fixes' scales
+  /// whose value seeds each frame's registration. It starts at 1 with scale_sigma, and wanders
+  /// by scale_drift_per_sqrt_s (load, tyre wear, an uneven floor) between fixes.
+  double scale_sigma = 0.02;
+  double scale_drift_per_sqrt_s = 0.002;
   bool Check(std::string* why) const;
 };
 
@@ -87,6 +93,10 @@ struct FrameOutcome {
   core::Pose2 world_from_vehicle;    ///< the filter's estimate at the frame's time, after the fix
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
   estimation::LockState lock = estimation::LockState::kTracking;
+  /// The image scale estimate after the frame, and its standard deviation (LocalizerOptions::
+  /// scale_sigma): 1.004 is a camera 0.4 % higher over the floor than calibrated.
+  double scale = 1.0;
+  double scale_sigma = 0.0;
   tracking::TrackResult track;       ///< the tracker's full diagnostics
 };
 
@@ -180,6 +190,10 @@ class Localizer {
   /// (frames without texture neither count nor break the run).
   int unmatched_run_ = 0;
   bool kidnapped_ = false;
+  // The image scale's estimate, its variance, and the time it was last brought to.
+  double scale_ = 1.0;
+  double scale_variance_ = 0.0;
+  std::optional<core::Timestamp> scale_time_;
 };
 
 /// Share (0..1) of the floor seen by a camera at `world_from_camera`, grown by `margin_mm`
