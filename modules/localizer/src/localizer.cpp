@@ -350,14 +350,15 @@ tracking::TrackResult Localizer::Relocalize(const cv::Mat& frame, const core::Po
   if (kidnapped) {
     // The covariance no longer says where to look: the whole radius is searched, any place taken.
     return relocalizer_.Search(frame, prior_camera, prior_camera_covariance, options_.relocalize_radius_mm,
-                               std::nullopt);
+                               std::nullopt, scale_);
   }
   // The prediction's gate, and a little more for the candidates' own uncertainty.
   const double sigma_mm = std::sqrt(std::max(prior_camera_covariance(0, 0), prior_camera_covariance(1, 1)));
   const double radius_mm =
       std::min(options_.relocalize_radius_mm, std::sqrt(options_.filter.gate_chi2) * sigma_mm + 20.0);
   return relocalizer_.Search(frame, prior_camera, prior_camera_covariance, radius_mm,
-                             tracking::RelocalizeGate{options_.filter.gate_chi2, options_.fix_covariance_scale});
+                             tracking::RelocalizeGate{options_.filter.gate_chi2, options_.fix_covariance_scale},
+                             scale_);
 }
 
 double MapCoverage(const tracking::ReferenceRaster& reference, const camera::IdealCamera& camera,

@@ -35,6 +35,9 @@ class ReplayTest : public ::testing::Test {
     options.encoders.left_radius_error = 0.02;
     options.encoders.right_radius_error = 0.02;
     sim::Simulate(options, scratch_->path() / "drive", false);
+    options.height_offset_mm = 3.0;  // 1.5 % higher than the map was made at
+    options.seed = 7;
+    sim::Simulate(options, scratch_->path() / "higher", false);
 
     const dataset::DatasetReader reader(scratch_->path() / "map-run");
     const dataset::Trajectory truth = reader.GroundTruth();
@@ -88,6 +91,31 @@ TEST_F(ReplayTest, MosaicLocalizesEveryFrameWithoutAWrongFix) {
   for (const char* file : {"estimate.tum", "metrics.json", "trajectory.png"}) {
     EXPECT_TRUE(std::filesystem::exists(summary.report / file)) << file;
   }
+}
+
+// The camera 3 mm higher than when the map was made: the localizer finds the scale at the
+// first fix and holds the floor as at the mapped height; the rigid solve of before could not.
+TEST_F(ReplayTest, AHigherCameraIsFollowedByTheImageScale) {
+  ReplayOptions options = Options(ReplayMode::kMosaic, "higher");
+  options.dataset = scratch_->path() / "higher";
+  const ReplaySummary summary = Replay(options);
+  const dataset::Metrics& m = summary.metrics;
+  ASSERT_TRUE(m.fix_rate && m.wrong_fixes && m.position_rms_mm && m.position_max_mm && m.lock_losses);
+  EXPECT_GE(*m.fix_rate, 0.98);
+  EXPECT_EQ(*m.wrong_fixes, 0);
+  EXPECT_EQ(*m.lock_losses, 0);
+  EXPECT_LT(*m.position_rms_mm, 0.02);
+  EXPECT_LT(*m.position_max_mm, 0.1);
+  for (const dataset::FrameReport& row : Fixes(summary)) {
+    if (row.fixed) {
+      EXPECT_NEAR(row.scale * 200.0, 203.0, 0.05) << "the height, mm";
+    }
+  }
+  options.settings.localizer.tracker.solver.estimate_scale = false;
+  options.out = scratch_->path() / "higher-rigid";
+  const ReplaySummary rigid = Replay(options);
+  ASSERT_TRUE(rigid.metrics.fix_rate);
+  EXPECT_LT(*rigid.metrics.fix_rate, 0.5) << "without the scale, the view does not match the map";
 }
 
 TEST_F(ReplayTest, PrefetchingChangesWhereTilesLoadNotTheEstimate) {

@@ -35,8 +35,8 @@ Relocalizer::Relocalizer(const Tracker& tracker, const ReferenceRaster& referenc
 
 TrackResult Relocalizer::Search(const cv::Mat& frame, const core::Pose2& prior,
                                 const Eigen::Matrix3d& prior_covariance, double radius_mm,
-                                const std::optional<RelocalizeGate>& gate) const {
-  const camera::IdealCamera& camera = tracker_.camera();
+                                const std::optional<RelocalizeGate>& gate, double scale_prior) const {
+  const camera::IdealCamera camera = tracker_.camera().Scaled(scale_prior);
   TrackResult none;
   none.failure = TrackFailure::kNoMatch;
   none.reason = "relocalization found no verified place";
@@ -92,7 +92,7 @@ TrackResult Relocalizer::Search(const cv::Mat& frame, const core::Pose2& prior,
     const Eigen::Vector2d shift_px = scale * Eigen::Vector2d(at.x - range, at.y - range);
     const Eigen::Vector2d shift_camera_mm(shift_px.x() * camera.mm_per_px(), -shift_px.y() * camera.mm_per_px());
     const core::Pose2 candidate = prior * core::Pose2(shift_camera_mm, 0.0);
-    TrackResult r = tracker_.Track(frame, candidate, candidate_covariance, reference_);
+    TrackResult r = tracker_.Track(frame, candidate, candidate_covariance, reference_, scale_prior);
     if (!r.ok() || r.mean_zncc < options_.min_zncc) continue;
     // Two peaks of one place verify to the same pose: keep it once, with its better match.
     const auto same = std::find_if(verified.begin(), verified.end(), [&r](const TrackResult& v) {

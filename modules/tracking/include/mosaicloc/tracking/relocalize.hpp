@@ -54,9 +54,10 @@ class Relocalizer {
   /// best candidates, and takes one of the verified places: with a `gate` only places inside
   /// it, then ChooseRelocalization. Never throws for a frame that cannot be placed: the result
   /// says why (kNoMatch: no place verified, or none inside the gate; kAmbiguous: equally good
-  /// places that the prediction does not decide between).
+  /// places that the prediction does not decide between). `scale` is the image scale the
+  /// frame is expected at (TrackResult::scale).
   TrackResult Search(const cv::Mat& frame, const core::Pose2& prior, const Eigen::Matrix3d& prior_covariance,
-                     double radius_mm, const std::optional<RelocalizeGate>& gate) const;
+                     double radius_mm, const std::optional<RelocalizeGate>& gate, double scale = 1.0) const;
 
  private:
   const Tracker& tracker_;
