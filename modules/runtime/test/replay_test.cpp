@@ -35,9 +35,6 @@ class ReplayTest : public ::testing::Test {
     options.encoders.left_radius_error = 0.02;
     options.encoders.right_radius_error = 0.02;
     sim::Simulate(options, scratch_->path() / "drive", false);
-    options.height_offset_mm = 3.0;  // 1.5 % higher than the map was made at
-    options.seed = 7;
-    sim::Simulate(options, scratch_->path() / "higher", false);
 
     const dataset::DatasetReader reader(scratch_->path() / "map-run");
     const dataset::Trajectory truth = reader.GroundTruth();
@@ -94,8 +91,20 @@ TEST_F(ReplayTest, MosaicLocalizesEveryFrameWithoutAWrongFix) {
 }
 
 // The camera 3 mm higher than when the map was made: the localizer finds the scale at the
-// first fix and holds the floor as at the mapped height; the rigid solve of before could not.
+// first fix and holds the floor as at the mapped height (a rigid solve loses such a view:
+// Tracker.EstimatesTheImageScaleOfAHigherCamera).
 TEST_F(ReplayTest, AHigherCameraIsFollowedByTheImageScale) {
+  // The fixture's drive, again, from 3 mm (1.5 %) higher than the map was made at.
+  sim::SimulatorOptions drive;
+  drive.route.name = "straight";
+  drive.route.straight_length_m = 1.5;
+  drive.laps = 1;
+  drive.route.speed_mps = 1.2;
+  drive.seed = 7;
+  drive.encoders.left_radius_error = 0.02;
+  drive.encoders.right_radius_error = 0.02;
+  drive.height_offset_mm = 3.0;
+  sim::Simulate(drive, scratch_->path() / "higher", false);
   ReplayOptions options = Options(ReplayMode::kMosaic, "higher");
   options.dataset = scratch_->path() / "higher";
   const ReplaySummary summary = Replay(options);
@@ -111,11 +120,6 @@ TEST_F(ReplayTest, AHigherCameraIsFollowedByTheImageScale) {
       EXPECT_NEAR(row.scale * 200.0, 203.0, 0.05) << "the height, mm";
     }
   }
-  options.settings.localizer.tracker.solver.estimate_scale = false;
-  options.out = scratch_->path() / "higher-rigid";
-  const ReplaySummary rigid = Replay(options);
-  ASSERT_TRUE(rigid.metrics.fix_rate);
-  EXPECT_LT(*rigid.metrics.fix_rate, 0.5) << "without the scale, the view does not match the map";
 }
 
 TEST_F(ReplayTest, PrefetchingChangesWhereTilesLoadNotTheEstimate) {
