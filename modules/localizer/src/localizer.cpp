@@ -121,7 +121,8 @@ Localizer::Localizer(const camera::IdealCamera& camera, const LocalizerOptions& 
       edge_tracker_(camera, EdgeTrackerOptions(options)),
       relocalizer_(tracker_, reference, options.relocalize),
       odometry_(options.odometry),
-      lock_(options.lock) {
+      lock_(options.lock),
+      scale_variance_(options.scale_sigma * options.scale_sigma) {
   std::string why;
   if (!options_.Check(&why)) core::ThrowInvalidInput("localizer options: " + why);
 }
@@ -181,12 +182,11 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
     timing.topLeftCorner<2, 2>() = along_mm * along_mm * heading * heading.transpose();
   }
   const Eigen::Matrix3d predicted_covariance = filter_->CovarianceAt(time) + timing;
-  if (!scale_time_) scale_variance_ = options_.scale_sigma * options_.scale_sigma;
-  if (scale_time_ && time > *scale_time_) {
+  if (!scale_time_ || time > *scale_time_) {
     const double drift = options_.scale_drift_per_sqrt_s;
-    scale_variance_ += drift * drift * core::ToSeconds(time - *scale_time_);
+    if (scale_time_) scale_variance_ += drift * drift * core::ToSeconds(time - *scale_time_);
+    scale_time_ = time;
   }
-  if (!scale_time_ || time > *scale_time_) scale_time_ = time;
   const core::Pose2 prior_camera = predicted * options_.vehicle_from_camera;
   const Eigen::Matrix3d prior_camera_covariance =
       CameraCovariance(predicted, options_.vehicle_from_camera, predicted_covariance);

@@ -65,6 +65,7 @@ bool LiveRunOptions::Check(std::string* why) const {
   if (!in(max_encoder_wait_ms, 0.0, 10000.0)) return fail("max_encoder_wait_ms must be in [0, 10000]");
   return true;
 }
+
 // The live run's parts, named rather than file-local: LiveRun::Impl holds them.
 namespace live_run_detail {
 

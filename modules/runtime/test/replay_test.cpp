@@ -21,20 +21,26 @@ namespace {
 // driven again at 1.2 m/s with other noise and wheels 2 % larger than calibrated.
 class ReplayTest : public ::testing::Test {
  protected:
-  static void SetUpTestSuite() {
-    scratch_ = new test::ScratchDir();
+  // The mapping run (0.5 m/s, seed 5), or with `drive` the run localized (1.2 m/s, seed 6,
+  // wheels 2 % larger than calibrated).
+  static sim::SimulatorOptions Run(bool drive) {
     sim::SimulatorOptions options;
     options.route.name = "straight";
     options.route.straight_length_m = 1.5;
     options.laps = 1;
-    options.route.speed_mps = 0.5;
-    options.seed = 5;
-    sim::Simulate(options, scratch_->path() / "map-run", false);
-    options.route.speed_mps = 1.2;
-    options.seed = 6;
-    options.encoders.left_radius_error = 0.02;
-    options.encoders.right_radius_error = 0.02;
-    sim::Simulate(options, scratch_->path() / "drive", false);
+    options.route.speed_mps = drive ? 1.2 : 0.5;
+    options.seed = drive ? 6 : 5;
+    if (drive) {
+      options.encoders.left_radius_error = 0.02;
+      options.encoders.right_radius_error = 0.02;
+    }
+    return options;
+  }
+
+  static void SetUpTestSuite() {
+    scratch_ = new test::ScratchDir();
+    sim::Simulate(Run(false), scratch_->path() / "map-run", false);
+    sim::Simulate(Run(true), scratch_->path() / "drive", false);
 
     const dataset::DatasetReader reader(scratch_->path() / "map-run");
     const dataset::Trajectory truth = reader.GroundTruth();
@@ -95,14 +101,8 @@ TEST_F(ReplayTest, MosaicLocalizesEveryFrameWithoutAWrongFix) {
 // Tracker.EstimatesTheImageScaleOfAHigherCamera).
 TEST_F(ReplayTest, AHigherCameraIsFollowedByTheImageScale) {
   // The fixture's drive, again, from 3 mm (1.5 %) higher than the map was made at.
-  sim::SimulatorOptions drive;
-  drive.route.name = "straight";
-  drive.route.straight_length_m = 1.5;
-  drive.laps = 1;
-  drive.route.speed_mps = 1.2;
+  sim::SimulatorOptions drive = Run(true);
   drive.seed = 7;
-  drive.encoders.left_radius_error = 0.02;
-  drive.encoders.right_radius_error = 0.02;
   drive.height_offset_mm = 3.0;
   sim::Simulate(drive, scratch_->path() / "higher", false);
   ReplayOptions options = Options(ReplayMode::kMosaic, "higher");

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <memory>
 #include <utility>
 #include <vector>
@@ -317,8 +316,6 @@ class FrameRegistration {
   void Rescale(const PoseSolution& solution) {
     if (!solution.scale_estimated) return;
     view_scale_ *= solution.scale;
-    view_scale_sigma_ = view_scale_ * solution.scale_sigma;
-    scale_estimated_ = true;
     camera_ = calibrated_.Scaled(view_scale_);
   }
 
@@ -335,9 +332,11 @@ class FrameRegistration {
     result_.covariance = pose_.covariance;
     result_.inliers = pose_.inliers;
     result_.rms_residual_mm = pose_.rms_residual_mm;
+    // The last solve's scale is relative to view_scale_ before it was applied, so its
+    // standard deviation scales with view_scale_ after.
     result_.scale = view_scale_;
-    result_.scale_sigma = view_scale_sigma_;
-    result_.scale_estimated = scale_estimated_ && pose_.scale_estimated;
+    result_.scale_estimated = pose_.scale_estimated;
+    if (pose_.scale_estimated) result_.scale_sigma = view_scale_ * pose_.scale_sigma;
     double zncc_sum = 0.0;
     int zncc_count = 0;
     for (const TemplateReport& report : result_.templates) {
@@ -351,8 +350,6 @@ class FrameRegistration {
   const camera::IdealCamera& calibrated_;
   camera::IdealCamera camera_;  // at view_scale_
   double view_scale_ = 1.0;
-  double view_scale_sigma_ = std::numeric_limits<double>::infinity();
-  bool scale_estimated_ = false;
   const TrackerOptions& options_;
   const cv::Mat& frame_;
   const core::Pose2& prior_;

@@ -1,3 +1,5 @@
+#include <algorithm>
+#include <cstdint>
 #include <random>
 #include <vector>
 
@@ -10,57 +12,42 @@
 namespace mosaicloc::tracking {
 namespace {
 
-TEST(PoseSolver, AnalyticJacobianMatchesNumeric) {
-  std::mt19937 rng(8);
+// Central differences of `residual` (N parameters, 2 x N row-major Jacobian) against its
+// analytic Jacobian at random correspondences, poses (with N = 4 the scale drawn near 1) and
+// relative sigmas.
+template <int N, typename Residual>
+void ExpectJacobianMatchesNumeric(Residual residual, std::uint32_t seed) {
+  std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(-100.0, 100.0);
   for (int trial = 0; trial < 20; ++trial) {
     Correspondence c;
     c.camera_mm = {u(rng), u(rng)};
     c.world_mm = {u(rng), u(rng)};
-    const double pose[3] = {u(rng), u(rng), u(rng) * 0.03};
+    double pose[N] = {u(rng), u(rng), u(rng) * 0.03};
+    if (N == 4) pose[N - 1] = 1.0 + u(rng) * 1e-3;
     const double scale = 0.5 + std::abs(u(rng)) / 100.0;
-    double r[2], j[6];
-    PlanarResidual(pose, c, scale, r, j);
-    for (int p = 0; p < 3; ++p) {
+    double r[2], j[2 * N];
+    residual(pose, c, scale, r, j);
+    for (int p = 0; p < N; ++p) {
       const double h = 1e-6;
-      double plus[3] = {pose[0], pose[1], pose[2]}, minus[3] = {pose[0], pose[1], pose[2]};
+      double plus[N], minus[N];
+      std::copy(pose, pose + N, plus);
+      std::copy(pose, pose + N, minus);
       plus[p] += h;
       minus[p] -= h;
       double rp[2], rm[2];
-      PlanarResidual(plus, c, scale, rp, nullptr);
-      PlanarResidual(minus, c, scale, rm, nullptr);
+      residual(plus, c, scale, rp, nullptr);
+      residual(minus, c, scale, rm, nullptr);
       for (int k = 0; k < 2; ++k) {
-        EXPECT_NEAR(j[k * 3 + p], (rp[k] - rm[k]) / (2 * h), 1e-6) << "residual " << k << " parameter " << p;
+        EXPECT_NEAR(j[k * N + p], (rp[k] - rm[k]) / (2 * h), 1e-6) << "residual " << k << " parameter " << p;
       }
     }
   }
 }
 
-TEST(PoseSolver, SimilarityJacobianMatchesNumeric) {
-  std::mt19937 rng(18);
-  std::uniform_real_distribution<double> u(-100.0, 100.0);
-  for (int trial = 0; trial < 20; ++trial) {
-    Correspondence c;
-    c.camera_mm = {u(rng), u(rng)};
-    c.world_mm = {u(rng), u(rng)};
-    const double pose[4] = {u(rng), u(rng), u(rng) * 0.03, 1.0 + u(rng) * 1e-3};
-    const double scale = 0.5 + std::abs(u(rng)) / 100.0;
-    double r[2], j[8];
-    SimilarityResidual(pose, c, scale, r, j);
-    for (int p = 0; p < 4; ++p) {
-      const double h = 1e-6;
-      double plus[4] = {pose[0], pose[1], pose[2], pose[3]}, minus[4] = {pose[0], pose[1], pose[2], pose[3]};
-      plus[p] += h;
-      minus[p] -= h;
-      double rp[2], rm[2];
-      SimilarityResidual(plus, c, scale, rp, nullptr);
-      SimilarityResidual(minus, c, scale, rm, nullptr);
-      for (int k = 0; k < 2; ++k) {
-        EXPECT_NEAR(j[k * 4 + p], (rp[k] - rm[k]) / (2 * h), 1e-6) << "residual " << k << " parameter " << p;
-      }
-    }
-  }
-}
+TEST(PoseSolver, AnalyticJacobianMatchesNumeric) { ExpectJacobianMatchesNumeric<3>(PlanarResidual, 8); }
+
+TEST(PoseSolver, SimilarityJacobianMatchesNumeric) { ExpectJacobianMatchesNumeric<4>(SimilarityResidual, 18); }
 
 std::vector<Correspondence> MakeCorrespondences(const Pose2& truth, int n, double noise_mm, std::mt19937* rng) {
   std::uniform_real_distribution<double> u(-80.0, 80.0);
