@@ -21,6 +21,8 @@ void ReadSimulatorConfig(const YAML::Node& node, const std::string& file_name, S
   floor.Optional("image", &image);
   options->floor.image = image;
   floor.Optional("mm_per_texel", &options->floor.mm_per_texel);
+  floor.Optional("unevenness_mm", &options->floor.unevenness_mm);
+  floor.Optional("unevenness_wavelength_m", &options->floor.unevenness_wavelength_m);
   // The ranges are the options' Check()s, run per section so that a complaint names its key
   // and line, then over the whole.
   floor.Check(options->floor);
@@ -54,6 +56,8 @@ void ReadSimulatorConfig(const YAML::Node& node, const std::string& file_name, S
   camera.Optional("drop_probability", &options->drop_probability);
   camera.Optional("height_mm", &options->camera_height_mm);
   camera.Optional("height_offset_mm", &options->height_offset_mm);
+  camera.Optional("height_drift_mm_per_min", &options->height_drift_mm_per_min);
+  camera.Optional("residual_k1", &options->residual_k1);
   camera.CheckOwnKeys(*options, {{"camera_height_mm", "height_mm"}});
   camera.Check(options->camera);
   core::YamlMap mount = camera.OptionalMap("vehicle_from_camera");
@@ -66,6 +70,15 @@ void ReadSimulatorConfig(const YAML::Node& node, const std::string& file_name, S
   mount.Finish();
   options->vehicle_from_camera = core::Pose2(x_mm, y_mm, yaw_rad);
   camera.Finish();
+
+  core::YamlMap suspension = root.OptionalMap("suspension");
+  SuspensionOptions& u = options->suspension;
+  suspension.Optional("pitch_deg_per_mps2", &u.pitch_deg_per_mps2);
+  suspension.Optional("roll_deg_per_mps2", &u.roll_deg_per_mps2);
+  suspension.Optional("pivot_height_mm", &u.pivot_height_mm);
+  suspension.Optional("caster_x_mm", &u.caster_x_mm);
+  suspension.Check(u);
+  suspension.Finish();
 
   core::YamlMap imaging = root.OptionalMap("imaging");
   ImagingOptions& i = options->imaging;

@@ -28,6 +28,18 @@ std::string Number(double value) {
   return out.str();
 }
 
+// The vehicle's (longitudinal, lateral) acceleration at t, m/s^2, from the drive's speed and
+// turn rate over 10 ms either side.
+Eigen::Vector2d Acceleration(const Drive& drive, double t) {
+  constexpr double kH = 0.01;
+  const VehicleState before = drive.At(t - kH);
+  const VehicleState now = drive.At(t);
+  const VehicleState after = drive.At(t + kH);
+  const double longitudinal = (after.forward_speed_mps - before.forward_speed_mps) / (2 * kH);
+  const double turn_rate = core::YawDifference(after.world_from_vehicle, before.world_from_vehicle) / (2 * kH);
+  return {longitudinal, now.forward_speed_mps * turn_rate};
+}
+
 }  // namespace
 
 FloorChoice FloorChoice::Named(const std::string& name, FloorChoice base) {
@@ -47,6 +59,14 @@ bool FloorChoice::Check(std::string* why) const {
   }
   if (!(mm_per_texel >= 0.0 && mm_per_texel <= 100.0)) {
     *why = "mm_per_texel must be in [0, 100] (0: the floor's default)";
+    return false;
+  }
+  if (!(unevenness_mm >= 0.0 && unevenness_mm <= 50.0)) {
+    *why = "unevenness_mm must be in [0, 50]";
+    return false;
+  }
+  if (!(unevenness_wavelength_m >= 0.2 && unevenness_wavelength_m <= 100.0)) {
+    *why = "unevenness_wavelength_m must be in [0.2, 100]";
     return false;
   }
   return true;
@@ -99,6 +119,14 @@ bool SimulatorOptions::Check(std::string* why) const {
     *why = "height_offset_mm must be within 20 % of camera_height_mm";
     return false;
   }
+  if (!(std::abs(height_drift_mm_per_min) <= 10.0)) {
+    *why = "height_drift_mm_per_min must be within [-10, 10]";
+    return false;
+  }
+  if (!(std::abs(residual_k1) <= 0.1)) {
+    *why = "residual_k1 must be within [-0.1, 0.1]";
+    return false;
+  }
   if (threads < 1 || threads > 64) {
     *why = "threads must be in [1, 64]";
     return false;
@@ -108,7 +136,27 @@ bool SimulatorOptions::Check(std::string* why) const {
     *why = "floor." + *why;
     return false;
   }
+  if (!suspension.Check(why)) {
+    *why = "suspension." + *why;
+    return false;
+  }
   return route.Check(why) && camera.Check(why) && imaging.Check(why) && encoders.Check(why);
+}
+
+CameraPlacement MakeCameraPlacement(const SimulatorOptions& options) {
+  CameraPlacementOptions placement;
+  placement.calibrated_height_mm = options.camera_height_mm;
+  placement.height_offset_mm = options.height_offset_mm;
+  placement.height_drift_mm_per_min = options.height_drift_mm_per_min;
+  placement.residual_k1 = options.residual_k1;
+  placement.vehicle_from_camera = options.vehicle_from_camera;
+  placement.track_width_mm = options.encoders.nominal.track_width_mm * (1.0 + options.encoders.track_width_error);
+  placement.suspension = options.suspension;
+  placement.unevenness_mm = options.floor.unevenness_mm;
+  placement.unevenness_wavelength_m = options.floor.unevenness_wavelength_m;
+  placement.floor_seed = options.floor.seed;
+  const camera::IdealCamera camera(options.camera);
+  return CameraPlacement(placement, camera.mm_per_px(), camera.cx(), camera.cy());
 }
 
 SimulationSummary Simulate(const SimulatorOptions& options, const std::filesystem::path& out, bool overwrite,
@@ -120,9 +168,13 @@ SimulationSummary Simulate(const SimulatorOptions& options, const std::filesyste
   const int laps = options.laps > 0 ? options.laps
                                     : Drive::LapsForFrames(options.route, options.frames, options.frame_rate_hz);
   const Drive drive(options.route, laps, options.seed);
-  // The frames as the camera really sees them: from its true height.
+  const CameraPlacement placement = MakeCameraPlacement(options);
+  // The frames as the camera really sees them: straight down from its true height, or
+  // through the rays of its 3-D pose.
   const camera::IdealCamera seen =
-      camera.Scaled((options.camera_height_mm + options.height_offset_mm) / options.camera_height_mm);
+      placement.straight_down()
+          ? camera.Scaled((options.camera_height_mm + options.height_offset_mm) / options.camera_height_mm)
+          : camera;
   const Imager imager(*floor, seen, options.imaging, options.seed);
   EncoderModel encoders(options.encoders, options.seed);
 
@@ -174,6 +226,18 @@ SimulationSummary Simulate(const SimulatorOptions& options, const std::filesyste
       Number(options.encoders.nominal.right_wheel_radius_mm * (1.0 + options.encoders.right_radius_error));
   p["true_track_width_mm"] = Number(options.encoders.nominal.track_width_mm * (1.0 + options.encoders.track_width_error));
   p["wheel_slip_std"] = Number(options.encoders.slip_std);
+  p["camera_height_mm"] = Number(options.camera_height_mm);
+  p["height_offset_mm"] = Number(options.height_offset_mm);
+  if (!placement.straight_down()) {
+    p["height_drift_mm_per_min"] = Number(options.height_drift_mm_per_min);
+    p["residual_k1"] = Number(options.residual_k1);
+    p["unevenness_mm"] = Number(options.floor.unevenness_mm);
+    p["unevenness_wavelength_m"] = Number(options.floor.unevenness_wavelength_m);
+    p["pitch_deg_per_mps2"] = Number(options.suspension.pitch_deg_per_mps2);
+    p["roll_deg_per_mps2"] = Number(options.suspension.roll_deg_per_mps2);
+    p["pivot_height_mm"] = Number(options.suspension.pivot_height_mm);
+    p["caster_x_mm"] = Number(options.suspension.caster_x_mm);
+  }
 
   dataset::DatasetWriter writer(out, info, overwrite);
 
@@ -189,8 +253,10 @@ SimulationSummary Simulate(const SimulatorOptions& options, const std::filesyste
   // Frames, rendered in parallel batches and written in order.
   dataset::Trajectory groundtruth;
   groundtruth.reserve(capture_s.size());
+  std::string camera_csv = dataset::CameraTruthHeader();
   const std::size_t batch = 8 * static_cast<std::size_t>(options.threads);
   std::vector<std::vector<unsigned char>> encoded(batch);
+  std::vector<dataset::CameraTruth> camera_truth(batch);
   for (std::size_t first = 0; first < capture_s.size(); first += batch) {
     const std::size_t count = std::min(batch, capture_s.size() - first);
     const auto render = [&](std::size_t i) {
@@ -201,8 +267,16 @@ SimulationSummary Simulate(const SimulatorOptions& options, const std::filesyste
       const core::Pose2 after = drive.At(t + kHalfStepS).world_from_vehicle * options.vehicle_from_camera;
       const Eigen::Vector2d velocity_camera =
           world_from_camera.Rotation().transpose() * (after.translation_mm() - before.translation_mm()) / (2 * kHalfStepS);
-      encoded[i] = dataset::DatasetWriter::EncodeFrame(
-          imager.Render(world_from_camera, velocity_camera, t, Mix(options.seed, first + i + 1)));
+      const std::uint64_t frame_seed = Mix(options.seed, first + i + 1);
+      const core::Pose2 world_from_vehicle = drive.At(t).world_from_vehicle;
+      const CameraView view = placement.At(world_from_vehicle, Acceleration(drive, t), t);
+      camera_truth[i] = placement.Truth(view, world_from_vehicle);
+      if (placement.straight_down()) {
+        encoded[i] = dataset::DatasetWriter::EncodeFrame(imager.Render(world_from_camera, velocity_camera, t, frame_seed));
+      } else {
+        const auto rays = [&](const Eigen::Vector2d& pixel) { return placement.PixelToWorld(view, pixel); };
+        encoded[i] = dataset::DatasetWriter::EncodeFrame(imager.Render(rays, velocity_camera, t, frame_seed));
+      }
     };
     std::vector<std::future<void>> workers;
     for (int w = 0; w < options.threads; ++w) {
@@ -215,10 +289,12 @@ SimulationSummary Simulate(const SimulatorOptions& options, const std::filesyste
       const auto time = core::Timestamp::FromSeconds(capture_s[first + i]);
       writer.AddEncodedFrame(time, encoded[i]);
       groundtruth.push_back({time, drive.At(capture_s[first + i]).world_from_vehicle});
+      camera_csv += dataset::CameraTruthRow(time, camera_truth[i]);
     }
     if (progress) progress(static_cast<double>(first + count) / static_cast<double>(capture_s.size()));
   }
   writer.SetGroundTruth(groundtruth);
+  writer.AddFile(dataset::kCameraTruthFile, camera_csv);
   writer.Commit();
 
   summary.frames_written = static_cast<std::int64_t>(capture_s.size());

@@ -58,6 +58,37 @@ TEST(Imager, CleanRenderIsExactForALinearFloor) {
   }
 }
 
+// The ray path (a tilted pinhole over an uneven floor goes this way) renders the ideal camera's
+// rays as the ideal camera's image, and a linear floor through any smooth map exactly.
+TEST(Imager, RaysRenderWhatTheyLookAt) {
+  const camera::IdealCamera camera(camera::IdealCameraOptions{160, 120, 0.25});
+  const core::Pose2 world_from_camera(1500.0, -700.0, 0.8);
+  const RampFloor floor(world_from_camera.x_mm(), world_from_camera.y_mm());
+  const Imager imager(floor, camera, ImagingOptions{}, 1);
+  const auto ideal = [&](const Eigen::Vector2d& pixel) { return camera.PixelToWorld(pixel, world_from_camera); };
+  double max_difference = 0.0;
+  cv::minMaxLoc(cv::abs(imager.RenderClean(ideal) - imager.RenderClean(world_from_camera)), nullptr, &max_difference);
+  EXPECT_LE(max_difference, 1.0);
+  // A keystone: the floor seen by a camera tilted by a degree.
+  const auto tilted = [&](const Eigen::Vector2d& pixel) {
+    const Eigen::Vector2d c = camera.PixelToCamera(pixel) / 200.0;
+    const double w = 1.0 - 0.0175 * c.y();
+    return world_from_camera * Eigen::Vector2d(200.0 * c.x() / w, 200.0 * (c.y() + 0.0175) / w);
+  };
+  const cv::Mat image = imager.RenderClean(tilted);
+  double max_error = 0.0;
+  for (int v = 0; v < image.rows; ++v) {
+    for (int u = 0; u < image.cols; ++u) {
+      // The pixel's area average of a linear floor is its value at the pixel's centroid; for
+      // a map this smooth that is the centre's image to well under a count.
+      const Eigen::Vector2d world = tilted(Eigen::Vector2d(u, v));
+      const double expected = RampFloor::Value(world.x(), world.y(), world_from_camera.x_mm(), world_from_camera.y_mm());
+      max_error = std::max(max_error, std::abs(image.at<std::uint8_t>(v, u) - expected));
+    }
+  }
+  EXPECT_LT(max_error, 1.6);
+}
+
 class ImagerEffects : public ::testing::Test {
  protected:
   // A floor of fine random texture.

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 
 #include <Eigen/Core>
@@ -40,10 +41,24 @@ class Imager {
   /// The noise-free, blur-free, evenly lit image (the "true" view), for tests.
   cv::Mat RenderClean(const core::Pose2& world_from_camera) const;
 
+  /// Where on the floor (world mm) a pixel (u, v) of the camera looks: any smooth map, e.g.
+  /// a tilted pinhole over an uneven floor (CameraPlacement::PixelToWorld).
+  using PixelToWorld = std::function<Eigen::Vector2d(const Eigen::Vector2d& pixel)>;
+  /// The same image formed through `pixel_to_world` instead of the ideal camera at a pose;
+  /// it is evaluated exactly every few pixels and interpolated between.
+  cv::Mat Render(const PixelToWorld& pixel_to_world, const Eigen::Vector2d& camera_velocity_mm_per_s, double time_s,
+                 std::uint64_t frame_seed) const;
+  cv::Mat RenderClean(const PixelToWorld& pixel_to_world) const;
+
   int supersampling() const { return supersampling_; }
 
  private:
   cv::Mat RenderSupersampled(const core::Pose2& world_from_camera, double blur_margin_px) const;
+  cv::Mat RenderSupersampled(const PixelToWorld& pixel_to_world) const;
+  /// Motion blur, area average to pixels, shading and noise of a supersampled view.
+  cv::Mat Develop(cv::Mat super, const Eigen::Vector2d& camera_velocity_mm_per_s, double time_s,
+                  std::uint64_t frame_seed) const;
+  double BlurSupersamples(const Eigen::Vector2d& camera_velocity_mm_per_s) const;
 
   const Floor& floor_;
   camera::IdealCamera camera_;

@@ -12,6 +12,7 @@
 #include "mosaicloc/sim/floor.hpp"
 #include "mosaicloc/sim/imaging.hpp"
 #include "mosaicloc/sim/route.hpp"
+#include "mosaicloc/sim/stance.hpp"
 
 namespace mosaicloc::sim {
 
@@ -22,6 +23,10 @@ struct FloorChoice {
   std::filesystem::path image;      ///< for "image": any image file, tiled over the floor
   /// Texel size, mm. 0 picks the default: 0.125 for procedural, 0.25 for an image.
   double mm_per_texel = 0.0;
+  /// The floor's shape (FloorShape): the standard deviation of its height over the site, mm
+  /// (0: flat), and the shortest wavelength of its waves, m. The same seed gives the same shape.
+  double unevenness_mm = 0.0;
+  double unevenness_wavelength_m = 2.0;
   /// The floor a command line names: "procedural", or an image file for kind "image".
   static FloorChoice Named(const std::string& name, FloorChoice base);
   bool Check(std::string* why) const;
@@ -41,6 +46,14 @@ struct SimulatorOptions {
   /// floor per pixel as dataset.yaml says (a vehicle on a higher floor shows less).
   double camera_height_mm = 200.0;
   double height_offset_mm = 0.0;
+  /// A slow change of the camera's height (load, tyre wear), mm per minute from the start.
+  double height_drift_mm_per_min = 0.0;
+  /// Radial distortion left after calibration: the k1 of the normalized image radius.
+  double residual_k1 = 0.0;
+  /// The body's pitch and roll on its wheels; the floor's shape moves it too. When all of
+  /// these are zero and the floor is flat, frames are the ideal view from the true height;
+  /// otherwise every pixel is a ray of a pinhole at the camera's 3-D pose (CameraPlacement).
+  SuspensionOptions suspension;
   ImagingOptions imaging;
   EncoderOptions encoders;
   double frame_rate_hz = 30.0;
@@ -63,6 +76,9 @@ struct SimulationSummary {
   double laps_driven = 0.0;
   double max_speed_mps = 0.0;
 };
+
+/// The camera of the simulated vehicle on its floor (throws core::Error for bad options).
+CameraPlacement MakeCameraPlacement(const SimulatorOptions& options);
 
 /// Progress in [0, 1]; called from the calling thread.
 using ProgressCallback = std::function<void(double fraction)>;
