@@ -281,6 +281,13 @@ tracking::TrackResult Localizer::AtTheEdge(const cv::Mat& frame, tracking::Track
 estimation::FrameVerdict Localizer::ClassifyMiss(const FrameOutcome& outcome, const core::Pose2& prior_camera,
                                                  const Eigen::Matrix3d& prior_camera_covariance, std::string* reason) {
   if (outcome.track.failure == tracking::TrackFailure::kNoTexture) return estimation::FrameVerdict::kMissed;
+  // The tracker found the floor where the prediction put it and the filter's gate refused the
+  // fix: evidence for the prior, not against it. On a repeating floor a search without the
+  // prior would find the copies a period away as well as this place.
+  if (outcome.track.ok() && !kidnapped_) {
+    unmatched_run_ = 0;
+    return estimation::FrameVerdict::kMissed;
+  }
   // A known kidnap makes the prediction meaningless: where it lies says nothing.
   if (kidnapped_) {
     ++unmatched_run_;
