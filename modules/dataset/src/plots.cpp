@@ -560,4 +560,34 @@ void WritePlots(const std::filesystem::path& directory, const Evaluation& evalua
   SavePng(directory / "heading_error.png", ErrorPlot(evaluation, title, false));
 }
 
+void WriteHeightPlot(const std::filesystem::path& directory, const HeightSeries& series, const std::string& title,
+                     double error_rms_mm) {
+  cv::Mat canvas(kHeightPx, kWidthPx, CV_8UC3, kWhite);
+  constexpr int kXTicks = 10;
+  constexpr int kYTicks = 8;
+  const Range x{0.0, !series.seconds.empty() && series.seconds.back() > 0.0 ? series.seconds.back() : 1.0};
+  double lo = std::numeric_limits<double>::infinity();
+  double hi = -lo;
+  for (const std::vector<double>* values : {&series.estimate_mm, &series.truth_mm}) {
+    for (double v : *values) {
+      if (std::isfinite(v)) {
+        lo = std::min(lo, v);
+        hi = std::max(hi, v);
+      }
+    }
+  }
+  // At least 0.1 mm high, so that a constant height still gives an axis.
+  const Range y = NiceBounds(std::isfinite(lo) ? Widened({lo, hi}, 0.1) : Range{0.0, 1.0}, kYTicks);
+  Axes axes(canvas, kTimePlotArea, x, y);
+  axes.DrawFrame("time since the first frame [s]", "camera height over the floor [mm]", kXTicks, kYTicks);
+  DrawTitle(canvas, title + " - camera height",
+            "truth (grey) and estimate (blue): RMS " + FormatValue(error_rms_mm) + " mm at the fixes   (" +
+                std::to_string(series.seconds.size()) + " frames)");
+  DrawSeries(axes, series.seconds, series.truth_mm, kTrackGrey);
+  DrawSeries(axes, series.seconds, series.estimate_mm, kSeriesBlue);
+  std::error_code ec;
+  std::filesystem::create_directories(directory, ec);
+  SavePng(directory / "height.png", canvas);
+}
+
 }  // namespace mosaicloc::dataset

@@ -4,18 +4,22 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <numbers>
 #include <optional>
 #include <string>
 #include <system_error>
+#include <unordered_map>
 #include <vector>
 
 #include "mosaicloc/camera/ideal_camera.hpp"
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/file.hpp"
 #include "mosaicloc/core/log.hpp"
+#include "mosaicloc/dataset/camera_truth.hpp"
 #include "mosaicloc/dataset/dataset.hpp"
 #include "mosaicloc/dataset/fixes.hpp"
+#include "mosaicloc/dataset/plots.hpp"
 #include "mosaicloc/dataset/trajectory.hpp"
 #include "mosaicloc/estimation/odometry.hpp"
 #include "mosaicloc/localizer/localizer.hpp"
@@ -113,11 +117,52 @@ class ReplayRecord {
     metrics.overlap_speed_limit_mps = OverlapSpeedLimit(info, estimate_, required_overlap);
     std::error_code ec;
     std::filesystem::create_directories(options.out, ec);
+    CheckHeight(options, info, title + ": " + options.dataset.filename().string(), &metrics);
     core::WriteFileAtomically(options.out / "fixes.csv", fixes_csv_);
     return WriteReport(options.out, estimate_, groundtruth_, metrics, title + ": " + options.dataset.filename().string());
   }
 
  private:
+  // The camera's height the localizer held (its image scale times the calibrated height)
+  // against the simulator's truth, when the dataset records both: metrics and height.png.
+  void CheckHeight(const ReplayOptions& options, const dataset::DatasetInfo& info, const std::string& title,
+                   dataset::Metrics* metrics) const {
+    const std::filesystem::path file = options.dataset / dataset::kCameraTruthFile;
+    const auto calibrated = info.provenance.find("camera_height_mm");
+    std::error_code ec;
+    if (calibrated == info.provenance.end() || !std::filesystem::exists(file, ec) || reports_.empty()) return;
+    char* end = nullptr;
+    const double height_mm = std::strtod(calibrated->second.c_str(), &end);
+    if (end == calibrated->second.c_str() || *end != '\0' || !(height_mm > 0.0)) {
+      core::ThrowInvalidInput(options.dataset.string() + ": provenance camera_height_mm '" + calibrated->second +
+                              "' is not a positive number");
+    }
+    std::unordered_map<std::int64_t, double> truth;
+    for (const dataset::CameraTruthSample& sample : dataset::ReadCameraTruth(file)) {
+      truth[sample.time.nanoseconds()] = sample.truth.height_mm;
+    }
+    dataset::HeightSeries series;
+    double sum_sq = 0.0;
+    double max_error = 0.0;
+    std::int64_t fixed = 0;
+    for (const dataset::FrameReport& report : reports_) {
+      const auto it = truth.find(report.time.nanoseconds());
+      if (it == truth.end()) continue;
+      series.seconds.push_back(core::ToSeconds(report.time - reports_.front().time));
+      series.estimate_mm.push_back(report.scale * height_mm);
+      series.truth_mm.push_back(it->second);
+      if (!report.fixed) continue;
+      const double error = series.estimate_mm.back() - it->second;
+      sum_sq += error * error;
+      max_error = std::max(max_error, std::abs(error));
+      ++fixed;
+    }
+    if (fixed == 0) return;
+    metrics->height_error_rms_mm = std::sqrt(sum_sq / static_cast<double>(fixed));
+    metrics->height_error_max_mm = max_error;
+    dataset::WriteHeightPlot(options.out, series, title, *metrics->height_error_rms_mm);
+  }
+
   std::optional<dataset::Trajectory> groundtruth_;
   const std::function<void(double)>& progress_;
   dataset::Trajectory estimate_;

@@ -40,6 +40,8 @@ dataset::Metrics WriteReport(const std::filesystem::path& directory, const datas
     keep(merged.latency_p50_ms, metrics.latency_p50_ms);
     keep(merged.latency_p99_ms, metrics.latency_p99_ms);
     keep(merged.overlap_speed_limit_mps, metrics.overlap_speed_limit_mps);
+    keep(merged.height_error_rms_mm, metrics.height_error_rms_mm);
+    keep(merged.height_error_max_mm, metrics.height_error_max_mm);
     metrics = merged;
     dataset::WritePlots(directory, evaluation, title);
   }

@@ -75,6 +75,10 @@ struct Metrics {
   std::optional<std::int64_t> reentry_frames_to_fix_max;
   std::optional<double> reentry_first_fix_error_max_mm;
   std::optional<std::int64_t> relocalizations;  ///< restarts of the filter from a fix (caller)
+  /// The camera's height the localizer held at its fixes (image scale x calibrated height)
+  /// against the simulator's truth (groundtruth/camera.csv), mm (caller).
+  std::optional<double> height_error_rms_mm;
+  std::optional<double> height_error_max_mm;
 };
 
 struct Evaluation {

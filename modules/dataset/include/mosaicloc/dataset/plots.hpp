@@ -2,6 +2,7 @@
 
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "mosaicloc/dataset/evaluation.hpp"
 
@@ -19,5 +20,17 @@ namespace mosaicloc::dataset {
 /// samples gives plots that say so. Throws core::Error (runtime) if a file cannot be written.
 void WritePlots(const std::filesystem::path& directory, const Evaluation& evaluation,
                 const std::string& title);
+
+/// The camera's height over the floor against time: what the localizer held at each frame
+/// and the truth, mm, with the time in seconds since the first frame.
+struct HeightSeries {
+  std::vector<double> seconds;
+  std::vector<double> estimate_mm;
+  std::vector<double> truth_mm;
+};
+/// Writes height.png (1000 x 800) into `directory`: the truth as a grey line, the estimate in
+/// blue, and `error_rms_mm` (estimate - truth at the fixes) in the subtitle. Atomic.
+void WriteHeightPlot(const std::filesystem::path& directory, const HeightSeries& series, const std::string& title,
+                     double error_rms_mm);
 
 }  // namespace mosaicloc::dataset
