@@ -281,10 +281,14 @@ tracking::TrackResult Localizer::AtTheEdge(const cv::Mat& frame, tracking::Track
 estimation::FrameVerdict Localizer::ClassifyMiss(const FrameOutcome& outcome, const core::Pose2& prior_camera,
                                                  const Eigen::Matrix3d& prior_camera_covariance, std::string* reason) {
   if (outcome.track.failure == tracking::TrackFailure::kNoTexture) return estimation::FrameVerdict::kMissed;
-  // The tracker found the floor where the prediction put it and the filter's gate refused the
-  // fix: evidence for the prior, not against it. On a repeating floor a search without the
-  // prior would find the copies a period away as well as this place.
-  if (outcome.track.ok() && !kidnapped_) {
+  // The tracker found the floor where the prediction put it, or some of it (templates matched
+  // but too few agreed, or the solve did not converge), and the filter's gate refused the fix
+  // or there was none: no evidence against the prior. A map that no longer fits the floor
+  // well (changed, or painted at another height) does that; a search without the prior would
+  // then find a copy of a repeating floor a period away where the map fits better.
+  const bool found_some = outcome.track.ok() || outcome.track.failure == tracking::TrackFailure::kTooFewInliers ||
+                          outcome.track.failure == tracking::TrackFailure::kNotConverged;
+  if (found_some && !kidnapped_) {
     unmatched_run_ = 0;
     return estimation::FrameVerdict::kMissed;
   }
