@@ -87,6 +87,9 @@ bool LocalizerOptions::Check(std::string* why) const {
   if (!(scale_drift_per_sqrt_s >= 0.0 && scale_drift_per_sqrt_s <= 0.1)) {
     return fail("scale_drift_per_sqrt_s must be in [0, 0.1]");
   }
+  if (!(tilt_pivot_height_mm >= -1000.0 && tilt_pivot_height_mm <= 2000.0)) {
+    return fail("tilt_pivot_height_mm must be in [-1000, 2000]");
+  }
   // The parts last, so that a complaint about a field of this struct is not hidden by one of theirs.
   return tracker.Check(why) && relocalize.Check(why) && filter.Check(why) && lock.Check(why) && odometry.Check(why);
 }
@@ -208,7 +211,7 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
     outcome.track = AtTheEdge(frame, std::move(outcome.track));
   }
   if (outcome.track.ok()) {
-    const core::Pose2 fix = outcome.track.world_from_camera * options_.vehicle_from_camera.Inverse();
+    const core::Pose2 fix = MountingPoint(outcome.track) * options_.vehicle_from_camera.Inverse();
     // The floors are errors of the camera's pose (map and rectification errors move what the
     // camera sees), so they go in before the lever arm: a yaw error of the camera moves the
     // vehicle's origin sideways by the arm, and the fix's covariance says so.
@@ -216,6 +219,12 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
     camera_covariance(0, 0) += options_.fix_sigma_floor_mm * options_.fix_sigma_floor_mm;
     camera_covariance(1, 1) += options_.fix_sigma_floor_mm * options_.fix_sigma_floor_mm;
     camera_covariance(2, 2) += options_.fix_sigma_floor_rad * options_.fix_sigma_floor_rad;
+    if (outcome.track.tilt_estimated && options_.tilt_pivot_height_mm != 0.0) {
+      // The lever taken out of the fix is as uncertain as the tilt it was measured from.
+      const double lever_sigma_mm = options_.tilt_pivot_height_mm * outcome.track.tilt_sigma_rad;
+      camera_covariance(0, 0) += options_.fix_covariance_scale * lever_sigma_mm * lever_sigma_mm;
+      camera_covariance(1, 1) += options_.fix_covariance_scale * lever_sigma_mm * lever_sigma_mm;
+    }
     const Eigen::Matrix3d fix_covariance =
         VehicleCovariance(outcome.track.world_from_camera, options_.vehicle_from_camera, camera_covariance);
     outcome.fix_world_from_vehicle = fix;
@@ -265,6 +274,17 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   const double sigma_mm = std::sqrt(std::max(outcome.covariance(0, 0), outcome.covariance(1, 1)));
   outcome.lock = lock_.Update(verdict, sigma_mm, outcome.reason);
   return outcome;
+}
+
+core::Pose2 Localizer::MountingPoint(const tracking::TrackResult& track) const {
+  if (!track.tilt_estimated || options_.tilt_pivot_height_mm == 0.0) return track.world_from_camera;
+  // The floor's normal in camera axes is (-tan tilt_y, tan tilt_x, 1): a body turned about an
+  // axis p over the floor puts the image centre p times the normal's horizontal part away
+  // from the mounting point, in the camera's axes.
+  const Eigen::Vector2d offset_camera =
+      options_.tilt_pivot_height_mm * Eigen::Vector2d(-std::tan(track.tilt_y_rad), std::tan(track.tilt_x_rad));
+  return core::Pose2(track.world_from_camera.translation_mm() - track.world_from_camera.Rotation() * offset_camera,
+                     track.world_from_camera.yaw_rad());
 }
 
 tracking::TrackResult Localizer::AtTheEdge(const cv::Mat& frame, tracking::TrackResult found) const {

@@ -62,6 +62,10 @@ void ReadLocalizerConfig(const YAML::Node& node, const std::string& file_name, L
   solver.Optional("outlier_threshold_mm", &t.solver.outlier_threshold_mm);
   solver.Optional("min_inliers", &t.solver.min_inliers);
   solver.Optional("estimate_scale", &t.solver.estimate_scale);
+  solver.Optional("estimate_tilt", &t.solver.estimate_tilt);
+  solver.Optional("min_tilt_points", &t.solver.min_tilt_points);
+  solver.Optional("camera_height_mm", &t.solver.camera_height_mm);
+  solver.Optional("tilt_pivot_height_mm", &o.tilt_pivot_height_mm);
   solver.Optional("scale_sigma", &o.scale_sigma);
   solver.Optional("scale_drift_per_sqrt_s", &o.scale_drift_per_sqrt_s);
   solver.Check(t.solver);

@@ -7,6 +7,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <ceres/ceres.h>
+#include <ceres/jet.h>
 #include <ceres/tiny_solver.h>
 
 namespace mosaicloc::tracking {
@@ -42,9 +43,26 @@ double LossWeight(const ceres::LossFunction* loss, const double* r) {
   return rho[1];
 }
 
+// The residual of the model with `free` parameters at pose (x, y, yaw, k, a, b): the tilted
+// pinhole with all six free, else the similarity (k and the tilt held). The Jacobian is 2 x 6,
+// row-major, zero in the tilt's columns for the similarity.
+void ModelResidual(const double* pose, const Correspondence& c, double s, double height_mm, int free, double* r,
+                   double* j) {
+  if (free == 6) {
+    TiltResidual(pose, c, s, height_mm, r, j);
+    return;
+  }
+  double j4[8];
+  SimilarityResidual(pose, c, s, r, j != nullptr ? j4 : nullptr);
+  if (j == nullptr) return;
+  for (int row = 0; row < 2; ++row) {
+    for (int col = 0; col < 6; ++col) j[6 * row + col] = col < 4 ? j4[4 * row + col] : 0.0;
+  }
+}
+
 // The used correspondences' residuals, each weighted by sqrt(w_i), as a ceres::TinySolver
-// function of (x, y, yaw, k) (P = 4), of (x, y, yaw) with k = 1 (P = 3), or of (x, y) with
-// the yaw held as well (P = 2).
+// function of (x, y, yaw, k, a, b) (P = 6), (x, y, yaw, k) (P = 4), (x, y, yaw) with k held
+// (P = 3), or (x, y) with the yaw held as well (P = 2); what is held keeps its start value.
 template <int P>
 struct WeightedResiduals {
   using Scalar = double;
@@ -52,28 +70,26 @@ struct WeightedResiduals {
   const std::vector<const Correspondence*>& cs;
   const std::vector<double>& scale;
   const std::vector<double>& root_weight;
-  double yaw;
+  const double* held;  // the start pose (6)
+  double height_mm;
   int NumResiduals() const { return static_cast<int>(2 * cs.size()); }
-  // (x, y, yaw, k) of the parameters x.
+  // (x, y, yaw, k, a, b) of the parameters x.
   void PoseOf(const double* x, double* pose) const {
-    pose[0] = x[0];
-    pose[1] = x[1];
-    pose[2] = P >= 3 ? x[2] : yaw;
-    pose[3] = P == 4 ? x[3] : 1.0;
+    for (int p = 0; p < 6; ++p) pose[p] = p < P ? x[p] : held[p];
   }
   bool operator()(const double* x, double* residuals, double* jacobian) const {
-    double pose[4];
+    double pose[6];
     PoseOf(x, pose);
     const std::size_t n = 2 * cs.size();
     for (std::size_t i = 0; i < cs.size(); ++i) {
-      double r[2], j[8];
-      SimilarityResidual(pose, *cs[i], scale[i], r, jacobian != nullptr ? j : nullptr);
+      double r[2], j[12];
+      ModelResidual(pose, *cs[i], scale[i], height_mm, P, r, jacobian != nullptr ? j : nullptr);
       residuals[2 * i] = root_weight[i] * r[0];
       residuals[2 * i + 1] = root_weight[i] * r[1];
       if (jacobian == nullptr) continue;
       for (int p = 0; p < P; ++p) {  // column-major, n x P
         jacobian[static_cast<std::size_t>(p) * n + 2 * i] = root_weight[i] * j[p];
-        jacobian[static_cast<std::size_t>(p) * n + 2 * i + 1] = root_weight[i] * j[4 + p];
+        jacobian[static_cast<std::size_t>(p) * n + 2 * i + 1] = root_weight[i] * j[6 + p];
       }
     }
     return true;
@@ -96,7 +112,9 @@ Solved SolveRounds(const std::vector<const Correspondence*>& cs, const std::vect
                    const PoseSolverOptions& options) {
   const std::unique_ptr<ceres::LossFunction> loss = LossOf(options);
   std::vector<double> root_weight(cs.size(), 1.0);
-  const WeightedResiduals<P> residuals{cs, scale, root_weight, pose[2]};
+  double held[6];
+  std::copy(pose, pose + 6, held);
+  const WeightedResiduals<P> residuals{cs, scale, root_weight, held, options.camera_height_mm};
   ceres::TinySolver<WeightedResiduals<P>> solver;
   solver.options.max_num_iterations = options.max_iterations;
   solver.options.gradient_tolerance = 1e-14;
@@ -107,11 +125,11 @@ Solved SolveRounds(const std::vector<const Correspondence*>& cs, const std::vect
   for (int p = 0; p < P; ++p) x(p) = pose[p];
   for (int round = 0; round < options.max_iterations; ++round) {
     s.iterations = round + 1;
-    double at[4];
+    double at[6];
     residuals.PoseOf(x.data(), at);
     for (std::size_t i = 0; i < cs.size(); ++i) {
       double r[2];
-      SimilarityResidual(at, *cs[i], scale[i], r, nullptr);
+      ModelResidual(at, *cs[i], scale[i], options.camera_height_mm, P, r, nullptr);
       root_weight[i] = std::sqrt(LossWeight(loss.get(), r));
     }
     const Eigen::Matrix<double, P, 1> before = x;
@@ -127,8 +145,9 @@ Solved SolveRounds(const std::vector<const Correspondence*>& cs, const std::vect
   return s;
 }
 
-// Solves in place: `pose` (x, y, yaw, k) is both the start and the result; `free` of its
-// parameters are estimated (2: the yaw and k held, 3: k held, 4: all).
+// Solves in place: `pose` (x, y, yaw, k, a, b) is both the start and the result; `free` of
+// its parameters are estimated (2: the yaw, k and the tilt held, 3: k and the tilt held, 4:
+// the tilt held, 6: all).
 Solved Solve(const std::vector<Correspondence>& cs, const std::vector<bool>& use, const std::vector<double>& scale,
              double* pose, const PoseSolverOptions& options, int free) {
   std::vector<const Correspondence*> used;
@@ -138,23 +157,27 @@ Solved Solve(const std::vector<Correspondence>& cs, const std::vector<bool>& use
     used.push_back(&cs[i]);
     used_scale.push_back(scale[i]);
   }
+  if (free == 6) return SolveRounds<6>(used, used_scale, pose, options);
   if (free == 4) return SolveRounds<4>(used, used_scale, pose, options);
   return free == 3 ? SolveRounds<3>(used, used_scale, pose, options) : SolveRounds<2>(used, used_scale, pose, options);
 }
 
 // How many parameters the used correspondences determine: the yaw needs two distinct points
 // of the frame, the scale (when asked for) three, one more than it needs, so that a wrong
-// match shows as a residual instead of bending the scale.
+// match shows as a residual instead of bending the scale; the tilt min_tilt_points.
 int FreeParameters(const std::vector<Correspondence>& cs, const std::vector<bool>& use,
                    const PoseSolverOptions& options) {
+  const std::size_t wanted =
+      options.estimate_scale && options.estimate_tilt ? static_cast<std::size_t>(std::max(3, options.min_tilt_points)) : 3;
   std::vector<Eigen::Vector2d> distinct;
-  for (std::size_t i = 0; i < cs.size() && distinct.size() < 3; ++i) {
+  for (std::size_t i = 0; i < cs.size() && distinct.size() < wanted; ++i) {
     if (!use[i]) continue;
     const bool seen = std::any_of(distinct.begin(), distinct.end(), [&](const Eigen::Vector2d& p) {
       return (cs[i].camera_mm - p).squaredNorm() <= 1e-12;
     });
     if (!seen) distinct.push_back(cs[i].camera_mm);
   }
+  if (options.estimate_scale && options.estimate_tilt && distinct.size() >= wanted) return 6;
   if (options.estimate_scale && distinct.size() >= 3) return 4;
   return distinct.size() >= 2 ? 3 : 2;
 }
@@ -166,8 +189,10 @@ int FreeParameters(const std::vector<Correspondence>& cs, const std::vector<bool
 // J^T J is rank deficient (a direction the residuals do not determine).
 // The inverse of the information's leading N x N block into *covariance's; false when it is
 // rank deficient.
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+
 template <int N>
-bool InvertInformation(const Eigen::Matrix4d& information, Eigen::Matrix4d* covariance) {
+bool InvertInformation(const Matrix6d& information, Matrix6d* covariance) {
   const Eigen::Matrix<double, N, N> block = information.topLeftCorner<N, N>();
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, N, N>> eigen(block);
   const Eigen::Matrix<double, N, 1> values = eigen.eigenvalues();  // ascending
@@ -177,21 +202,50 @@ bool InvertInformation(const Eigen::Matrix4d& information, Eigen::Matrix4d* cova
   return true;
 }
 
-// With the scale estimated (`free` 4) the covariance is of (x, y, yaw, k), else of (x, y, yaw).
+// The covariance of the `free` leading parameters of (x, y, yaw, k, a, b), at least the
+// first three.
 bool PoseCovariance(const std::vector<Correspondence>& cs, const std::vector<bool>& use,
                     const std::vector<double>& scale, const double* pose, const PoseSolverOptions& options, int free,
-                    Eigen::Matrix4d* covariance) {
+                    Matrix6d* covariance) {
   const std::unique_ptr<ceres::LossFunction> loss = LossOf(options);
-  Eigen::Matrix4d information = Eigen::Matrix4d::Zero();
+  Matrix6d information = Matrix6d::Zero();
   for (std::size_t i = 0; i < cs.size(); ++i) {
     if (!use[i]) continue;
     double r[2];
-    Eigen::Matrix<double, 2, 4, Eigen::RowMajor> j;
-    SimilarityResidual(pose, cs[i], scale[i], r, j.data());
+    Eigen::Matrix<double, 2, 6, Eigen::RowMajor> j;
+    ModelResidual(pose, cs[i], scale[i], options.camera_height_mm, free, r, j.data());
     information += LossWeight(loss.get(), r) * j.transpose() * j;
   }
   covariance->setZero();
+  if (free == 6) return InvertInformation<6>(information, covariance);
   return free == 4 ? InvertInformation<4>(information, covariance) : InvertInformation<3>(information, covariance);
+}
+
+// TiltResidual's arithmetic for doubles or Jets.
+template <typename T>
+void TiltedResidual(const T* pose, const Correspondence& c, double s, double height_mm, T* residual) {
+  using std::sqrt;
+  using std::cos;
+  using std::sin;
+  const T& k = pose[3];
+  const T norm = sqrt(pose[4] * pose[4] + pose[5] * pose[5] + T(1.0));
+  const T n[3] = {-pose[5] / norm, pose[4] / norm, T(1.0) / norm};  // the floor's normal, camera axes
+  const T distance = k * height_mm;                                  // lens to the plane, along n
+  const double d[3] = {c.camera_mm.x() / height_mm, c.camera_mm.y() / height_mm, -1.0};
+  // The ray's point X = tau d with n.X = -distance; the centre's X0 = tau0 (0, 0, -1).
+  const T tau = -distance / (n[0] * d[0] + n[1] * d[1] + n[2] * d[2]);
+  const T tau0 = distance / n[2];
+  const T v[3] = {tau * d[0], tau * d[1], tau * d[2] + tau0};  // X - X0
+  // The plane's axes: the camera's x projected onto it, and n x e1.
+  T e1[3] = {T(1.0) - n[0] * n[0], -n[0] * n[1], -n[0] * n[2]};
+  const T e1_norm = sqrt(e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2]);
+  for (T& e : e1) e /= e1_norm;
+  const T e2[3] = {n[1] * e1[2] - n[2] * e1[1], n[2] * e1[0] - n[0] * e1[2], n[0] * e1[1] - n[1] * e1[0]};
+  const T qx = v[0] * e1[0] + v[1] * e1[1] + v[2] * e1[2];
+  const T qy = v[0] * e2[0] + v[1] * e2[1] + v[2] * e2[2];
+  const T cos_yaw = cos(pose[2]), sin_yaw = sin(pose[2]);
+  residual[0] = (cos_yaw * qx - sin_yaw * qy + pose[0] - c.world_mm.x()) / s;
+  residual[1] = (sin_yaw * qx + cos_yaw * qy + pose[1] - c.world_mm.y()) / s;
 }
 
 }  // namespace
@@ -214,6 +268,23 @@ void SimilarityResidual(const double* pose, const Correspondence& c, double scal
   jacobian[7] = ry / scale;
 }
 
+void TiltResidual(const double* pose, const Correspondence& c, double scale, double height_mm, double* residual,
+                  double* jacobian) {
+  if (jacobian == nullptr) {
+    TiltedResidual(pose, c, scale, height_mm, residual);
+    return;
+  }
+  using Jet = ceres::Jet<double, 6>;
+  Jet at[6];
+  for (int p = 0; p < 6; ++p) at[p] = Jet(pose[p], p);
+  Jet r[2];
+  TiltedResidual(at, c, scale, height_mm, r);
+  for (int row = 0; row < 2; ++row) {
+    residual[row] = r[row].a;
+    for (int col = 0; col < 6; ++col) jacobian[6 * row + col] = r[row].v(col);
+  }
+}
+
 void PlanarResidual(const double* pose, const Correspondence& c, double scale, double* residual,
                     double* jacobian) {
   const double similarity[4] = {pose[0], pose[1], pose[2], 1.0};
@@ -234,6 +305,8 @@ bool PoseSolverOptions::Check(std::string* why) const {
   if (!(outlier_threshold_mm > 0.0)) return fail("outlier_threshold_mm must be > 0");
   if (min_inliers < 1) return fail("min_inliers must be >= 1");
   if (max_iterations < 1) return fail("max_iterations must be >= 1");
+  if (min_tilt_points < 6) return fail("min_tilt_points must be >= 6");
+  if (!(camera_height_mm > 0.0)) return fail("camera_height_mm must be > 0");
   return true;
 }
 
@@ -273,7 +346,7 @@ PoseSolution SolvePlanarPose(const std::vector<Correspondence>& correspondences,
   std::vector<double> scale(n);
   for (std::size_t i = 0; i < n; ++i) scale[i] = sigmas[i] / sigma_ref;
 
-  double pose[4] = {initial.x_mm(), initial.y_mm(), initial.yaw_rad(), 1.0};
+  double pose[6] = {initial.x_mm(), initial.y_mm(), initial.yaw_rad(), 1.0, 0.0, 0.0};
   std::vector<bool> use(n, true);
   int free = FreeParameters(correspondences, use, options);
   Solved solved = Solve(correspondences, use, scale, pose, options, free);
@@ -281,7 +354,7 @@ PoseSolution SolvePlanarPose(const std::vector<Correspondence>& correspondences,
   // Outliers by their residual at the robust solution, then a clean solve on the inliers.
   auto residual_of = [&](std::size_t i, const double* at) {
     double r[2];
-    SimilarityResidual(at, correspondences[i], 1.0, r, nullptr);
+    ModelResidual(at, correspondences[i], 1.0, options.camera_height_mm, free, r, nullptr);
     return std::hypot(r[0], r[1]);
   };
   int inliers = 0;
@@ -298,12 +371,18 @@ PoseSolution SolvePlanarPose(const std::vector<Correspondence>& correspondences,
   if (inliers < static_cast<int>(n)) {
     free = FreeParameters(correspondences, use, options);
     pose[3] = 1.0;
+    pose[4] = pose[5] = 0.0;
     solved = Solve(correspondences, use, scale, pose, options, free);
   }
   solution.iterations = solved.iterations;
   solution.world_from_camera = core::Pose2(pose[0], pose[1], pose[2]);
   solution.scale = pose[3];
-  solution.scale_estimated = free == 4;
+  solution.scale_estimated = free >= 4;
+  solution.tilt_estimated = free == 6;
+  if (solution.tilt_estimated) {
+    solution.tilt_x_rad = std::atan(pose[4]);
+    solution.tilt_y_rad = std::atan(pose[5]);
+  }
   solution.inlier = use;
   solution.inliers = inliers;
   double sum_sq = 0.0;
@@ -328,11 +407,12 @@ PoseSolution SolvePlanarPose(const std::vector<Correspondence>& correspondences,
   for (std::size_t i = first + 1; i < n && !spread; ++i) {
     spread = use[i] && (correspondences[i].camera_mm - correspondences[first].camera_mm).squaredNorm() > 1e-12;
   }
-  Eigen::Matrix4d unit;
+  Matrix6d unit;
   if (spread && PoseCovariance(correspondences, use, scale, pose, options, free, &unit)) {
-    // With the scale estimated, the pose's covariance is its marginal one.
+    // With the scale (and the tilt) estimated, the pose's covariance is its marginal one.
     solution.covariance = unit.topLeftCorner<3, 3>() * sigma_ref * sigma_ref;
-    if (free == 4) solution.scale_sigma = std::sqrt(unit(3, 3)) * sigma_ref;
+    if (free >= 4) solution.scale_sigma = std::sqrt(unit(3, 3)) * sigma_ref;
+    if (free == 6) solution.tilt_sigma_rad = std::sqrt(std::max(unit(4, 4), unit(5, 5))) * sigma_ref;
   } else {
     // One correspondence, or several at one point: translation only, the yaw undetermined.
     solution.covariance = Eigen::Matrix3d::Zero();

@@ -217,6 +217,9 @@ class FrameRegistration {
     coarse_solver.min_inliers = std::min(options_.solver.min_inliers, static_cast<int>(coarse_.size()));
     // With refinement the coarse pose only seeds it: the result's covariance is the fine one's.
     coarse_solver.compute_covariance = options_.refine_passes == 0;
+    // A pixel or two of accuracy does not show a tilt; the refined templates do.
+    coarse_solver.estimate_tilt = options_.refine_passes == 0 && options_.solver.estimate_tilt;
+    coarse_solver.camera_height_mm = options_.solver.camera_height_mm * view_scale_;
     if (static_cast<int>(coarse_.size()) < options_.solver.min_inliers && options_.refine_passes > 0) {
       return Fail(TrackFailure::kTooFewInliers, std::to_string(coarse_.size()) + " usable templates, " +
                                                     std::to_string(options_.solver.min_inliers) + " needed");
@@ -261,7 +264,10 @@ class FrameRegistration {
       return Fail(TrackFailure::kTooFewInliers, std::to_string(fine_.size()) + " templates refined, " +
                                                     std::to_string(options_.solver.min_inliers) + " needed");
     }
-    PoseSolution refined = SolvePlanarPose(fine_, pose_.world_from_camera, options_.solver);
+    // The correspondences' camera_mm are at the height the view is rendered for.
+    PoseSolverOptions solver = options_.solver;
+    solver.camera_height_mm = options_.solver.camera_height_mm * view_scale_;
+    PoseSolution refined = SolvePlanarPose(fine_, pose_.world_from_camera, solver);
     if (!refined.ok()) {
       return Fail(refined.failure == PoseFailure::kNotConverged ? TrackFailure::kNotConverged
                                                                 : TrackFailure::kTooFewInliers,
@@ -337,6 +343,10 @@ class FrameRegistration {
     result_.scale = view_scale_;
     result_.scale_estimated = pose_.scale_estimated;
     if (pose_.scale_estimated) result_.scale_sigma = view_scale_ * pose_.scale_sigma;
+    result_.tilt_estimated = pose_.tilt_estimated;
+    result_.tilt_x_rad = pose_.tilt_x_rad;
+    result_.tilt_y_rad = pose_.tilt_y_rad;
+    result_.tilt_sigma_rad = pose_.tilt_sigma_rad;
     double zncc_sum = 0.0;
     int zncc_count = 0;
     for (const TemplateReport& report : result_.templates) {

@@ -3,6 +3,7 @@
 #include <random>
 #include <vector>
 
+#include <Eigen/Geometry>
 #include <ceres/ceres.h>
 #include <gtest/gtest.h>
 
@@ -260,6 +261,96 @@ TEST(PoseSolver, ScaleIsEstimatedWhereAsked) {
   ASSERT_TRUE(held.ok());
   EXPECT_FALSE(held.scale_estimated);
   EXPECT_EQ(held.scale, 1.0);
+}
+
+// The tilted pinhole's Jacobian (by automatic differentiation) against central differences.
+TEST(PoseSolver, TiltJacobianMatchesNumeric) {
+  std::mt19937 rng(28);
+  std::uniform_real_distribution<double> u(-100.0, 100.0);
+  for (int trial = 0; trial < 20; ++trial) {
+    Correspondence c;
+    c.camera_mm = {u(rng), u(rng)};
+    c.world_mm = {u(rng), u(rng)};
+    const double pose[6] = {u(rng), u(rng), u(rng) * 0.03, 1.0 + u(rng) * 1e-3, u(rng) * 2e-4, u(rng) * 2e-4};
+    double r[2], j[12];
+    TiltResidual(pose, c, 0.8, 200.0, r, j);
+    for (int p = 0; p < 6; ++p) {
+      const double h = 1e-6;
+      double plus[6], minus[6];
+      std::copy(pose, pose + 6, plus);
+      std::copy(pose, pose + 6, minus);
+      plus[p] += h;
+      minus[p] -= h;
+      double rp[2], rm[2];
+      TiltResidual(plus, c, 0.8, 200.0, rp, nullptr);
+      TiltResidual(minus, c, 0.8, 200.0, rm, nullptr);
+      for (int k = 0; k < 2; ++k) {
+        EXPECT_NEAR(j[k * 6 + p], (rp[k] - rm[k]) / (2 * h), 1e-5) << "residual " << k << " parameter " << p;
+      }
+    }
+  }
+  // Untilted, it is the similarity.
+  Correspondence c;
+  c.camera_mm = {31.0, -47.0};
+  c.world_mm = {5.0, 6.0};
+  const double pose[6] = {1.0, 2.0, 0.3, 1.004, 0.0, 0.0};
+  double tilted[2], similar[2];
+  TiltResidual(pose, c, 1.0, 200.0, tilted, nullptr);
+  SimilarityResidual(pose, c, 1.0, similar, nullptr);
+  EXPECT_NEAR(tilted[0], similar[0], 1e-12);
+  EXPECT_NEAR(tilted[1], similar[1], 1e-12);
+}
+
+// A pinhole 203 mm over a flat floor, pitched and rolled by a few tenths of a degree, its rays
+// through a grid of the view cast onto the floor: the solve finds the image centre's floor
+// point, the yaw, the height and the tilt the rays were cast with.
+TEST(PoseSolver, TiltIsEstimatedFromAPinholesRays) {
+  const double h = 200.0;
+  const double height = 203.0, tilt_x = 0.004, tilt_y = -0.006, yaw = 0.8;
+  const Eigen::Matrix3d world_from_camera = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
+                                             Eigen::AngleAxisd(tilt_x, Eigen::Vector3d::UnitX()) *
+                                             Eigen::AngleAxisd(tilt_y, Eigen::Vector3d::UnitY()))
+                                                .toRotationMatrix();
+  const Eigen::Vector3d lens(1500.0, -300.0, 0.0);
+  const auto floor_point = [&](const Eigen::Vector2d& p) {
+    const Eigen::Vector3d ray = world_from_camera * Eigen::Vector3d(p.x() / h, p.y() / h, -1.0);
+    return Eigen::Vector2d(lens.head<2>() + height / -ray.z() * ray.head<2>());
+  };
+  std::vector<Correspondence> cs;
+  for (int i = 0; i < 5; ++i) {
+    for (int j = 0; j < 4; ++j) {
+      Correspondence c;
+      c.camera_mm = {-70.0 + 35.0 * i, -52.5 + 35.0 * j};
+      c.world_mm = floor_point(c.camera_mm);
+      c.sigma_mm = 0.005;
+      cs.push_back(c);
+    }
+  }
+  const Eigen::Vector2d centre = floor_point(Eigen::Vector2d::Zero());
+  PoseSolverOptions options;
+  options.camera_height_mm = h;
+  const PoseSolution similar = SolvePlanarPose(cs, Pose2(centre.x() + 0.5, centre.y(), yaw), options);
+  ASSERT_TRUE(similar.ok());
+  EXPECT_FALSE(similar.tilt_estimated);
+  EXPECT_GT(similar.rms_residual_mm, 0.05) << "the keystone is a residual of the similarity";
+  options.estimate_tilt = true;
+  const PoseSolution solution = SolvePlanarPose(cs, Pose2(centre.x() + 0.5, centre.y(), yaw), options);
+  ASSERT_TRUE(solution.ok());
+  ASSERT_TRUE(solution.tilt_estimated);
+  EXPECT_LT(solution.rms_residual_mm, 1e-6);
+  EXPECT_NEAR(solution.world_from_camera.x_mm(), centre.x(), 1e-6);
+  EXPECT_NEAR(solution.world_from_camera.y_mm(), centre.y(), 1e-6);
+  EXPECT_NEAR(solution.world_from_camera.yaw_rad(), yaw, 1e-4);
+  EXPECT_NEAR(solution.scale * h, height, 1e-4);
+  // The floor's normal in camera axes is (-tan tilt_y, tan tilt_x, 1), normalized.
+  const Eigen::Vector3d n = world_from_camera.transpose() * Eigen::Vector3d::UnitZ();
+  EXPECT_NEAR(solution.tilt_x_rad, std::atan2(n.y(), n.z()), 1e-6);
+  EXPECT_NEAR(solution.tilt_y_rad, std::atan2(-n.x(), n.z()), 1e-6);
+  EXPECT_GT(solution.tilt_sigma_rad, 0.0);
+  EXPECT_LT(solution.tilt_sigma_rad, 1e-3);
+  // Too few points for the tilt: the similarity.
+  const std::vector<Correspondence> few(cs.begin(), cs.begin() + 5);
+  EXPECT_FALSE(SolvePlanarPose(few, Pose2(centre.x(), centre.y(), yaw), options).tilt_estimated);
 }
 
 TEST(PoseSolver, SaysWhyItFailed) {

@@ -75,6 +75,11 @@ struct LocalizerOptions {
   /// by scale_drift_per_sqrt_s (load, tyre wear, an uneven floor) between fixes.
   double scale_sigma = 0.02;
   double scale_drift_per_sqrt_s = 0.002;
+  /// Where tracker.solver.estimate_tilt measures the camera's tilt: the height over the floor
+  /// of the axis the vehicle's body pitches and rolls about on its suspension, mm. A body
+  /// tilted by an angle a moves the image centre on the floor by this times a against the
+  /// camera's mounting point; the fix takes that out (0: the body tilts about the floor).
+  double tilt_pivot_height_mm = 0.0;
   bool Check(std::string* why) const;
 };
 
@@ -161,6 +166,9 @@ class Localizer {
                                         const Eigen::Matrix3d& prior_camera_covariance, std::string* reason);
   // A registration of a view partly off the map, registered again around itself with more
   // templates; the one with more inliers.
+  /// Where the camera's mounting point is, from the image centre the tracker found and the
+  /// tilt it measured (LocalizerOptions::tilt_pivot_height_mm).
+  core::Pose2 MountingPoint(const tracking::TrackResult& track) const;
   tracking::TrackResult AtTheEdge(const cv::Mat& frame, tracking::TrackResult found) const;
   // Restarts the filter from a fix (a relocalization or a re-anchoring) and says so.
   void Restart(core::Timestamp time, const core::Pose2& fix, const Eigen::Matrix3d& fix_covariance,

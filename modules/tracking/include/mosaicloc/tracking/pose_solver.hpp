@@ -41,6 +41,15 @@ struct PoseSolverOptions {
   /// the camera: the camera is k times as high over the floor as calibrated) where three or
   /// more inliers determine it; the pose is then a similarity fit, its covariance marginal.
   bool estimate_scale = true;
+  /// Also estimate the camera's tilt against the floor (with the scale) where at least
+  /// `min_tilt_points` distinct template positions determine it: the correspondences are then
+  /// rays of a pinhole `camera_height_mm` over the floor (camera_mm is a point's offset at
+  /// that height), cast onto a plane the camera sees tilted, a homography of the ground plane.
+  bool estimate_tilt = false;
+  int min_tilt_points = 8;
+  /// The height over the floor at which camera_mm is expressed (the calibrated height, times
+  /// the scale the tracker renders at), mm; its focal length in pixels is this over mm per px.
+  double camera_height_mm = 200.0;
   bool Check(std::string* why) const;
 };
 
@@ -62,6 +71,13 @@ struct PoseSolution {
   double scale = 1.0;
   double scale_sigma = std::numeric_limits<double>::infinity();
   bool scale_estimated = false;
+  /// The camera's tilt against the floor, rad: the floor's normal in camera axes is
+  /// (-tan tilt_y, tan tilt_x, 1) normalized (0 and an infinite sigma when not estimated);
+  /// tilt_sigma_rad is the larger of the two standard deviations.
+  double tilt_x_rad = 0.0;
+  double tilt_y_rad = 0.0;
+  double tilt_sigma_rad = std::numeric_limits<double>::infinity();
+  bool tilt_estimated = false;
 };
 
 /// Planar pose of the camera from correspondences: the robust cost minimised by reweighted
@@ -81,5 +97,12 @@ void PlanarResidual(const double* pose, const Correspondence& c, double scale, d
 /// residual = k R(yaw) camera + t - world; the Jacobian is 2 x 4, row-major.
 void SimilarityResidual(const double* pose, const Correspondence& c, double scale, double* residual,
                         double* jacobian_row_major);
+/// The same through a tilted pinhole, pose = (x, y, yaw, k, a, b): the camera k h over a plane
+/// whose normal in camera axes is (-b, a, 1) normalized; camera_mm is the ray through
+/// (p_x / h, p_y / h, -1); the residual is t + R(yaw) q - w, q the ray's floor point less the
+/// image centre's in the plane's frame (its x axis the camera's x projected onto the plane).
+/// With a = b = 0 it is SimilarityResidual. The Jacobian is 2 x 6, row-major.
+void TiltResidual(const double* pose, const Correspondence& c, double scale, double height_mm, double* residual,
+                  double* jacobian_row_major);
 
 }  // namespace mosaicloc::tracking

@@ -80,6 +80,12 @@ struct TrackResult {
   double scale = 1.0;
   double scale_sigma = std::numeric_limits<double>::infinity();
   bool scale_estimated = false;
+  /// The camera's tilt against the floor (PoseSolution::tilt_x_rad, ...), where
+  /// solver.estimate_tilt asks for it and the refined templates determine it; else 0.
+  double tilt_x_rad = 0.0;
+  double tilt_y_rad = 0.0;
+  double tilt_sigma_rad = std::numeric_limits<double>::infinity();
+  bool tilt_estimated = false;
   std::vector<TemplateReport> templates;
 };
 
