@@ -30,8 +30,16 @@ void PrintLimits(const localizer::SpeedLimitOptions& o, const localizer::SpeedLi
               l.blur_limit_mps, o.max_blur_px);
   std::printf("  prediction limit        V < r s / (epsilon T_cyc)      = %7.2f m/s   (r = %.0f px, epsilon = %.3g)\n",
               l.prediction_limit_mps, o.search_range_px, o.odometry_error);
-  std::printf("  height tolerance        |dh| < e h / R                 = %7.3f mm    (floor height against the mapped one)\n",
+  std::printf("  height tolerance        |dh| < e h / R                 = %7.3f mm    (floor against the mapped height, rigid fit)\n",
               l.height_tolerance_mm);
+  std::printf("    with the scale estimated  |dh| < k h                  = %7.1f mm    (k = %.3g, known to work at a first fix)\n",
+              l.scaled_height_tolerance_mm, o.max_scale_error);
+  std::printf("  tilt tolerance          |a| < e h / (s R^2)            = %7.3f deg   (keystone at the corner, fit without the tilt)\n",
+              l.rigid_tilt_tolerance_deg);
+  std::printf("    with the tilt estimated   |a| < a_max                 = %7.2f deg   (known to work, twelve templates)\n",
+              l.tilt_tolerance_deg);
+  std::printf("  tilt lever              p a                            = %7.3f mm per deg (pivot p = %.4g mm; out of the fix only with the tilt estimated)\n",
+              l.tilt_lever_mm_per_deg, o.tilt_pivot_height_mm);
   std::printf("  mosaic speed limit      min(blur, prediction)          = %7.2f m/s   (%.1f x the overlap speed limit)\n\n",
               l.mosaic_limit_mps, l.mosaic_limit_mps / l.overlap_limit_mps);
   const double visual_odometry_max = 1.0 - o.required_overlap;
@@ -77,6 +85,10 @@ Action AddLimitsCommand(CLI::App& app, const GlobalOptions& global) {
         {"prediction_speed_limit_mps", limits.prediction_limit_mps},
         {"mosaic_speed_limit_mps", limits.mosaic_limit_mps},
         {"height_tolerance_mm", limits.height_tolerance_mm},
+        {"scaled_height_tolerance_mm", limits.scaled_height_tolerance_mm},
+        {"rigid_tilt_tolerance_deg", limits.rigid_tilt_tolerance_deg},
+        {"tilt_tolerance_deg", limits.tilt_tolerance_deg},
+        {"tilt_lever_mm_per_deg", limits.tilt_lever_mm_per_deg},
         {"speed_mps", options.speed_mps},
         {"step_mm", limits.step_mm},
         {"instability_ratio", limits.instability_ratio},

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 #include "mosaicloc/camera/ideal_camera.hpp"
 #include "mosaicloc/core/error.hpp"
@@ -26,6 +27,11 @@ bool SpeedLimitOptions::Check(std::string* why) const {
   if (!(max_blur_px > 0.0)) return fail("max_blur_px must be > 0");
   if (!(search_range_px > 0.0)) return fail("search_range_px must be > 0");
   if (!(odometry_error > 0.0 && odometry_error < 1.0)) return fail("odometry_error must be in (0, 1)");
+  if (!(tilt_pivot_height_mm >= -1000.0 && tilt_pivot_height_mm <= 2000.0)) {
+    return fail("tilt_pivot_height_mm must be in [-1000, 2000]");
+  }
+  if (!(max_scale_error > 0.0 && max_scale_error < 1.0)) return fail("max_scale_error must be in (0, 1)");
+  if (!(max_tilt_deg > 0.0 && max_tilt_deg < 45.0)) return fail("max_tilt_deg must be in (0, 45)");
   if (!(speed_mps >= 0.0 && std::isfinite(speed_mps))) return fail("speed_mps must be >= 0");
   return true;
 }
@@ -45,6 +51,12 @@ SpeedLimits AnalyseSpeedLimits(const SpeedLimitOptions& options) {
   limits.overlap_limit_mps = 1e-3 * limits.footprint_along_mm * (1.0 - options.required_overlap) / cycle_s;
   limits.height_tolerance_mm = options.distortion_tolerance_px * options.camera_height_mm / limits.half_diagonal_px;
   limits.distortion_limit_mps = 1e-3 * limits.height_tolerance_mm / (options.depth_gradient * cycle_s);
+  limits.scaled_height_tolerance_mm = options.max_scale_error * options.camera_height_mm;
+  const double degree = std::numbers::pi / 180.0;
+  limits.rigid_tilt_tolerance_deg = options.distortion_tolerance_px * options.camera_height_mm /
+                                    (s * limits.half_diagonal_px * limits.half_diagonal_px) / degree;
+  limits.tilt_tolerance_deg = options.max_tilt_deg;
+  limits.tilt_lever_mm_per_deg = options.tilt_pivot_height_mm * degree;
   limits.blur_limit_mps = 1e-3 * options.max_blur_px * s / exposure_s;
   limits.prediction_limit_mps = 1e-3 * options.search_range_px * s / (options.odometry_error * cycle_s);
   limits.mosaic_limit_mps = std::min(limits.blur_limit_mps, limits.prediction_limit_mps);
@@ -70,6 +82,7 @@ SpeedLimitOptions LoadSpeedLimitConfig(const std::filesystem::path& file) {
   camera.Optional("frame_rate_hz", &o.frame_rate_hz);
   camera.Optional("exposure_us", &o.exposure_us);
   camera.Optional("height_mm", &o.camera_height_mm);
+  camera.Optional("tilt_pivot_height_mm", &o.tilt_pivot_height_mm);
   double yaw_rad = -o.travel_direction_rad;
   camera.Optional("vehicle_from_camera_yaw_rad", &yaw_rad);
   o.travel_direction_rad = -yaw_rad;
@@ -85,6 +98,8 @@ SpeedLimitOptions LoadSpeedLimitConfig(const std::filesystem::path& file) {
   tracker.Optional("max_blur_px", &o.max_blur_px);
   tracker.Optional("search_range_px", &o.search_range_px);
   tracker.Optional("odometry_error", &o.odometry_error);
+  tracker.Optional("max_scale_error", &o.max_scale_error);
+  tracker.Optional("max_tilt_deg", &o.max_tilt_deg);
   tracker.CheckOwnKeys(o);
   tracker.Finish();
   root.Optional("speed_mps", &o.speed_mps);

@@ -20,6 +20,11 @@ TEST(SpeedLimits, NominalSetup) {
   EXPECT_NEAR(limits.half_diagonal_px, 400.0, 1e-9);
   EXPECT_NEAR(limits.overlap_limit_mps, 2.4, 1e-9);          // 160 mm * 0.5 * 30 Hz
   EXPECT_NEAR(limits.height_tolerance_mm, 0.25, 1e-12);      // 0.5 px * 200 mm / 400 px
+  EXPECT_NEAR(limits.scaled_height_tolerance_mm, 30.0, 1e-12);  // 0.15 * 200 mm
+  // 0.5 px * 200 mm / (0.25 mm/px * 400^2 px^2) = 0.0025 rad
+  EXPECT_NEAR(limits.rigid_tilt_tolerance_deg, 0.0025 * 180.0 / 3.14159265358979, 1e-9);
+  EXPECT_NEAR(limits.tilt_tolerance_deg, 1.5, 1e-12);
+  EXPECT_NEAR(limits.tilt_lever_mm_per_deg, 100.0 * 3.14159265358979 / 180.0, 1e-9);
   EXPECT_NEAR(limits.distortion_limit_mps, 3.75, 1e-9);      // 0.25 mm / (0.002 * 1/30 s)
   EXPECT_NEAR(limits.blur_limit_mps, 7.5, 1e-9);             // 3 px * 0.25 mm / 100 us
   EXPECT_NEAR(limits.prediction_limit_mps, 36.0, 1e-9);      // 96 px * 0.25 mm / (0.02 / 30 Hz)

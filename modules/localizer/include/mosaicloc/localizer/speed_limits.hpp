@@ -20,6 +20,9 @@ struct SpeedLimitOptions {
   /// Direction of travel in the camera floor frame C, rad: 0 along image right, pi/2 along
   /// image up. For a vehicle driving forward it is -yaw of vehicle_from_camera.
   double travel_direction_rad = 0.0;
+  /// Height over the floor of the axis the camera's body pitches and rolls about on its
+  /// suspension, mm: a tilt a moves the image centre by this times a.
+  double tilt_pivot_height_mm = 100.0;
 
   // The floor.
   /// Change of floor height (or of the camera's height through suspension pitch) per unit
@@ -32,6 +35,11 @@ struct SpeedLimitOptions {
   double max_blur_px = 3.0;              ///< motion blur the tracker is known to work with, px
   double search_range_px = 96.0;         ///< the tracker's largest search half-range, px
   double odometry_error = 0.02;          ///< odometry error per distance travelled (2 %: 0.02)
+  /// The largest error of the image scale the tracker is known to take at a first fix (it
+  /// follows the scale after), relative: 0.15 is a camera 15 % higher than the map's.
+  double max_scale_error = 0.15;
+  /// The largest tilt the tracker is known to follow when it estimates the tilt, degrees.
+  double max_tilt_deg = 1.5;
 
   /// Speed at which the per-cycle figures (step, instability ratio, blur) are given, m/s.
   double speed_mps = 7.2;
@@ -59,9 +67,21 @@ struct SpeedLimits {
   /// g S / h; a rigid registration leaves R g S / h of misfit at the image corner, which
   /// must stay below the tolerance e. Binds frame-to-frame registration.
   double distortion_limit_mps = 0.0;
-  /// The mosaic's counterpart of the distortion limit, independent of speed: the floor's
-  /// height may differ from the mapped one by at most e h / R, mm.
+  /// The mosaic's counterpart of the distortion limit, independent of speed: for a rigid fit
+  /// (solver.estimate_scale off) the floor's height may differ from the mapped one by at
+  /// most e h / R, mm.
   double height_tolerance_mm = 0.0;
+  /// With the image scale estimated: max_scale_error h, mm.
+  double scaled_height_tolerance_mm = 0.0;
+  /// The tilt a fit without it (solver.estimate_tilt off) absorbs: the keystone of a tilt a
+  /// misplaces the image corner by a R^2 / f px (f = h / s, the focal length in pixels), which
+  /// must stay below e: a < e h / (s R^2), degrees.
+  double rigid_tilt_tolerance_deg = 0.0;
+  /// With the tilt estimated: max_tilt_deg.
+  double tilt_tolerance_deg = 0.0;
+  /// How far a tilt moves the fix unless it is estimated and taken out: the pivot's height
+  /// times the angle, mm per degree.
+  double tilt_lever_mm_per_deg = 0.0;
   /// Motion blur limit V < b s / T_exp: the image smears by V T_exp / s pixels.
   double blur_limit_mps = 0.0;
   /// Prediction speed limit V < r s / (epsilon T_cyc): between two fixes the odometry
