@@ -80,6 +80,38 @@ void ReadSimulatorConfig(const YAML::Node& node, const std::string& file_name, S
   suspension.Check(u);
   suspension.Finish();
 
+  core::YamlMap changes = root.OptionalMap("changes");
+  FloorChangeOptions& f = options->changes;
+  std::int64_t changes_seed = static_cast<std::int64_t>(f.seed);
+  changes.Optional("seed", &changes_seed, IntegerInRange(0, INT64_MAX));
+  f.seed = static_cast<std::uint64_t>(changes_seed);
+  changes.Optional("grime_fraction", &f.grime_fraction);
+  changes.Optional("grime_strength", &f.grime_strength);
+  changes.Optional("stains_per_m2", &f.stains_per_m2);
+  changes.Optional("tyre_marks", &f.tyre_marks);
+  changes.Optional("tyre_mark_width_mm", &f.tyre_mark_width_mm);
+  core::YamlMap wet = changes.OptionalMap("wet_patch");
+  wet.Optional("x_mm", &f.wet_x_mm);
+  wet.Optional("y_mm", &f.wet_y_mm);
+  wet.Optional("radius_mm", &f.wet_radius_mm);
+  wet.Optional("strength", &f.wet_strength);
+  wet.Finish();
+  core::YamlMap tile = changes.OptionalMap("replaced_tile");
+  tile.Optional("x_mm", &f.tile_x_mm);
+  tile.Optional("y_mm", &f.tile_y_mm);
+  tile.Optional("size_mm", &f.tile_size_mm);
+  tile.Finish();
+  core::YamlMap lane = changes.OptionalMap("lane_line");
+  lane.Optional("x0_mm", &f.lane_x0_mm);
+  lane.Optional("y0_mm", &f.lane_y0_mm);
+  lane.Optional("x1_mm", &f.lane_x1_mm);
+  lane.Optional("y1_mm", &f.lane_y1_mm);
+  lane.Optional("width_mm", &f.lane_width_mm);
+  lane.Optional("dn", &f.lane_dn);
+  lane.Finish();
+  changes.Check(f);
+  changes.Finish();
+
   core::YamlMap imaging = root.OptionalMap("imaging");
   ImagingOptions& i = options->imaging;
   imaging.Optional("exposure_us", &i.exposure_us);

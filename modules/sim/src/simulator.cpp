@@ -40,6 +40,21 @@ Eigen::Vector2d Acceleration(const Drive& drive, double t) {
   return {longitudinal, now.forward_speed_mps * turn_rate};
 }
 
+// The lanes' wheel paths (where tyre marks build up): the route's centre line, one lap,
+// offset by half the true track width to either side.
+std::vector<std::vector<Eigen::Vector2d>> WheelPaths(const Drive& drive, const SimulatorOptions& options) {
+  const double half_track =
+      0.5 * options.encoders.nominal.track_width_mm * (1.0 + options.encoders.track_width_error);
+  std::vector<std::vector<Eigen::Vector2d>> paths(2);
+  constexpr double kStepM = 0.02;
+  for (double s = 0.0; s <= drive.lap_length_m() + 0.5 * kStepM; s += kStepM) {
+    const core::Pose2 centre = drive.CentreLineAt(std::min(s, drive.lap_length_m()));
+    paths[0].push_back(centre * Eigen::Vector2d(0.0, half_track));
+    paths[1].push_back(centre * Eigen::Vector2d(0.0, -half_track));
+  }
+  return paths;
+}
+
 }  // namespace
 
 FloorChoice FloorChoice::Named(const std::string& name, FloorChoice base) {
@@ -140,6 +155,10 @@ bool SimulatorOptions::Check(std::string* why) const {
     *why = "suspension." + *why;
     return false;
   }
+  if (!changes.Check(why)) {
+    *why = "changes." + *why;
+    return false;
+  }
   return route.Check(why) && camera.Check(why) && imaging.Check(why) && encoders.Check(why);
 }
 
@@ -163,11 +182,12 @@ SimulationSummary Simulate(const SimulatorOptions& options, const std::filesyste
                            const ProgressCallback& progress) {
   std::string why;
   if (!options.Check(&why)) core::ThrowInvalidInput("simulate: " + why);
-  const std::unique_ptr<Floor> floor = MakeFloor(options.floor);
   const camera::IdealCamera camera(options.camera);
   const int laps = options.laps > 0 ? options.laps
                                     : Drive::LapsForFrames(options.route, options.frames, options.frame_rate_hz);
   const Drive drive(options.route, laps, options.seed);
+  std::unique_ptr<Floor> floor = MakeFloor(options.floor);
+  if (options.changes.any()) floor = ChangedFloor(std::move(floor), options.changes, WheelPaths(drive, options));
   const CameraPlacement placement = MakeCameraPlacement(options);
   // The frames as the camera really sees them: straight down from its true height, or
   // through the rays of its 3-D pose.

@@ -10,6 +10,7 @@
 #include "mosaicloc/core/pose2.hpp"
 #include "mosaicloc/sim/encoders.hpp"
 #include "mosaicloc/sim/floor.hpp"
+#include "mosaicloc/sim/floor_changes.hpp"
 #include "mosaicloc/sim/imaging.hpp"
 #include "mosaicloc/sim/route.hpp"
 #include "mosaicloc/sim/stance.hpp"
@@ -54,6 +55,9 @@ struct SimulatorOptions {
   /// these are zero and the floor is flat, frames are the ideal view from the true height;
   /// otherwise every pixel is a ray of a pinhole at the camera's 3-D pose (CameraPlacement).
   SuspensionOptions suspension;
+  /// How the floor has changed since it was mapped (grime, stains, tyre marks along this
+  /// drive's lanes, a wet patch, a replaced tile, a lane line); none by default.
+  FloorChangeOptions changes;
   ImagingOptions imaging;
   EncoderOptions encoders;
   double frame_rate_hz = 30.0;
