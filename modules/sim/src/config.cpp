@@ -90,6 +90,7 @@ void ReadSimulatorConfig(const YAML::Node& node, const std::string& file_name, S
   changes.Optional("stains_per_m2", &f.stains_per_m2);
   changes.Optional("tyre_marks", &f.tyre_marks);
   changes.Optional("tyre_mark_width_mm", &f.tyre_mark_width_mm);
+  changes.Optional("tyre_track_width_mm", &f.tyre_track_width_mm);
   core::YamlMap wet = changes.OptionalMap("wet_patch");
   wet.Optional("x_mm", &f.wet_x_mm);
   wet.Optional("y_mm", &f.wet_y_mm);

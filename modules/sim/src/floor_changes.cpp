@@ -304,6 +304,7 @@ bool FloorChangeOptions::Check(std::string* why) const {
   if (!(stains_per_m2 >= 0.0 && stains_per_m2 <= 100.0)) return fail("stains_per_m2 must be in [0, 100]");
   if (!(tyre_marks >= 0.0 && tyre_marks <= 1.0)) return fail("tyre_marks must be in [0, 1]");
   if (!(tyre_mark_width_mm > 0.0 && tyre_mark_width_mm <= 500.0)) return fail("tyre_mark_width_mm must be in (0, 500]");
+  if (!(tyre_track_width_mm >= 0.0 && tyre_track_width_mm <= 5000.0)) return fail("tyre_track_width_mm must be in [0, 5000]");
   if (!(wet_radius_mm >= 0.0 && wet_radius_mm <= 1e5)) return fail("wet_radius_mm must be in [0, 1e5]");
   if (!(wet_strength >= 0.0 && wet_strength <= 1.0)) return fail("wet_strength must be in [0, 1]");
   if (!(tile_size_mm >= 0.0 && tile_size_mm <= 1e5)) return fail("tile_size_mm must be in [0, 1e5]");

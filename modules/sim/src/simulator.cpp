@@ -41,10 +41,12 @@ Eigen::Vector2d Acceleration(const Drive& drive, double t) {
 }
 
 // The lanes' wheel paths (where tyre marks build up): the route's centre line, one lap,
-// offset by half the true track width to either side.
+// offset by half the marks' track width (the vehicle's true one unless given) to either side.
 std::vector<std::vector<Eigen::Vector2d>> WheelPaths(const Drive& drive, const SimulatorOptions& options) {
   const double half_track =
-      0.5 * options.encoders.nominal.track_width_mm * (1.0 + options.encoders.track_width_error);
+      options.changes.tyre_track_width_mm > 0.0
+          ? 0.5 * options.changes.tyre_track_width_mm
+          : 0.5 * options.encoders.nominal.track_width_mm * (1.0 + options.encoders.track_width_error);
   std::vector<std::vector<Eigen::Vector2d>> paths(2);
   constexpr double kStepM = 0.02;
   for (double s = 0.0; s <= drive.lap_length_m() + 0.5 * kStepM; s += kStepM) {

@@ -22,10 +22,13 @@ struct FloorChangeOptions {
   double grime_strength = 0.5;
   /// Stains: dark or light blotches 20 to 200 mm across, this many per square metre.
   double stains_per_m2 = 0.0;
-  /// Tyre marks along the wheel paths (Simulate: the drive's own route): their darkness at
+  /// Tyre marks along the wheel paths (Simulate: the drive's route): their darkness at
   /// the centre of a mark (0..1, 0: none) and a mark's width, mm.
   double tyre_marks = 0.0;
   double tyre_mark_width_mm = 60.0;
+  /// The distance between the marks of a lane's two wheel paths, mm (0: the drive's own
+  /// track; a narrower vehicle's marks run under the camera).
+  double tyre_track_width_mm = 0.0;
   /// A wet patch: a disc (centre, radius; radius 0: none) darker and flatter by `wet_strength`.
   double wet_x_mm = 0.0;
   double wet_y_mm = 0.0;
