@@ -182,6 +182,54 @@ TEST_F(ReplayTest, AnUnevenFloorUnderAHigherCameraIsFollowed) {
   EXPECT_LT(*m.height_error_rms_mm, 0.05);
 }
 
+// The fixture's drive over the floor as it looks months after it was mapped: grime over 40 %
+// of it, stains, tyre marks of a narrow vehicle under the camera, a wet patch and a lane line
+// across the lane, and a tile replaced by new floor 250 mm square. Outside the tile nearly
+// every frame gets a fix; over it there is none, and no fix is wrong anywhere.
+TEST_F(ReplayTest, AChangedFloorGivesNoWrongFix) {
+  sim::SimulatorOptions drive = Run(true);
+  drive.seed = 10;
+  sim::FloorChangeOptions& c = drive.changes;
+  c.grime_fraction = 0.4;
+  c.stains_per_m2 = 5.0;
+  c.tyre_marks = 0.6;
+  c.tyre_track_width_mm = 100.0;
+  c.wet_x_mm = 500.0;
+  c.wet_radius_mm = 150.0;
+  c.lane_x0_mm = 900.0;
+  c.lane_y0_mm = -300.0;
+  c.lane_x1_mm = 900.0;
+  c.lane_y1_mm = 300.0;
+  c.lane_width_mm = 80.0;
+  c.tile_x_mm = 1300.0;
+  c.tile_size_mm = 250.0;
+  sim::Simulate(drive, scratch_->path() / "changed", false);
+  ReplayOptions options = Options(ReplayMode::kMosaic, "changed-report");
+  options.dataset = scratch_->path() / "changed";
+  const ReplaySummary summary = Replay(options);
+  const dataset::Metrics& m = summary.metrics;
+  ASSERT_TRUE(m.wrong_fixes && m.lock_losses);
+  EXPECT_EQ(*m.wrong_fixes, 0);
+  EXPECT_EQ(*m.lock_losses, 0);
+  // The fix rate of the frames whose view (160 x 120 mm, 200 mm ahead of the vehicle) stays
+  // clear of the tile.
+  const dataset::Trajectory truth = dataset::DatasetReader(options.dataset).GroundTruth();
+  std::int64_t clear = 0, clear_fixed = 0, over = 0, over_fixed = 0;
+  for (const dataset::FrameReport& row : Fixes(summary)) {
+    const auto pose = dataset::PoseAt(truth, row.time, std::chrono::milliseconds(100));
+    ASSERT_TRUE(pose);
+    const Eigen::Vector2d camera = *pose * Eigen::Vector2d(200.0, 0.0);
+    const bool touches = std::abs(camera.x() - c.tile_x_mm) < 0.5 * c.tile_size_mm + 100.0 &&
+                         std::abs(camera.y() - c.tile_y_mm) < 0.5 * c.tile_size_mm + 100.0;
+    (touches ? over : clear) += 1;
+    (touches ? over_fixed : clear_fixed) += row.fixed ? 1 : 0;
+  }
+  ASSERT_GT(clear, 0);
+  ASSERT_GT(over, 0);
+  EXPECT_GE(static_cast<double>(clear_fixed) / static_cast<double>(clear), 0.98);
+  EXPECT_LT(over_fixed, over) << "the new tile is not the mapped floor";
+}
+
 TEST_F(ReplayTest, PrefetchingChangesWhereTilesLoadNotTheEstimate) {
   const ReplaySummary plain = Replay(Options(ReplayMode::kMosaic, "plain"));
   ReplayOptions options = Options(ReplayMode::kMosaic, "prefetch");
