@@ -35,11 +35,20 @@ Action AddBenchCommand(CLI::App& app, const GlobalOptions& global) {
   registration->add_option("--max-rotation-deg", args->max_rotation_deg, "Largest rotation, degrees")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 10.0));
+  registration->add_option("--max-scale", args->max_scale_change,
+                           "Largest change of the camera's height, relative (0.03: 3 %); with --max-tilt-deg the live "
+                           "view is a pinhole's")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 0.2));
+  registration->add_option("--max-tilt-deg", args->max_tilt_deg, "Largest tilt of the live camera about each axis, degrees")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 10.0));
   registration->add_option("--noise", args->noise_dn, "Sensor noise standard deviation, DN")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 50.0));
   registration->add_option("--methods", args->methods,
-                           "Only these: ours, ours-9x128, ours-tiled, ours-visp, ecc, phase, visp (default all)")
+                           "Only these: ours, ours-9x128, ours-tiled, ours-visp, ours-tilt, ecc, ecc-homography, phase, "
+                           "visp (default all)")
       ->delimiter(',')
       ->check(CLI::IsMember(runtime::RegistrationBenchMethods()));
   registration->add_option("--failure-px", args->failure_px, "An error above this (px at the centre) is a failure")
@@ -64,10 +73,12 @@ Action AddBenchCommand(CLI::App& app, const GlobalOptions& global) {
       PrintJson(out);
       return;
     }
-    std::printf("%zu texture(s) x %d pairs, 640x480, offsets up to +-%.1f px and +-%.1f deg, noise %.1f DN, "
-                "gain +-%.0f %%, offset +-%.0f DN; failure = error > %.2f px or %.2f deg; one core\n\n",
-                args->textures.size(), args->pairs, args->max_shift_px, args->max_rotation_deg, args->noise_dn,
-                100.0 * args->max_gain_change, args->max_offset_dn, args->failure_px, args->failure_deg);
+    std::printf("%zu texture(s) x %d pairs, 640x480, offsets up to +-%.1f px and +-%.1f deg, height +-%.1f %%, "
+                "tilt +-%.2f deg, noise %.1f DN, gain +-%.0f %%, offset +-%.0f DN; failure = error > %.2f px or %.2f "
+                "deg; one core\n\n",
+                args->textures.size(), args->pairs, args->max_shift_px, args->max_rotation_deg,
+                100.0 * args->max_scale_change, args->max_tilt_deg, args->noise_dn, 100.0 * args->max_gain_change,
+                args->max_offset_dn, args->failure_px, args->failure_deg);
     std::printf("%-48s %8s %9s %9s %9s %9s %9s %9s %9s\n", "method", "failures", "rms px", "max px", "rms deg",
                 "max deg", "mean ms", "p50 ms", "vs ECC");
     for (const runtime::RegistrationBenchRow& r : rows) {

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Geometry>
 #include <Eigen/LU>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
@@ -65,6 +66,71 @@ Pair MakePair(const cv::Mat& texture, double scale, cv::Size size, const Registr
   sim::ResampleExact(texture, source_from_reference, size, 2).convertTo(pair.reference, CV_8UC1);
   cv::Mat live =
       sim::ResampleExact(texture, tracking::ComposeAffine(source_from_reference, reference_from_live), size, 2);
+  const double gain = 1.0 + unit(rng) * o.max_gain_change;
+  const double offset = unit(rng) * o.max_offset_dn;
+  live = live * gain + offset;
+  cv::Mat noise(size, CV_32FC1);
+  cv::RNG cv_rng(rng());
+  cv_rng.fill(noise, cv::RNG::NORMAL, 0.0, o.noise_dn);
+  live += noise;
+  live.convertTo(pair.live, CV_8UC1);
+  return pair;
+}
+
+// A pair whose live view is a pinhole's at (1 + dk) times the height, tilted by (a, b) about
+// its x and y axes and turned by theta, over the floor point at reference pixel c + d: each
+// pixel is a ray cast onto the floor (exact, on a twice finer grid, area-averaged), the
+// reference rendered the same way straight down.
+Pair MakePerspectivePair(const cv::Mat& texture, double scale, cv::Size size, const RegistrationBenchOptions& o,
+                         std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  Pair pair;
+  pair.theta_rad = unit(rng) * o.max_rotation_deg * kDeg;
+  pair.d = {unit(rng) * o.max_shift_px, unit(rng) * o.max_shift_px};
+  const double k = 1.0 + unit(rng) * o.max_scale_change;
+  const double a = unit(rng) * o.max_tilt_deg * kDeg, b = unit(rng) * o.max_tilt_deg * kDeg;
+  const double f = 800.0;  // the focal length in pixels: 200 mm over 0.25 mm/px
+  const Eigen::Vector2d c(0.5 * (size.width - 1), 0.5 * (size.height - 1));
+  const double margin = scale * (o.max_shift_px + 0.5 * std::hypot(size.width, size.height) *
+                                                      (std::sin(o.max_rotation_deg * kDeg) + o.max_scale_change +
+                                                       2.0 * std::tan(o.max_tilt_deg * kDeg)) + 12.0);
+  std::uniform_real_distribution<double> ox(margin, texture.cols - scale * size.width - margin);
+  std::uniform_real_distribution<double> oy(margin, texture.rows - scale * size.height - margin);
+  const Eigen::Vector2d origin(ox(rng), oy(rng));
+  // Reference pixel q <-> floor point ((q - c)_x, -(q - c)_y) in pixels of the reference.
+  // Image axes have y down: a turn by theta in the image is -theta on the floor.
+  const Eigen::Matrix3d rotation = (Eigen::AngleAxisd(-pair.theta_rad, Eigen::Vector3d::UnitZ()) *
+                                    Eigen::AngleAxisd(a, Eigen::Vector3d::UnitX()) *
+                                    Eigen::AngleAxisd(b, Eigen::Vector3d::UnitY()))
+                                       .toRotationMatrix();
+  // The lens: over the floor point d (image axes, y down) less the tilt's offset of the centre ray.
+  const Eigen::Vector3d centre_ray = rotation * Eigen::Vector3d(0.0, 0.0, -1.0);
+  const Eigen::Vector2d d_floor(pair.d.x(), -pair.d.y());
+  const Eigen::Vector2d lens = d_floor - k * f * centre_ray.head<2>() / -centre_ray.z();
+  const auto render = [&](bool live) {
+    const int n = 2;
+    cv::Mat map_x(size.height * n, size.width * n, CV_32F), map_y(size.height * n, size.width * n, CV_32F);
+    for (int v = 0; v < map_x.rows; ++v) {
+      for (int u = 0; u < map_x.cols; ++u) {
+        const Eigen::Vector2d p((u + 0.5) / n - 0.5, (v + 0.5) / n - 0.5);
+        Eigen::Vector2d floor(p.x() - c.x(), -(p.y() - c.y()));
+        if (live) {
+          const Eigen::Vector3d ray = rotation * Eigen::Vector3d(floor.x() / f, floor.y() / f, -1.0);
+          floor = lens + k * f * ray.head<2>() / -ray.z();
+        }
+        const Eigen::Vector2d q(floor.x() + c.x(), -floor.y() + c.y());
+        map_x.at<float>(v, u) = static_cast<float>(origin.x() + scale * (q.x() + 0.5) - 0.5);
+        map_y.at<float>(v, u) = static_cast<float>(origin.y() + scale * (q.y() + 0.5) - 0.5);
+      }
+    }
+    cv::Mat fine, image;
+    cv::remap(texture, fine, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+    fine.convertTo(fine, CV_32F);
+    cv::resize(fine, image, size, 0, 0, cv::INTER_AREA);
+    return image;
+  };
+  render(false).convertTo(pair.reference, CV_8UC1);
+  cv::Mat live = render(true);
   const double gain = 1.0 + unit(rng) * o.max_gain_change;
   const double offset = unit(rng) * o.max_offset_dn;
   live = live * gain + offset;
@@ -164,6 +230,10 @@ std::vector<Method> MakeMethods(const camera::IdealCamera& camera) {
   tracking::TrackerOptions tiled = defaults;
   tiled.templates.mode = tracking::TemplateMode::kTiled;
   methods.push_back({"ours-tiled", "mosaicloc whole frame (4x3 tiles)", ours(tiled), {}, {}, {}, 0});
+  tracking::TrackerOptions tilt = defaults;
+  tilt.templates.count = 12;
+  tilt.solver.estimate_tilt = true;
+  methods.push_back({"ours-tilt", "mosaicloc 12x96, scale and tilt estimated", ours(tilt), {}, {}, {}, 0});
   tracking::TrackerOptions visp = defaults;
   visp.refine.method = tracking::RefineMethod::kVispZncc;
   visp.refine.warp = tracking::RefineWarp::kSrt;
@@ -186,6 +256,37 @@ std::vector<Method> MakeMethods(const camera::IdealCamera& camera) {
                          for (int k = 0; k < 3; ++k) live_from_reference(r, k) = warp.at<float>(r, k);
                        }
                        return FromAffine(Invert(live_from_reference), c);
+                     },
+                     {}, {}, {}, 0});
+  methods.push_back({"ecc-homography", "OpenCV findTransformECC (homography, full frame)",
+                     [c](const Pair& pair) {
+                       cv::Mat warp = cv::Mat::eye(3, 3, CV_32F);
+                       try {
+                         cv::findTransformECC(
+                             pair.reference, pair.live, warp, cv::MOTION_HOMOGRAPHY,
+                             cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 100, 1e-6),
+                             cv::noArray(), 5);
+                       } catch (const cv::Exception&) {
+                         return Estimate{};
+                       }
+                       // The warp maps reference pixels to live pixels; the live image centre
+                       // in the reference, and the direction of the live x axis there.
+                       Eigen::Matrix3d live_from_reference;
+                       for (int r = 0; r < 3; ++r) {
+                         for (int k = 0; k < 3; ++k) live_from_reference(r, k) = warp.at<float>(r, k);
+                       }
+                       const Eigen::Matrix3d reference_from_live = live_from_reference.inverse();
+                       const auto map = [&](const Eigen::Vector2d& p) {
+                         const Eigen::Vector3d h = reference_from_live * p.homogeneous();
+                         return Eigen::Vector2d(h.head<2>() / h.z());
+                       };
+                       Estimate e;
+                       e.ok = reference_from_live.allFinite();
+                       const Eigen::Vector2d centre = map(c);
+                       const Eigen::Vector2d along = map(c + Eigen::Vector2d(1.0, 0.0)) - centre;
+                       e.theta_rad = std::atan2(along.y(), along.x());
+                       e.d = centre - c;
+                       return e;
                      },
                      {}, {}, {}, 0});
   methods.push_back({"phase", "OpenCV phaseCorrelate (translation)",
@@ -244,6 +345,10 @@ bool RegistrationBenchOptions::Check(std::string* why) const {
     *why = "registration bench: shifts up to 32 px, rotations up to 10 deg and noise up to 50 DN";
     return false;
   }
+  if (!(max_scale_change >= 0.0 && max_scale_change <= 0.2) || !(max_tilt_deg >= 0.0 && max_tilt_deg <= 10.0)) {
+    *why = "registration bench: scale changes up to 0.2 and tilts up to 10 deg";
+    return false;
+  }
   for (const std::string& key : methods) {
     if (std::find(RegistrationBenchMethods().begin(), RegistrationBenchMethods().end(), key) ==
         RegistrationBenchMethods().end()) {
@@ -255,7 +360,8 @@ bool RegistrationBenchOptions::Check(std::string* why) const {
 }
 
 const std::vector<std::string>& RegistrationBenchMethods() {
-  static const std::vector<std::string> keys = {"ours", "ours-9x128", "ours-tiled", "ours-visp", "ecc", "phase", "visp"};
+  static const std::vector<std::string> keys = {"ours", "ours-9x128", "ours-tiled", "ours-visp", "ours-tilt",
+                                                "ecc",  "ecc-homography", "phase", "visp"};
   return keys;
 }
 
@@ -286,7 +392,9 @@ std::vector<RegistrationBenchRow> RunRegistrationBench(const RegistrationBenchOp
                               std::to_string(size.width + 100) + "x" + std::to_string(size.height + 100) + " pixels");
     }
     for (int i = 0; i < options.pairs; ++i) {
-      const Pair pair = MakePair(texture, scale, size, options, rng);
+      const bool perspective = options.max_scale_change > 0.0 || options.max_tilt_deg > 0.0;
+      const Pair pair = perspective ? MakePerspectivePair(texture, scale, size, options, rng)
+                                    : MakePair(texture, scale, size, options, rng);
       for (Method& method : methods) {
         const auto start = std::chrono::steady_clock::now();
         const Estimate e = method.run(pair);

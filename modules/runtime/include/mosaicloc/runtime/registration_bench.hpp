@@ -22,11 +22,18 @@ struct RegistrationBenchOptions {
   double max_offset_dn = 15.0;    ///< and offset
   double failure_px = 1.0;        ///< an error above this (at the image centre) is a failure
   double failure_deg = 0.1;
+  /// Pairs whose live view is also from a camera up to this much higher or lower (relative:
+  /// 0.03 is 3 %) and tilted by up to this much about each axis, degrees: the live image is
+  /// then a pinhole's view of the floor (a homography of the reference), and the error is
+  /// that of the image centre's floor point. Both 0: pairs related by a rotation and a shift.
+  double max_scale_change = 0.0;
+  double max_tilt_deg = 0.0;
   std::vector<std::string> methods;  ///< keys of RegistrationBenchMethods(); empty: all
   bool Check(std::string* why) const;
 };
 
-/// The methods' keys: ours, ours-9x128, ours-tiled, ours-visp, ecc, phase, visp.
+/// The methods' keys: ours, ours-9x128, ours-tiled, ours-visp, ours-tilt (twelve templates,
+/// scale and tilt estimated), ecc, ecc-homography, phase, visp.
 const std::vector<std::string>& RegistrationBenchMethods();
 
 /// One method's figures over all pairs (NaN where nothing was measured).
