@@ -166,13 +166,6 @@ Estimate FromAffine(const Affine& reference_from_live, const Eigen::Vector2d& c)
   return e;
 }
 
-Affine Invert(const Affine& a) {
-  Affine r;
-  r.leftCols<2>() = a.leftCols<2>().inverse();
-  r.col(2) = -r.leftCols<2>() * a.col(2);
-  return r;
-}
-
 double Rms(const std::vector<double>& v) {
   if (v.empty()) return std::nan("");
   double s = 0.0;
@@ -193,6 +186,36 @@ double P50(std::vector<double> v) {
   if (v.empty()) return std::nan("");
   std::sort(v.begin(), v.end());
   return dataset::Percentile(v, 50.0);
+}
+
+// OpenCV's ECC over the whole frame with `motion` (MOTION_EUCLIDEAN or MOTION_HOMOGRAPHY). Its
+// warp maps reference pixels to live pixels: the estimate is where the live image centre lies
+// in the reference, and the direction of the live x axis there.
+Estimate Ecc(const Pair& pair, int motion, const Eigen::Vector2d& c) {
+  cv::Mat warp = cv::Mat::eye(motion == cv::MOTION_HOMOGRAPHY ? 3 : 2, 3, CV_32F);
+  try {
+    cv::findTransformECC(pair.reference, pair.live, warp, motion,
+                         cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 100, 1e-6), cv::noArray(),
+                         5);
+  } catch (const cv::Exception&) {
+    return Estimate{};
+  }
+  Eigen::Matrix3d live_from_reference = Eigen::Matrix3d::Identity();
+  for (int r = 0; r < warp.rows; ++r) {
+    for (int k = 0; k < 3; ++k) live_from_reference(r, k) = warp.at<float>(r, k);
+  }
+  const Eigen::Matrix3d reference_from_live = live_from_reference.inverse();
+  const auto map = [&](const Eigen::Vector2d& p) {
+    const Eigen::Vector3d h = reference_from_live * p.homogeneous();
+    return Eigen::Vector2d(h.head<2>() / h.z());
+  };
+  Estimate e;
+  e.ok = reference_from_live.allFinite();
+  const Eigen::Vector2d centre = map(c);
+  const Eigen::Vector2d along = map(c + Eigen::Vector2d(1.0, 0.0)) - centre;
+  e.theta_rad = std::atan2(along.y(), along.x());
+  e.d = centre - c;
+  return e;
 }
 
 std::vector<Method> MakeMethods(const camera::IdealCamera& camera) {
@@ -240,55 +263,9 @@ std::vector<Method> MakeMethods(const camera::IdealCamera& camera) {
   methods.push_back({"ours-visp", "mosaicloc 4x96, ViSP ZNCC-IC SRT refine", ours(visp), {}, {}, {}, 0});
 
   methods.push_back({"ecc", "OpenCV findTransformECC (euclidean, full frame)",
-                     [c](const Pair& pair) {
-                       cv::Mat warp = cv::Mat::eye(2, 3, CV_32F);
-                       try {
-                         cv::findTransformECC(
-                             pair.reference, pair.live, warp, cv::MOTION_EUCLIDEAN,
-                             cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 100, 1e-6),
-                             cv::noArray(), 5);
-                       } catch (const cv::Exception&) {
-                         return Estimate{};
-                       }
-                       // ECC's warp maps reference pixels to live pixels.
-                       Affine live_from_reference;
-                       for (int r = 0; r < 2; ++r) {
-                         for (int k = 0; k < 3; ++k) live_from_reference(r, k) = warp.at<float>(r, k);
-                       }
-                       return FromAffine(Invert(live_from_reference), c);
-                     },
-                     {}, {}, {}, 0});
+                     [c](const Pair& pair) { return Ecc(pair, cv::MOTION_EUCLIDEAN, c); }, {}, {}, {}, 0});
   methods.push_back({"ecc-homography", "OpenCV findTransformECC (homography, full frame)",
-                     [c](const Pair& pair) {
-                       cv::Mat warp = cv::Mat::eye(3, 3, CV_32F);
-                       try {
-                         cv::findTransformECC(
-                             pair.reference, pair.live, warp, cv::MOTION_HOMOGRAPHY,
-                             cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 100, 1e-6),
-                             cv::noArray(), 5);
-                       } catch (const cv::Exception&) {
-                         return Estimate{};
-                       }
-                       // The warp maps reference pixels to live pixels; the live image centre
-                       // in the reference, and the direction of the live x axis there.
-                       Eigen::Matrix3d live_from_reference;
-                       for (int r = 0; r < 3; ++r) {
-                         for (int k = 0; k < 3; ++k) live_from_reference(r, k) = warp.at<float>(r, k);
-                       }
-                       const Eigen::Matrix3d reference_from_live = live_from_reference.inverse();
-                       const auto map = [&](const Eigen::Vector2d& p) {
-                         const Eigen::Vector3d h = reference_from_live * p.homogeneous();
-                         return Eigen::Vector2d(h.head<2>() / h.z());
-                       };
-                       Estimate e;
-                       e.ok = reference_from_live.allFinite();
-                       const Eigen::Vector2d centre = map(c);
-                       const Eigen::Vector2d along = map(c + Eigen::Vector2d(1.0, 0.0)) - centre;
-                       e.theta_rad = std::atan2(along.y(), along.x());
-                       e.d = centre - c;
-                       return e;
-                     },
-                     {}, {}, {}, 0});
+                     [c](const Pair& pair) { return Ecc(pair, cv::MOTION_HOMOGRAPHY, c); }, {}, {}, {}, 0});
   methods.push_back({"phase", "OpenCV phaseCorrelate (translation)",
                      [c](const Pair& pair) {
                        cv::Mat a, b, window;
