@@ -23,6 +23,7 @@ using internal::Mix64;
 constexpr std::uint64_t kGrimeLayer = 101;
 constexpr std::uint64_t kStainLayer = 102;
 constexpr std::uint64_t kTileLayer = 103;
+constexpr std::uint64_t kPaintLayer = 104;
 constexpr double kGrimeCellMm = 150.0;
 constexpr double kStainCellMm = 1000.0;
 constexpr double kStainMaxRadiusMm = 100.0;
@@ -48,6 +49,7 @@ class Changed : public Floor {
       : base_(std::move(base)), options_(options), wheel_paths_(std::move(wheel_paths)) {
     grime_key_ = LayerKey(options_.seed, kGrimeLayer);
     stain_key_ = LayerKey(options_.seed, kStainLayer);
+    paint_key_ = static_cast<std::uint32_t>(LayerKey(options_.seed, kPaintLayer));
     if (options_.grime_fraction > 0.0) {
       // The noise level above which the wanted share of the floor lies, from samples.
       CellRandom random(LayerKey(options_.seed, 999));
@@ -205,8 +207,11 @@ class Changed : public Floor {
             const double w = 1.0 - SmoothStep(half - 1.5, half, DistanceToSegment(world(c, r), a, b));
             if (w <= 0.0) continue;
             float& v = value.at<float>(r, c);
-            // Paint: its own grey with a little of the floor's texture showing through.
-            v = static_cast<float>((1.0 - w) * v + w * (options_.lane_dn + 0.15 * (v - kMid)));
+            // Paint: its own grey and grain, with a little of the floor's relief showing through.
+            const std::uint32_t h = internal::Mix32(static_cast<std::uint32_t>(col0 + c) * 0x9e3779b1U ^
+                                                    static_cast<std::uint32_t>(row0 + r) * 0x85ebca77U ^ paint_key_);
+            const double grain = 12.0 * (static_cast<double>(h) / 4294967296.0 - 0.5);
+            v = static_cast<float>((1.0 - w) * v + w * (options_.lane_dn + 0.15 * (v - kMid) + grain));
           }
         }
       }
@@ -282,6 +287,7 @@ class Changed : public Floor {
   std::vector<std::vector<Eigen::Vector2d>> wheel_paths_;
   std::uint64_t grime_key_ = 0;
   std::uint64_t stain_key_ = 0;
+  std::uint32_t paint_key_ = 0;
   double grime_threshold_ = 2.0;
   std::int64_t tile_offset_col_ = 0;
   std::int64_t tile_offset_row_ = 0;
