@@ -163,12 +163,13 @@ Solved Solve(const std::vector<Correspondence>& cs, const std::vector<bool>& use
 }
 
 // How many parameters the used correspondences determine: the yaw needs two distinct points
-// of the frame, the scale (when asked for) three, one more than it needs, so that a wrong
-// match shows as a residual instead of bending the scale; the tilt min_tilt_points.
+// of the frame, the scale (when asked for) four, two more than it needs: with three, one
+// biased match (a template across the edge of paint the map does not have) bends the scale
+// and the position with it by millimetres and leaves no residual to show it; the tilt min_tilt_points.
 int FreeParameters(const std::vector<Correspondence>& cs, const std::vector<bool>& use,
                    const PoseSolverOptions& options) {
   const std::size_t wanted =
-      options.estimate_scale && options.estimate_tilt ? static_cast<std::size_t>(std::max(3, options.min_tilt_points)) : 3;
+      options.estimate_scale && options.estimate_tilt ? static_cast<std::size_t>(std::max(4, options.min_tilt_points)) : 4;
   std::vector<Eigen::Vector2d> distinct;
   for (std::size_t i = 0; i < cs.size() && distinct.size() < wanted; ++i) {
     if (!use[i]) continue;
@@ -178,7 +179,7 @@ int FreeParameters(const std::vector<Correspondence>& cs, const std::vector<bool
     if (!seen) distinct.push_back(cs[i].camera_mm);
   }
   if (options.estimate_scale && options.estimate_tilt && distinct.size() >= wanted) return 6;
-  if (options.estimate_scale && distinct.size() >= 3) return 4;
+  if (options.estimate_scale && distinct.size() >= 4) return 4;
   return distinct.size() >= 2 ? 3 : 2;
 }
 

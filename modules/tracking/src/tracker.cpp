@@ -299,6 +299,8 @@ class FrameRegistration {
   // a fine correspondence.
   void RefineTemplateAt(std::size_t index, const Affine& frame_to_raster) {
     TemplateReport& report = result_.templates[index];
+    // An inlier of the coarse pose is one of the fix's only if it is refined and used again.
+    report.inlier = false;
     report.refined = RefineTemplate(frame_, report.spot.rect, reference_, frame_to_raster, options_.refine);
     if (!report.refined.ok()) {
       report.rejected = std::string("refinement ") + ToString(report.refined.failure);

@@ -38,7 +38,7 @@ struct PoseSolverOptions {
   /// PoseSolution::covariance is then NaN.
   bool compute_covariance = true;
   /// Also estimate the image scale k (camera_mm is k times the true offset of a point from
-  /// the camera: the camera is k times as high over the floor as calibrated) where three or
+  /// the camera: the camera is k times as high over the floor as calibrated) where four or
   /// more inliers determine it; the pose is then a similarity fit, its covariance marginal.
   bool estimate_scale = true;
   /// Also estimate the camera's tilt against the floor (with the scale) where at least
