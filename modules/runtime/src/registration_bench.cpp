@@ -44,6 +44,21 @@ struct Pair {
   Eigen::Vector2d d = Eigen::Vector2d::Zero();
 };
 
+// The live image as its camera delivers it: another gain and offset, sensor noise, 8 bits.
+cv::Mat AsSensed(const cv::Mat& image, const RegistrationBenchOptions& o, std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  const double gain = 1.0 + unit(rng) * o.max_gain_change;
+  const double offset = unit(rng) * o.max_offset_dn;
+  cv::Mat live = image * gain + offset;
+  cv::Mat noise(image.size(), CV_32FC1);
+  cv::RNG cv_rng(rng());
+  cv_rng.fill(noise, cv::RNG::NORMAL, 0.0, o.noise_dn);
+  live += noise;
+  cv::Mat out;
+  live.convertTo(out, CV_8UC1);
+  return out;
+}
+
 Pair MakePair(const cv::Mat& texture, double scale, cv::Size size, const RegistrationBenchOptions& o, std::mt19937_64& rng) {
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
   Pair pair;
@@ -66,14 +81,7 @@ Pair MakePair(const cv::Mat& texture, double scale, cv::Size size, const Registr
   sim::ResampleExact(texture, source_from_reference, size, 2).convertTo(pair.reference, CV_8UC1);
   cv::Mat live =
       sim::ResampleExact(texture, tracking::ComposeAffine(source_from_reference, reference_from_live), size, 2);
-  const double gain = 1.0 + unit(rng) * o.max_gain_change;
-  const double offset = unit(rng) * o.max_offset_dn;
-  live = live * gain + offset;
-  cv::Mat noise(size, CV_32FC1);
-  cv::RNG cv_rng(rng());
-  cv_rng.fill(noise, cv::RNG::NORMAL, 0.0, o.noise_dn);
-  live += noise;
-  live.convertTo(pair.live, CV_8UC1);
+  pair.live = AsSensed(live, o, rng);
   return pair;
 }
 
@@ -131,14 +139,7 @@ Pair MakePerspectivePair(const cv::Mat& texture, double scale, cv::Size size, co
   };
   render(false).convertTo(pair.reference, CV_8UC1);
   cv::Mat live = render(true);
-  const double gain = 1.0 + unit(rng) * o.max_gain_change;
-  const double offset = unit(rng) * o.max_offset_dn;
-  live = live * gain + offset;
-  cv::Mat noise(size, CV_32FC1);
-  cv::RNG cv_rng(rng());
-  cv_rng.fill(noise, cv::RNG::NORMAL, 0.0, o.noise_dn);
-  live += noise;
-  live.convertTo(pair.live, CV_8UC1);
+  pair.live = AsSensed(live, o, rng);
   return pair;
 }
 
