@@ -283,14 +283,14 @@ SimulationSummary Simulate(const SimulatorOptions& options, const std::filesyste
     const std::size_t count = std::min(batch, capture_s.size() - first);
     const auto render = [&](std::size_t i) {
       const double t = capture_s[first + i];
-      const core::Pose2 world_from_camera = drive.At(t).world_from_vehicle * options.vehicle_from_camera;
+      const core::Pose2 world_from_vehicle = drive.At(t).world_from_vehicle;
+      const core::Pose2 world_from_camera = world_from_vehicle * options.vehicle_from_camera;
       constexpr double kHalfStepS = 5e-4;
       const core::Pose2 before = drive.At(t - kHalfStepS).world_from_vehicle * options.vehicle_from_camera;
       const core::Pose2 after = drive.At(t + kHalfStepS).world_from_vehicle * options.vehicle_from_camera;
       const Eigen::Vector2d velocity_camera =
           world_from_camera.Rotation().transpose() * (after.translation_mm() - before.translation_mm()) / (2 * kHalfStepS);
       const std::uint64_t frame_seed = Mix(options.seed, first + i + 1);
-      const core::Pose2 world_from_vehicle = drive.At(t).world_from_vehicle;
       const CameraView view = placement.At(world_from_vehicle, Acceleration(drive, t), t);
       camera_truth[i] = placement.Truth(view, world_from_vehicle);
       if (placement.straight_down()) {

@@ -1,84 +1,18 @@
-// Replays over real floors, simulated end to end as a user would run them: a camera whose
-// height and tilt change, a floor that changed since it was mapped. A 1.5 m straight over
-// procedural concrete is mapped at its true poses at 0.5 m/s; each test drives it again at
-// 1.2 m/s with other noise, wheels 2 % larger than calibrated, and the camera or the floor
-// as real vehicles and floors are. Optimized build: each test simulates, maps and replays.
+// Replays over real floors, simulated end to end as a user would run them: the replay
+// tests' straight drive again, with the camera or the floor as real vehicles and floors are
+// (a camera whose height and tilt change, a floor that changed since it was mapped). System
+// tests on the optimized build: each simulates, maps and replays.
 #include <chrono>
 #include <cmath>
-#include <filesystem>
-#include <string>
-#include <vector>
 
 #include <gtest/gtest.h>
 
-#include "mosaicloc/dataset/dataset.hpp"
-#include "mosaicloc/dataset/fixes.hpp"
-#include "mosaicloc/runtime/map_jobs.hpp"
-#include "mosaicloc/runtime/replay.hpp"
-#include "mosaicloc/sim/simulator.hpp"
-#include "mosaicloc/test/test_support.hpp"
+#include "straight_drive_replay.hpp"
 
 namespace mosaicloc::runtime {
 namespace {
 
-class RealFloorTest : public ::testing::Test {
- protected:
-  // The mapping run (0.5 m/s, seed 5), or with `drive` a run localized (1.2 m/s, wheels 2 %
-  // larger than calibrated).
-  static sim::SimulatorOptions Run(bool drive) {
-    sim::SimulatorOptions options;
-    options.route.name = "straight";
-    options.route.straight_length_m = 1.5;
-    options.laps = 1;
-    options.route.speed_mps = drive ? 1.2 : 0.5;
-    options.seed = drive ? 6 : 5;
-    if (drive) {
-      options.encoders.left_radius_error = 0.02;
-      options.encoders.right_radius_error = 0.02;
-    }
-    return options;
-  }
-
-  static void SetUpTestSuite() {
-    scratch_ = new test::ScratchDir();
-    sim::Simulate(Run(false), scratch_->path() / "map-run", false);
-    MapBuildOptions map;
-    map.dataset = scratch_->path() / "map-run";
-    map.out = scratch_->path() / "floor.mosaic";
-    BuildMap(map);
-  }
-  static void TearDownTestSuite() {
-    delete scratch_;
-    scratch_ = nullptr;
-  }
-
-  // The replay of the drive in `dataset` against the map, its report in `out`.
-  static ReplayOptions Options(const std::string& dataset, const std::string& out) {
-    ReplayOptions options;
-    options.dataset = scratch_->path() / dataset;
-    options.map = scratch_->path() / "floor.mosaic";
-    options.out = scratch_->path() / out;
-    return options;
-  }
-
-  static std::vector<dataset::FrameReport> Fixes(const ReplaySummary& summary) {
-    return dataset::ReadFixesCsv(summary.report / "fixes.csv");
-  }
-
-  // A replay that holds the lock with no wrong fix, at least `fix_rate` of the frames fixed,
-  // within `rms_mm` and `max_mm` of the truth.
-  static void ExpectHeld(const dataset::Metrics& m, double fix_rate, double rms_mm, double max_mm) {
-    ASSERT_TRUE(m.fix_rate && m.wrong_fixes && m.position_rms_mm && m.position_max_mm && m.lock_losses);
-    EXPECT_GE(*m.fix_rate, fix_rate);
-    EXPECT_EQ(*m.wrong_fixes, 0);
-    EXPECT_EQ(*m.lock_losses, 0);
-    EXPECT_LT(*m.position_rms_mm, rms_mm);
-    EXPECT_LT(*m.position_max_mm, max_mm);
-  }
-
-  static test::ScratchDir* scratch_;
-};
-test::ScratchDir* RealFloorTest::scratch_ = nullptr;
+using RealFloorTest = StraightDriveReplay;
 
 // The fixture's drive from a vehicle whose body pitches by half a degree per m/s^2 about an
 // axis 100 mm over the floor: starting and braking (1 m/s^2) move the image centre 0.9 mm
@@ -91,7 +25,7 @@ TEST_F(RealFloorTest, ATiltingBodysLeverIsTakenOutOfTheFixes) {
   drive.suspension.pitch_deg_per_mps2 = 0.5;
   drive.suspension.pivot_height_mm = 100.0;
   sim::Simulate(drive, scratch_->path() / "tilting", false);
-  ReplayOptions options = Options("tilting", "tilting-untilted");
+  ReplayOptions options = Options(ReplayMode::kMosaic, "tilting-untilted", "tilting");
   options.settings.localizer.tracker.templates.count = 12;
   const ReplaySummary untilted = Replay(options);
   ASSERT_TRUE(untilted.metrics.position_max_mm && untilted.metrics.wrong_fixes);
@@ -120,7 +54,7 @@ TEST_F(RealFloorTest, AnUnevenFloorUnderAHigherCameraIsFollowed) {
   drive.floor.unevenness_wavelength_m = 1.0;
   drive.height_offset_mm = 2.0;
   sim::Simulate(drive, scratch_->path() / "uneven", false);
-  ReplayOptions options = Options("uneven", "uneven-report");
+  ReplayOptions options = Options(ReplayMode::kMosaic, "uneven-report", "uneven");
   const ReplaySummary summary = Replay(options);
   const dataset::Metrics& m = summary.metrics;
   ExpectHeld(m, 0.99, 0.02, 0.1);
@@ -150,7 +84,7 @@ TEST_F(RealFloorTest, AChangedFloorGivesNoWrongFix) {
   c.tile_x_mm = 1300.0;
   c.tile_size_mm = 250.0;
   sim::Simulate(drive, scratch_->path() / "changed", false);
-  ReplayOptions options = Options("changed", "changed-report");
+  ReplayOptions options = Options(ReplayMode::kMosaic, "changed-report", "changed");
   const ReplaySummary summary = Replay(options);
   const dataset::Metrics& m = summary.metrics;
   ASSERT_TRUE(m.wrong_fixes && m.lock_losses);
