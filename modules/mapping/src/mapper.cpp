@@ -1,0 +1,399 @@
+#include "mosaicloc/mapping/mapper.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <list>
+#include <numbers>
+#include <unordered_map>
+
+#include <Eigen/LU>
+
+#include "mosaicloc/core/error.hpp"
+#include "mosaicloc/core/log.hpp"
+
+namespace mosaicloc::mapping {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double Rad(double deg) { return deg * std::numbers::pi / 180.0; }
+double Seconds(Clock::time_point since) { return std::chrono::duration<double>(Clock::now() - since).count(); }
+
+Eigen::Matrix3d Diagonal(double sigma_mm, double sigma_rad) {
+  return Eigen::Vector3d(sigma_mm * sigma_mm, sigma_mm * sigma_mm, sigma_rad * sigma_rad).asDiagonal();
+}
+
+// Decoded frames by index, the least recently used dropped first.
+class FrameCache {
+ public:
+  FrameCache(const std::function<cv::Mat(std::size_t)>& load, std::size_t capacity)
+      : load_(load), capacity_(std::max<std::size_t>(capacity, 2)) {}
+
+  cv::Mat Get(int index) {
+    const auto found = where_.find(index);
+    if (found != where_.end()) {
+      order_.splice(order_.begin(), order_, found->second);
+      return found->second->second;
+    }
+    cv::Mat image = load_(static_cast<std::size_t>(index));
+    order_.emplace_front(index, image);
+    where_[index] = order_.begin();
+    if (order_.size() > capacity_) {
+      where_.erase(order_.back().first);
+      order_.pop_back();
+    }
+    return image;
+  }
+
+ private:
+  const std::function<cv::Mat(std::size_t)>& load_;
+  std::size_t capacity_;
+  std::list<std::pair<int, cv::Mat>> order_;
+  std::unordered_map<int, std::list<std::pair<int, cv::Mat>>::iterator> where_;
+};
+
+// Frames by where their view centre lies, in square cells.
+class SpatialIndex {
+ public:
+  explicit SpatialIndex(double cell_mm) : cell_mm_(cell_mm) {}
+  void Add(int index, const Eigen::Vector2d& at) { cells_[Key(Cell(at.x()), Cell(at.y()))].push_back(index); }
+  // Every frame within `radius_mm` (<= the cell) of `at`, checked against `positions`.
+  std::vector<int> Near(const Eigen::Vector2d& at, double radius_mm, const std::vector<core::Pose2>& positions) const {
+    std::vector<int> near;
+    const std::int64_t cx = Cell(at.x()), cy = Cell(at.y());
+    for (std::int64_t dy = -1; dy <= 1; ++dy) {
+      for (std::int64_t dx = -1; dx <= 1; ++dx) {
+        const auto cell = cells_.find(Key(cx + dx, cy + dy));
+        if (cell == cells_.end()) continue;
+        for (const int i : cell->second) {
+          if ((positions[i].translation_mm() - at).norm() <= radius_mm) near.push_back(i);
+        }
+      }
+    }
+    std::sort(near.begin(), near.end());
+    return near;
+  }
+
+ private:
+  std::int64_t Cell(double v) const { return static_cast<std::int64_t>(std::floor(v / cell_mm_)); }
+  static std::int64_t Key(std::int64_t cx, std::int64_t cy) { return cx * 0x100000001LL + cy; }
+  double cell_mm_;
+  std::unordered_map<std::int64_t, std::vector<int>> cells_;
+};
+
+// RMS over the view's corners of how far `estimate` puts them from where `measured` does, px.
+double SeamPx(const core::Pose2& measured, const core::Pose2& estimate, const camera::IdealCamera& camera) {
+  const double half_w = 0.5 * camera.width_px() * camera.mm_per_px();
+  const double half_h = 0.5 * camera.height_px() * camera.mm_per_px();
+  double sum = 0.0;
+  for (const double sx : {-1.0, 1.0}) {
+    for (const double sy : {-1.0, 1.0}) {
+      const Eigen::Vector2d corner(sx * half_w, sy * half_h);
+      sum += (measured * corner - estimate * corner).squaredNorm();
+    }
+  }
+  return std::sqrt(sum / 4.0) / camera.mm_per_px();
+}
+
+// The difference of two relative poses as (dx, dy, dyaw) in the first's parent frame.
+Eigen::Vector3d Difference(const core::Pose2& measured, const core::Pose2& predicted) {
+  const Eigen::Vector2d d = measured.translation_mm() - predicted.translation_mm();
+  return {d.x(), d.y(), core::WrapAngle(measured.yaw_rad() - predicted.yaw_rad())};
+}
+
+}  // namespace
+
+bool MapperOptions::Check(std::string* why) const {
+  auto fail = [why](const char* message) {
+    if (why != nullptr) *why = message;
+    return false;
+  };
+  if (!tracker.Check(why)) return false;
+  if (!(keyframe_fraction > 0.0 && keyframe_fraction < 1.0)) return fail("keyframe_fraction must be in (0, 1)");
+  if (!(loop_spacing_mm > 0.0)) return fail("loop_spacing_mm must be positive");
+  if (!(loop_radius_fraction > 0.0 && loop_radius_fraction <= 1.0)) return fail("loop_radius_fraction must be in (0, 1]");
+  if (!(loop_min_separation_mm > 0.0)) return fail("loop_min_separation_mm must be positive");
+  if (loop_candidates < 0) return fail("loop_candidates must be 0 or more");
+  if (!(drift_sigma_mm > 0.0 && drift_mm_per_m >= 0.0 && drift_sigma_deg > 0.0 && drift_deg_per_m >= 0.0)) {
+    return fail("the drift sigmas must be positive");
+  }
+  if (!(loop_gate_chi2 > 0.0)) return fail("loop_gate_chi2 must be positive");
+  if (!(edge_min_sigma_mm > 0.0 && edge_min_sigma_deg > 0.0)) return fail("the edge sigma floors must be positive");
+  if (!(wheel_sigma_mm > 0.0 && wheel_sigma_fraction >= 0.0 && wheel_sigma_deg > 0.0)) {
+    return fail("the wheel sigmas must be positive");
+  }
+  if (loop_max_search_px < tracker.min_search_px) return fail("loop_max_search_px must be at least the tracker's min_search_px");
+  if (outlier_rounds < 1) return fail("outlier_rounds must be 1 or more");
+  if (frame_cache < 2) return fail("frame_cache must be 2 or more");
+  return true;
+}
+
+MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
+                       const std::function<void(double)>& progress) {
+  std::string why;
+  if (!options.Check(&why)) core::ThrowInvalidInput("mapping options: " + why);
+  const int n = static_cast<int>(input.frame_times.size());
+  if (n == 0) core::ThrowInvalidInput("mapping: the drive has no frames");
+  if (input.wheels.size() != input.frame_times.size()) {
+    core::ThrowInvalidInput("mapping: the wheels' poses do not match the frames");
+  }
+  const camera::IdealCamera& camera = input.camera;
+  const core::Pose2& vehicle_from_camera = input.vehicle_from_camera;
+  const tracking::Tracker tracker(camera, options.tracker);
+  tracking::TrackerOptions loop_options = options.tracker;
+  loop_options.max_search_px = options.loop_max_search_px;
+  const tracking::Tracker loop_tracker(camera, loop_options);
+  const double view_short_mm = std::min(camera.width_px(), camera.height_px()) * camera.mm_per_px();
+  const double keyframe_mm = options.keyframe_fraction * view_short_mm;
+  const double loop_radius_mm = options.loop_radius_fraction * view_short_mm;
+  auto edge_information = [&](const Eigen::Matrix3d& covariance) {
+    return Eigen::Matrix3d(
+        (covariance + Diagonal(options.edge_min_sigma_mm, Rad(options.edge_min_sigma_deg))).inverse());
+  };
+
+  MappingResult result;
+  result.frames = n;
+  result.has_pose.assign(static_cast<std::size_t>(n), 1);
+  std::vector<core::Pose2> chain(static_cast<std::size_t>(n));  // world_from_camera
+  std::vector<double> path(static_cast<std::size_t>(n), 0.0);    // camera path length, mm
+  // How far the chain may have drifted since the first frame, one sigma summed edge by edge
+  // (linearly: drift is mostly systematic): drift_mm_per_m along registered frames, the
+  // wheels' own uncertainty where they carried it.
+  std::vector<double> drift_mm(static_cast<std::size_t>(n), 0.0), drift_rad(static_cast<std::size_t>(n), 0.0);
+  PoseGraph& graph = result.graph;
+  std::vector<int> loop_of_edge;         // per graph edge: index into result.loops, or -1
+  std::vector<char> registered_edge;     // per graph edge: 1 for a registration, 0 for the wheels' motion
+  auto add_edge = [&](int from, int to, const core::Pose2& from_T_to, const Eigen::Matrix3d& information,
+                      EdgeKind kind, int loop, bool registered = true) {
+    graph.edges.push_back({from, to, from_T_to, information, kind});
+    loop_of_edge.push_back(loop);
+    registered_edge.push_back(registered ? 1 : 0);
+  };
+
+  FrameCache frames(input.load_frame, static_cast<std::size_t>(options.frame_cache));
+  SpatialIndex index(loop_radius_mm);
+  cv::Mat previous, key;
+  int keyframe = -1;
+  int unregistered_from = -1;  // first frame of a run that did not register, or -1
+  double last_tried_path = -1e300;
+  struct Anchor {
+    int earlier = -1, later = -1;
+    core::Pose2 earlier_from_later;
+  } last_loop;
+  for (int i = 0; i < n; ++i) {
+    if (progress) progress(0.9 * i / n);
+    const auto started = Clock::now();
+    const cv::Mat image = frames.Get(i);
+    if (image.empty()) result.has_pose[i] = 0;
+    if (i == 0) {
+      chain[0] = input.start * vehicle_from_camera;
+    } else {
+      const core::Pose2 wheel_motion = input.wheels[i - 1].Inverse() * input.wheels[i];
+      const core::Pose2 camera_motion = vehicle_from_camera.Inverse() * wheel_motion * vehicle_from_camera;
+      const double wheel_mm = options.wheel_sigma_mm + options.wheel_sigma_fraction * camera_motion.translation_mm().norm();
+      const Eigen::Matrix3d wheel_covariance = Diagonal(wheel_mm, Rad(options.wheel_sigma_deg));
+      tracking::TrackResult r;
+      if (!image.empty() && !previous.empty()) {
+        r = tracking::RegisterFrames(tracker, previous, image, camera_motion, wheel_covariance);
+      } else {
+        r.failure = tracking::TrackFailure::kNoTexture;
+      }
+      core::Pose2 motion = camera_motion;
+      if (r.ok()) {
+        motion = r.world_from_camera;
+        ++result.registered;
+        add_edge(i - 1, i, motion, edge_information(r.covariance), EdgeKind::kSequential, -1);
+      } else {
+        add_edge(i - 1, i, motion, wheel_covariance.inverse(), EdgeKind::kSequential, -1, false);
+      }
+      chain[i] = chain[i - 1] * motion;
+      const double step_mm = motion.translation_mm().norm();
+      path[i] = path[i - 1] + step_mm;
+      drift_mm[i] = drift_mm[i - 1] + (r.ok() ? options.drift_mm_per_m * 1e-3 * step_mm : wheel_mm);
+      drift_rad[i] = drift_rad[i - 1] +
+                     (r.ok() ? Rad(options.drift_deg_per_m) * 1e-3 * step_mm : Rad(options.wheel_sigma_deg));
+      bool keyed = false;
+      if (keyframe >= 0 && keyframe != i - 1 && !image.empty()) {
+        const tracking::TrackResult k = tracking::RegisterFrames(
+            tracker, key, image, chain[keyframe].Inverse() * chain[i], Diagonal(1.0 + 0.02 * (path[i] - path[keyframe]), Rad(0.2)));
+        if (k.ok()) {
+          ++result.keyframe_edges;
+          keyed = true;
+          add_edge(keyframe, i, k.world_from_camera, edge_information(k.covariance), EdgeKind::kSequential, -1);
+        }
+      }
+      if (r.ok() || keyed) {
+        if (unregistered_from >= 0) {
+          // Registered to its predecessor, the frame joins the piece the wheels' edge ended at.
+          const int last = r.ok() ? std::max(unregistered_from, i - 1) : i;
+          result.gaps.push_back({unregistered_from - 1, last, path[last] - path[unregistered_from - 1]});
+          unregistered_from = -1;
+        }
+      } else if (unregistered_from < 0) {
+        unregistered_from = i;
+      }
+    }
+    if (!image.empty()) {
+      previous = image;
+      if (keyframe < 0 || (chain[i].translation_mm() - chain[keyframe].translation_mm()).norm() > keyframe_mm) {
+        keyframe = i;
+        key = image;
+      }
+    }
+    result.register_seconds += Seconds(started);
+
+    // Loop closures: earlier frames whose chained view is near this one, far back along the path.
+    const auto loops_started = Clock::now();
+    if (!image.empty() && path[i] - last_tried_path >= options.loop_spacing_mm) {
+      last_tried_path = path[i];
+      const std::vector<int> near = index.Near(chain[i].translation_mm(), loop_radius_mm, chain);
+      // One candidate per pass over the place: the nearest of each run of frames.
+      std::vector<std::pair<double, int>> candidates;
+      for (std::size_t a = 0; a < near.size();) {
+        std::size_t b = a;
+        int best = -1;
+        double best_mm = 1e300;
+        while (b < near.size() && (b == a || path[near[b]] - path[near[b - 1]] < 0.5 * options.loop_min_separation_mm)) {
+          const int j = near[b++];
+          if (path[i] - path[j] < options.loop_min_separation_mm) continue;
+          const double mm = (chain[j].translation_mm() - chain[i].translation_mm()).norm();
+          if (mm < best_mm) best_mm = mm, best = j;
+        }
+        if (best >= 0) candidates.emplace_back(best_mm, best);
+        a = b;
+      }
+      std::sort(candidates.begin(), candidates.end());
+      if (static_cast<int>(candidates.size()) > options.loop_candidates) candidates.resize(options.loop_candidates);
+      for (const auto& [unused, j] : candidates) {
+        // The prediction: along the chain, or through the last loop closed when that is surer.
+        core::Pose2 predicted = chain[j].Inverse() * chain[i];
+        double sigma_mm = drift_mm[i] - drift_mm[j], sigma_rad = drift_rad[i] - drift_rad[j];
+        if (last_loop.later >= 0) {
+          const double through_mm =
+              std::abs(drift_mm[i] - drift_mm[last_loop.later]) + std::abs(drift_mm[j] - drift_mm[last_loop.earlier]);
+          if (through_mm < sigma_mm) {
+            predicted = chain[j].Inverse() * chain[last_loop.earlier] * last_loop.earlier_from_later *
+                        chain[last_loop.later].Inverse() * chain[i];
+            sigma_mm = through_mm;
+            sigma_rad = std::abs(drift_rad[i] - drift_rad[last_loop.later]) +
+                        std::abs(drift_rad[j] - drift_rad[last_loop.earlier]);
+          }
+        }
+        sigma_mm += options.drift_sigma_mm;
+        sigma_rad += Rad(options.drift_sigma_deg);
+        const Eigen::Matrix3d drift = Diagonal(sigma_mm, sigma_rad);
+        LoopClosure loop;
+        loop.earlier = j;
+        loop.later = i;
+        // A search that cannot cover the prediction's 3-sigma region could take a copy of a
+        // repeating floor for the place: such a loop is not tried.
+        if (loop_options.search_sigmas * sigma_mm > loop_options.max_search_px * camera.mm_per_px()) {
+          char text[160];
+          std::snprintf(text, sizeof text,
+                        "the chain is uncertain by %.1f mm here, more than the search covers: not verifiable", sigma_mm);
+          loop.rejected = text;
+          result.loops.push_back(loop);
+          continue;
+        }
+        const cv::Mat earlier = frames.Get(j);
+        if (earlier.empty()) continue;
+        ++result.loops_tried;
+        const tracking::TrackResult r = tracking::RegisterFrames(loop_tracker, earlier, image, predicted, drift);
+        loop.mean_zncc = r.mean_zncc;
+        loop.inliers = r.inliers;
+        if (!r.ok()) {
+          loop.rejected = r.reason.empty() ? tracking::ToString(r.failure) : r.reason;
+          result.loops.push_back(loop);
+          continue;
+        }
+        const Eigen::Vector3d d = Difference(r.world_from_camera, predicted);
+        loop.correction_mm = d.head<2>().norm();
+        loop.chi2 = d.dot((drift + r.covariance).inverse() * d);
+        if (loop.chi2 > options.loop_gate_chi2) {
+          char text[160];
+          std::snprintf(text, sizeof text, "%.2f mm off the chain's prediction (chi2 %.1f > %.1f)", loop.correction_mm,
+                        loop.chi2, options.loop_gate_chi2);
+          loop.rejected = text;
+          result.loops.push_back(loop);
+          continue;
+        }
+        loop.accepted = true;
+        result.loops.push_back(loop);
+        add_edge(j, i, r.world_from_camera, edge_information(r.covariance), EdgeKind::kLoop,
+                 static_cast<int>(result.loops.size()) - 1);
+        last_loop = {j, i, r.world_from_camera};
+      }
+    }
+    index.Add(i, chain[i].translation_mm());
+    result.loop_seconds += Seconds(loops_started);
+  }
+  if (unregistered_from >= 0) result.gaps.push_back({unregistered_from - 1, n - 1, path[n - 1] - path[unregistered_from - 1]});
+  result.path_length_m = 1e-3 * path[n - 1];
+
+  // The pose graph: the chain as the start, the first frame held; loops that the rest of the
+  // map contradicts are dropped and the graph solved again.
+  const auto optimize_started = Clock::now();
+  graph.nodes = chain;
+  graph.fixed = {0};
+  for (int round = 0; round < options.outlier_rounds; ++round) {
+    result.optimize = Optimize(graph, options.optimize);
+    bool dropped = false;
+    for (std::size_t e = 0; e < graph.edges.size();) {
+      const double chi2 = graph.edges[e].kind == EdgeKind::kLoop ? EdgeResidual(graph, graph.edges[e]).squaredNorm() : 0.0;
+      if (chi2 > options.loop_gate_chi2) {
+        LoopClosure& loop = result.loops[static_cast<std::size_t>(loop_of_edge[e])];
+        char text[160];
+        std::snprintf(text, sizeof text, "contradicted by the rest of the map (chi2 %.1f after optimization)", chi2);
+        loop.accepted = false;
+        loop.rejected = text;
+        graph.edges.erase(graph.edges.begin() + static_cast<std::ptrdiff_t>(e));
+        loop_of_edge.erase(loop_of_edge.begin() + static_cast<std::ptrdiff_t>(e));
+        registered_edge.erase(registered_edge.begin() + static_cast<std::ptrdiff_t>(e));
+        dropped = true;
+      } else {
+        ++e;
+      }
+    }
+    if (!dropped) break;
+  }
+  result.optimize_seconds = Seconds(optimize_started);
+  for (const LoopClosure& loop : result.loops) result.loops_accepted += loop.accepted ? 1 : 0;
+
+  for (std::size_t e = 0; e < graph.edges.size(); ++e) {
+    const PoseGraphEdge& edge = graph.edges[e];
+    if (!registered_edge[e]) continue;  // the wheels' motion, not a registration
+    Seam seam;
+    seam.from = edge.from;
+    seam.to = edge.to;
+    seam.kind = edge.kind;
+    seam.before_px = SeamPx(edge.from_T_to, chain[edge.from].Inverse() * chain[edge.to], camera);
+    seam.after_px = SeamPx(edge.from_T_to, graph.nodes[edge.from].Inverse() * graph.nodes[edge.to], camera);
+    result.seams.push_back(seam);
+  }
+  result.world_from_vehicle.resize(static_cast<std::size_t>(n));
+  result.chained_world_from_vehicle.resize(static_cast<std::size_t>(n));
+  for (int i = 0; i < n; ++i) {
+    result.world_from_vehicle[i] = graph.nodes[i] * vehicle_from_camera.Inverse();
+    result.chained_world_from_vehicle[i] = chain[i] * vehicle_from_camera.Inverse();
+  }
+  if (result.loops_accepted == 0) {
+    char text[200];
+    std::snprintf(text, sizeof text,
+                  "the drive never came back over floor it had mapped (no loop closed): nothing bounds the drift of "
+                  "its %.1f m",
+                  result.path_length_m);
+    result.warnings.emplace_back(text);
+  }
+  for (const MappingGap& gap : result.gaps) {
+    char text[200];
+    std::snprintf(text, sizeof text, "frames %d to %d did not register with one another: %.0f mm bridged by the wheels",
+                  gap.first, gap.last, gap.length_mm);
+    result.warnings.emplace_back(text);
+  }
+  if (progress) progress(1.0);
+  return result;
+}
+
+}  // namespace mosaicloc::mapping

@@ -1,0 +1,290 @@
+#include "mosaicloc/mapping/pose_graph.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <iomanip>
+#include <map>
+#include <numbers>
+#include <sstream>
+
+#include <Eigen/Cholesky>
+#include <ceres/ceres.h>
+
+#include "mosaicloc/core/error.hpp"
+#include "mosaicloc/core/file.hpp"
+
+namespace mosaicloc::mapping {
+namespace {
+
+// An angle wrapped to [-pi, pi), for doubles and Ceres' Jets alike.
+template <typename T>
+T Wrapped(const T& angle) {
+  const T two_pi(2.0 * std::numbers::pi);
+  using std::floor;
+  return angle - two_pi * floor((angle + T(std::numbers::pi)) / two_pi);
+}
+
+// The residual of pose_graph_2d: the measured pose of b in a's frame against the estimated
+// one, whitened by the square root of the information.
+class EdgeCost {
+ public:
+  EdgeCost(const core::Pose2& a_from_b, const Eigen::Matrix3d& sqrt_information)
+      : a_from_b_(a_from_b), sqrt_information_(sqrt_information) {}
+
+  template <typename T>
+  bool operator()(const T* position_a, const T* yaw_a, const T* position_b, const T* yaw_b, T* residual) const {
+    using std::cos;
+    using std::sin;
+    const T c = cos(*yaw_a), s = sin(*yaw_a);
+    const T dx = position_b[0] - position_a[0], dy = position_b[1] - position_a[1];
+    Eigen::Matrix<T, 3, 1> r;
+    r(0) = c * dx + s * dy - T(a_from_b_.x_mm());
+    r(1) = -s * dx + c * dy - T(a_from_b_.y_mm());
+    r(2) = Wrapped(*yaw_b - *yaw_a - T(a_from_b_.yaw_rad()));
+    Eigen::Map<Eigen::Matrix<T, 3, 1>> whitened(residual);
+    whitened = sqrt_information_.cast<T>() * r;
+    return true;
+  }
+
+ private:
+  core::Pose2 a_from_b_;
+  Eigen::Matrix3d sqrt_information_;
+};
+
+struct AnglePlus {
+  template <typename T>
+  bool Plus(const T* x, const T* delta, T* x_plus_delta) const {
+    *x_plus_delta = Wrapped(*x + *delta);
+    return true;
+  }
+  template <typename T>
+  bool Minus(const T* y, const T* x, T* y_minus_x) const {
+    *y_minus_x = Wrapped(*y - *x);
+    return true;
+  }
+};
+
+// Upper-triangular S with Sᵀ S = information; throws when it is not positive definite.
+Eigen::Matrix3d SqrtInformation(const PoseGraphEdge& edge) {
+  const Eigen::Matrix3d& information = edge.information;
+  if (!information.allFinite() || (information - information.transpose()).cwiseAbs().maxCoeff() >
+                                      1e-9 * information.cwiseAbs().maxCoeff()) {
+    core::ThrowInvalidInput("pose graph: edge " + std::to_string(edge.from) + "-" + std::to_string(edge.to) +
+                            ": the information matrix is not symmetric");
+  }
+  const Eigen::LLT<Eigen::Matrix3d> llt(information);
+  if (llt.info() != Eigen::Success) {
+    core::ThrowInvalidInput("pose graph: edge " + std::to_string(edge.from) + "-" + std::to_string(edge.to) +
+                            ": the information matrix is not positive definite");
+  }
+  return llt.matrixU();
+}
+
+void CheckNodes(const PoseGraph& graph, const PoseGraphEdge& edge) {
+  const int n = static_cast<int>(graph.nodes.size());
+  if (edge.from < 0 || edge.from >= n || edge.to < 0 || edge.to >= n || edge.from == edge.to) {
+    core::ThrowInvalidInput("pose graph: edge " + std::to_string(edge.from) + "-" + std::to_string(edge.to) +
+                            " does not join two of the " + std::to_string(n) + " nodes");
+  }
+}
+
+int Root(std::vector<int>& parent, int i) {
+  while (parent[i] != i) i = parent[i] = parent[parent[i]];
+  return i;
+}
+
+}  // namespace
+
+const char* ToString(EdgeKind kind) { return kind == EdgeKind::kLoop ? "loop" : "sequential"; }
+
+Eigen::Vector3d EdgeResidual(const PoseGraph& graph, const PoseGraphEdge& edge) {
+  CheckNodes(graph, edge);
+  const core::Pose2& a = graph.nodes[edge.from];
+  const core::Pose2& b = graph.nodes[edge.to];
+  const double position_a[2] = {a.x_mm(), a.y_mm()}, position_b[2] = {b.x_mm(), b.y_mm()};
+  const double yaw_a = a.yaw_rad(), yaw_b = b.yaw_rad();
+  Eigen::Vector3d residual;
+  EdgeCost(edge.from_T_to, SqrtInformation(edge))(position_a, &yaw_a, position_b, &yaw_b, residual.data());
+  return residual;
+}
+
+OptimizeReport Optimize(PoseGraph& graph, const OptimizeOptions& options) {
+  const auto started = std::chrono::steady_clock::now();
+  const int n = static_cast<int>(graph.nodes.size());
+  std::vector<double> positions(2 * static_cast<std::size_t>(n)), yaws(static_cast<std::size_t>(n));
+  for (int i = 0; i < n; ++i) {
+    positions[2 * i] = graph.nodes[i].x_mm();
+    positions[2 * i + 1] = graph.nodes[i].y_mm();
+    yaws[i] = graph.nodes[i].yaw_rad();
+  }
+  ceres::Problem::Options problem_options;
+  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+  ceres::AutoDiffManifold<AnglePlus, 1, 1> angle;
+  std::vector<int> parent(static_cast<std::size_t>(n));
+  for (int i = 0; i < n; ++i) parent[i] = i;
+  std::vector<char> used(static_cast<std::size_t>(n), 0);
+  for (const PoseGraphEdge& edge : graph.edges) {
+    CheckNodes(graph, edge);
+    auto* cost = new ceres::AutoDiffCostFunction<EdgeCost, 3, 2, 1, 2, 1>(
+        new EdgeCost(edge.from_T_to, SqrtInformation(edge)));
+    ceres::LossFunction* loss =
+        edge.kind == EdgeKind::kLoop ? new ceres::HuberLoss(options.loop_huber_sigmas) : nullptr;
+    problem.AddResidualBlock(cost, loss, &positions[2 * edge.from], &yaws[edge.from], &positions[2 * edge.to],
+                             &yaws[edge.to]);
+    parent[Root(parent, edge.from)] = Root(parent, edge.to);
+    used[edge.from] = used[edge.to] = 1;
+  }
+  OptimizeReport report;
+  std::vector<char> held(static_cast<std::size_t>(n), 0);
+  for (const int f : graph.fixed) {
+    if (f < 0 || f >= n) core::ThrowInvalidInput("pose graph: fixed node " + std::to_string(f) + " does not exist");
+    held[Root(parent, f)] = 1;
+    if (used[f]) {
+      problem.SetParameterBlockConstant(&positions[2 * f]);
+      problem.SetParameterBlockConstant(&yaws[f]);
+    }
+  }
+  // Each connected piece once: its first node is held when no fixed node holds it.
+  std::vector<char> counted(static_cast<std::size_t>(n), 0);
+  for (int i = 0; i < n; ++i) {
+    if (!used[i]) continue;
+    problem.SetManifold(&yaws[i], &angle);
+    const int root = Root(parent, i);
+    if (counted[root]) continue;
+    counted[root] = 1;
+    ++report.pieces;
+    if (!held[root]) {
+      problem.SetParameterBlockConstant(&positions[2 * i]);
+      problem.SetParameterBlockConstant(&yaws[i]);
+    }
+  }
+  if (problem.NumResidualBlocks() == 0) {
+    report.converged = true;
+    return report;
+  }
+  ceres::Solver::Options solver;
+  solver.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  solver.max_num_iterations = options.max_iterations;
+  solver.num_threads = options.threads;
+  solver.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver, &problem, &summary);
+  report.converged = summary.termination_type == ceres::CONVERGENCE;
+  report.iterations = static_cast<int>(summary.iterations.size());
+  report.initial_cost = summary.initial_cost;
+  report.final_cost = summary.final_cost;
+  report.message = summary.message;
+  if (summary.IsSolutionUsable()) {
+    for (int i = 0; i < n; ++i) graph.nodes[i] = core::Pose2(positions[2 * i], positions[2 * i + 1], yaws[i]);
+  }
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  return report;
+}
+
+void WriteG2o(const std::filesystem::path& file, const PoseGraph& graph) {
+  std::ostringstream out;
+  out << std::setprecision(17);
+  out << "# mosaicloc pose graph: metres, radians; information in metres\n";
+  for (std::size_t i = 0; i < graph.nodes.size(); ++i) {
+    const core::Pose2& p = graph.nodes[i];
+    out << "VERTEX_SE2 " << i << ' ' << p.x_mm() * 1e-3 << ' ' << p.y_mm() * 1e-3 << ' ' << p.yaw_rad() << '\n';
+  }
+  for (const int f : graph.fixed) out << "FIX " << f << '\n';
+  // Information in metres: the position rows and columns scale by 1000 each.
+  const Eigen::Vector3d to_m(1e3, 1e3, 1.0);
+  for (const PoseGraphEdge& e : graph.edges) {
+    const Eigen::Matrix3d info = to_m.asDiagonal() * e.information * to_m.asDiagonal();
+    out << "EDGE_SE2 " << e.from << ' ' << e.to << ' ' << e.from_T_to.x_mm() * 1e-3 << ' '
+        << e.from_T_to.y_mm() * 1e-3 << ' ' << e.from_T_to.yaw_rad() << ' ' << info(0, 0) << ' ' << info(0, 1)
+        << ' ' << info(0, 2) << ' ' << info(1, 1) << ' ' << info(1, 2) << ' ' << info(2, 2) << '\n';
+  }
+  core::WriteFileAtomically(file, out.str());
+}
+
+PoseGraph ReadG2o(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  if (!in) core::ThrowInvalidInput(file.string() + ": cannot be read");
+  std::map<long, std::pair<core::Pose2, int>> vertices;  // id: pose, line
+  PoseGraph graph;
+  std::vector<int> edge_lines;
+  std::vector<std::pair<long, int>> fixed;  // id, line
+  std::string line;
+  int number = 0;
+  auto fail_at = [&](int at, const std::string& why) {
+    core::ThrowInvalidInput(file.string() + ":" + std::to_string(at) + ": " + why);
+  };
+  auto fail = [&](const std::string& why) { fail_at(number, why); };
+  while (std::getline(in, line)) {
+    ++number;
+    std::istringstream fields(line);
+    std::string tag;
+    if (!(fields >> tag) || tag[0] == '#') continue;
+    std::vector<double> v;
+    std::string word;
+    while (fields >> word) {
+      try {
+        std::size_t used = 0;
+        v.push_back(std::stod(word, &used));
+        if (used != word.size() || !std::isfinite(v.back())) throw std::invalid_argument(word);
+      } catch (const std::exception&) {
+        fail("'" + word + "' is not a finite number");
+      }
+    }
+    auto id = [&](double value) {
+      if (value < 0 || value != std::floor(value) || value > 1e9) fail("'" + std::to_string(value) + "' is not a node id");
+      return static_cast<long>(value);
+    };
+    if (tag == "VERTEX_SE2") {
+      if (v.size() != 4) fail("VERTEX_SE2 takes an id, x, y and theta");
+      if (!vertices.emplace(id(v[0]), std::pair(core::Pose2(v[1] * 1e3, v[2] * 1e3, v[3]), number)).second) {
+        fail("node " + std::to_string(id(v[0])) + " is defined twice");
+      }
+    } else if (tag == "EDGE_SE2") {
+      if (v.size() != 11) fail("EDGE_SE2 takes two ids, dx, dy, dtheta and six information entries");
+      PoseGraphEdge e;
+      e.from = static_cast<int>(id(v[0]));
+      e.to = static_cast<int>(id(v[1]));
+      e.from_T_to = core::Pose2(v[2] * 1e3, v[3] * 1e3, v[4]);
+      Eigen::Matrix3d info;
+      info << v[5], v[6], v[7], v[6], v[8], v[9], v[7], v[9], v[10];
+      const Eigen::Vector3d to_mm(1e-3, 1e-3, 1.0);
+      e.information = to_mm.asDiagonal() * info * to_mm.asDiagonal();
+      if (Eigen::LLT<Eigen::Matrix3d>(e.information).info() != Eigen::Success) {
+        fail("the information matrix is not positive definite");
+      }
+      e.kind = std::abs(e.to - e.from) == 1 ? EdgeKind::kSequential : EdgeKind::kLoop;
+      graph.edges.push_back(e);
+      edge_lines.push_back(number);
+    } else if (tag == "FIX") {
+      if (v.size() != 1) fail("FIX takes one id");
+      fixed.emplace_back(id(v[0]), number);
+    } else {
+      fail("unknown record '" + tag + "' (VERTEX_SE2, EDGE_SE2 and FIX are read)");
+    }
+  }
+  if (vertices.empty()) core::ThrowInvalidInput(file.string() + ": no VERTEX_SE2");
+  long expected = 0;
+  for (const auto& [node, vertex] : vertices) {
+    if (node != expected) {
+      fail_at(vertex.second, "node " + std::to_string(expected) + " is missing (nodes must be numbered 0 to n-1)");
+    }
+    graph.nodes.push_back(vertex.first);
+    ++expected;
+  }
+  for (std::size_t i = 0; i < graph.edges.size(); ++i) {
+    const PoseGraphEdge& e = graph.edges[i];
+    if (e.from >= expected || e.to >= expected || e.from == e.to) {
+      fail_at(edge_lines[i], "edge " + std::to_string(e.from) + "-" + std::to_string(e.to) +
+                                 " does not join two defined nodes");
+    }
+  }
+  for (const auto& [f, at] : fixed) {
+    if (f >= expected) fail_at(at, "FIX " + std::to_string(f) + ": no such node");
+    graph.fixed.push_back(static_cast<int>(f));
+  }
+  return graph;
+}
+
+}  // namespace mosaicloc::mapping
