@@ -1,4 +1,6 @@
 // mosaicloc map: build, inspect, check and export mosaic maps (runtime/map_jobs.hpp).
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -11,6 +13,7 @@
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/mosaic/tile_store.hpp"
 #include "mosaicloc/runtime/map_jobs.hpp"
+#include "mosaicloc/runtime/map_poses.hpp"
 #include "progress.hpp"
 
 namespace mosaicloc::app {
@@ -20,21 +23,79 @@ namespace fs = std::filesystem;
 
 struct MapArgs {
   runtime::MapBuildOptions build;
+  runtime::MapPosesOptions poses;
   runtime::MapExportOptions export_;
   fs::path map;
 };
+
+// The estimated poses' figures, as JSON and as the lines printed.
+nlohmann::json MappingJson(const runtime::MapPosesSummary& s) {
+  const mapping::MappingResult& m = s.mapping;
+  double after_sq = 0.0, after_max = 0.0;
+  for (const mapping::Seam& seam : m.seams) {
+    after_sq += seam.after_px * seam.after_px;
+    after_max = std::max(after_max, seam.after_px);
+  }
+  auto error = [](const std::optional<runtime::AlignedError>& e) -> nlohmann::json {
+    if (!e) return nullptr;
+    return {{"rms_mm", e->rms_mm}, {"max_mm", e->max_mm}};
+  };
+  return {{"frames", m.frames},
+          {"path_length_m", m.path_length_m},
+          {"registered", m.registered},
+          {"loops_tried", m.loops_tried},
+          {"loops_accepted", m.loops_accepted},
+          {"gaps", m.gaps.size()},
+          {"seam_rms_px", m.seams.empty() ? 0.0 : std::sqrt(after_sq / static_cast<double>(m.seams.size()))},
+          {"seam_max_px", after_max},
+          {"seconds", s.seconds},
+          {"vs_groundtruth", error(s.error)},
+          {"chained_vs_groundtruth", error(s.chained_error)},
+          {"warnings", m.warnings}};
+}
+
+void PrintMapping(const runtime::MapPosesSummary& s) {
+  const nlohmann::json j = MappingJson(s);
+  std::printf("poses from %lld frames and the encoders (%.1f m, %.1f s): %lld of %lld loop closures accepted, "
+              "seams %.4f px RMS (max %.4f) after optimization\n",
+              static_cast<long long>(s.mapping.frames), s.mapping.path_length_m, s.seconds,
+              static_cast<long long>(s.mapping.loops_accepted), static_cast<long long>(s.mapping.loops_tried),
+              j["seam_rms_px"].get<double>(), j["seam_max_px"].get<double>());
+  if (s.error && s.chained_error) {
+    std::printf("  against the ground truth (best rigid alignment): %.4f mm RMS, %.4f mm max "
+                "(chained, before loop closure: %.3f mm RMS, %.3f mm max)\n",
+                s.error->rms_mm, s.error->max_mm, s.chained_error->rms_mm, s.chained_error->max_mm);
+  }
+  for (const std::string& warning : s.mapping.warnings) std::printf("  warning: %s\n", warning.c_str());
+}
+
+void Poses(const runtime::MapPosesOptions& args, const GlobalOptions& global) {
+  ProgressBar progress("map poses", global.quiet);
+  const runtime::MapPosesSummary r = runtime::EstimateMapPoses(args, progress.Callback());
+  progress.Finish();
+  if (global.json) {
+    PrintJson(MappingJson(r));
+    return;
+  }
+  PrintMapping(r);
+  if (!args.out.empty()) std::printf("trajectory: %s\n", args.out.string().c_str());
+  if (!args.report.empty()) std::printf("report: %s\n", (args.report / "consistency.json").string().c_str());
+}
 
 void Build(const runtime::MapBuildOptions& args, const GlobalOptions& global) {
   ProgressBar progress("map build", global.quiet);
   const runtime::MapBuildSummary r = runtime::BuildMap(args, progress.Callback());
   progress.Finish();
   if (global.json) {
-    const nlohmann::json result = {{"map", fs::absolute(args.out).string()}, {"frames_painted", r.painted},
-                                   {"frames_without_pose", r.without_pose}, {"tiles", r.tiles},
-                                   {"level0_tiles", r.level0_tiles}, {"resumed_after_frames", r.resumed_after}};
+    nlohmann::json result = {{"map", fs::absolute(args.out).string()}, {"frames_painted", r.painted},
+                             {"frames_without_pose", r.without_pose}, {"tiles", r.tiles},
+                             {"level0_tiles", r.level0_tiles}, {"resumed_after_frames", r.resumed_after},
+                             {"poses", args.poses}};
+    if (r.mapping) result["mapping"] = MappingJson(*r.mapping);
     PrintJson(result);
     return;
   }
+  if (r.mapping && !global.quiet) PrintMapping(*r.mapping);
   std::printf("map %s: %lld frames painted (%lld without a pose), %lld tiles (%lld at level 0)",
               args.out.string().c_str(), static_cast<long long>(r.painted), static_cast<long long>(r.without_pose),
               static_cast<long long>(r.tiles), static_cast<long long>(r.level0_tiles));
@@ -109,7 +170,10 @@ Action AddMapCommand(CLI::App& app, const GlobalOptions& global) {
   CLI::App* build = command->add_subcommand("build", "Paint a dataset's frames at their poses into a new map");
   build->add_option("--dataset", args->build.dataset, "Dataset directory")->required();
   build->add_option("--out", args->build.out, "Map file to write (*.mosaic)")->required();
-  build->add_option("--poses", args->build.poses, "'groundtruth' (default) or a TUM trajectory of world_from_vehicle");
+  build->add_option("--poses", args->build.poses,
+                    "'estimate' (default: from the frames and encoders alone, loops closed, a pose graph solved), "
+                    "'groundtruth' or a TUM trajectory of world_from_vehicle");
+  build->add_option("--report", args->build.report, "With --poses estimate: write the consistency report here");
   build->add_option("--blend", args->build.blend, "feather (default) or best-view")
       ->check(CLI::IsMember({"feather", "best-view"}));
   build->add_option("--tile-size", args->build.tile_size_px, "Tile size in px, a power of two (default 256)")
@@ -120,6 +184,14 @@ Action AddMapCommand(CLI::App& app, const GlobalOptions& global) {
                   "Continue an interrupted build of the same arguments from its last checkpoint (MAP.checkpoint)");
   build->add_option("--checkpoint-s", args->build.checkpoint_s,
                     "Seconds between saves of the build's progress (default 10; 0: after every frame)");
+  CLI::App* poses = command->add_subcommand(
+      "poses", "Estimate a mapping drive's poses from its frames and encoders (no ground truth) and write them");
+  poses->add_option("--dataset", args->poses.dataset, "Dataset directory")->required();
+  poses->add_option("--out", args->poses.out, "TUM trajectory to write (world_from_vehicle at every frame)");
+  poses->add_option("--report", args->poses.report, "Directory for the consistency report");
+  poses->add_option("--graph-out", args->poses.graph_out, "Write the pose graph in g2o's format (metres)");
+  poses->add_option("--graph-in", args->poses.graph_in,
+                    "Optimize this g2o pose graph of the drive's frames instead of registering them");
   CLI::App* info = command->add_subcommand("info", "Extent, resolution, levels, tiles and size of a map");
   info->add_option("MAP", args->map, "Map file")->required();
   CLI::App* check = command->add_subcommand("check", "Verify every tile (CRC, PNG, size); exit 2 on damage");
@@ -130,8 +202,9 @@ Action AddMapCommand(CLI::App& app, const GlobalOptions& global) {
   export_command->add_option("--level", args->export_.level, "Pyramid level (default: the finest within 8192 px)")
       ->check(CLI::Range(0, 15));
   export_command->add_option("--region", args->export_.region, "x0,y0,x1,y1 in world mm");
-  return [args, &global, build, info, check, export_command] {
+  return [args, &global, build, poses, info, check, export_command] {
     if (build->parsed()) Build(args->build, global);
+    if (poses->parsed()) Poses(args->poses, global);
     if (info->parsed()) Info(*args, global);
     if (check->parsed()) Check(*args, global);
     if (export_command->parsed()) Export(args->export_, global);

@@ -17,7 +17,7 @@ printf 'route: {network_scale: 0.5}\nencoders: {left_radius_error: 0.02, right_r
   > "$SCRATCH/drive.yaml"
 expect_exit 0 "$MOSAICLOC" --quiet simulate --out "$SCRATCH/map" --floor "$FLOOR" --route network --laps 1 \
   --speed-mps 1.0 --seed 81 --config "$SCRATCH/map.yaml"
-expect_exit 0 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/map" --out "$SCRATCH/floor.mosaic"
+expect_exit 0 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/map" --out "$SCRATCH/floor.mosaic" --poses groundtruth
 expect_exit 0 "$MOSAICLOC" --quiet simulate --out "$SCRATCH/drive" --floor "$FLOOR" --route network --laps 2 \
   --speed-mps 2.0 --seed 82 --config "$SCRATCH/drive.yaml"
 expect_exit 0 "$MOSAICLOC" --quiet --json replay --dataset "$SCRATCH/drive" --map "$SCRATCH/floor.mosaic" \

@@ -16,7 +16,7 @@ for floor in asphalt_02_2048.jpg brick_floor_1024.png; do
   name=${floor%%_*}
   expect_exit 0 "$MOSAICLOC" --quiet simulate --out "$SCRATCH/$name-map" --config "$SCRATCH/straight.yaml" \
     --floor "$TEXTURES/$floor" --route straight --laps 1 --speed-mps 0.5 --seed 21
-  expect_exit 0 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/$name-map" --out "$SCRATCH/$name.mosaic"
+  expect_exit 0 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/$name-map" --out "$SCRATCH/$name.mosaic" --poses groundtruth
   expect_exit 0 "$MOSAICLOC" --quiet simulate --out "$SCRATCH/$name-run" --config "$SCRATCH/drive.yaml" \
     --floor "$TEXTURES/$floor" --route straight --laps 1 --speed-mps 1.5 --seed 22
   expect_exit 0 "$MOSAICLOC" --quiet --json replay --dataset "$SCRATCH/$name-run" --map "$SCRATCH/$name.mosaic" \
@@ -129,7 +129,7 @@ expect_exit 2 "$MOSAICLOC" replay --dataset "$SCRATCH/asphalt-run" --map "$SCRAT
 expect_in "$SCRATCH/err" "none.mosaic"
 printf 'camera: {mm_per_px: 0.5}\nroute: {straight_length_m: 1.0}\n' > "$SCRATCH/coarse.yaml"
 expect_exit 0 "$MOSAICLOC" --quiet simulate --out "$SCRATCH/coarse" --config "$SCRATCH/coarse.yaml" --route straight --laps 1
-expect_exit 0 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/coarse" --out "$SCRATCH/coarse.mosaic"
+expect_exit 0 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/coarse" --out "$SCRATCH/coarse.mosaic" --poses groundtruth
 expect_exit 2 "$MOSAICLOC" replay --dataset "$SCRATCH/asphalt-run" --map "$SCRATCH/coarse.mosaic" --out "$SCRATCH/r3"
 expect_in "$SCRATCH/err" "map resolution 0.5"
 printf 'refine: {method: direct, warp: srt}\nsearch: {sigmas: 0}\n' > "$SCRATCH/bad.yaml"

@@ -69,30 +69,54 @@ PY
 }
 expect_exit 0 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/ds" --out "$SCRATCH/ref.mosaic" --tile-size 64
 [ -e "$SCRATCH/ref.mosaic.checkpoint" ] && fail "a finished build left its checkpoint"
+[ -e "$SCRATCH/ref.mosaic.poses.tum" ] && fail "a finished build left its estimated poses"
 
-# Stopped by a damaged frame half way: no map, a checkpoint (which is not a map); the
+# The poses alone, the pose graph out and back in (g2o), and a damaged graph named by line.
+# The drive is straight: nothing bounds its drift, and it says so.
+expect_exit 0 "$MOSAICLOC" map poses --dataset "$SCRATCH/ds" --out "$SCRATCH/p.tum" --graph-out "$SCRATCH/g.g2o" \
+  --report "$SCRATCH/consistency"
+expect_in "$SCRATCH/out" "warning: the drive never came back"
+expect_in "$SCRATCH/out" "against the ground truth"
+[ "$(grep -vc '^#' "$SCRATCH/p.tum")" -eq 90 ] || fail "p.tum does not hold the 90 frames' poses"
+for f in consistency.json loops.csv seams.csv residuals.png; do [ -s "$SCRATCH/consistency/$f" ] || fail "no $f"; done
+grep -q '^VERTEX_SE2 89 ' "$SCRATCH/g.g2o" || fail "the graph lacks node 89"
+expect_exit 0 "$MOSAICLOC" --quiet map poses --dataset "$SCRATCH/ds" --graph-in "$SCRATCH/g.g2o" --out "$SCRATCH/q.tum"
+sed '5s/.*/EDGE_SE2 0 1 0.01 zero 0 1 0 0 1 0 1/' "$SCRATCH/g.g2o" > "$SCRATCH/bad.g2o"
+expect_exit 2 "$MOSAICLOC" --quiet map poses --dataset "$SCRATCH/ds" --graph-in "$SCRATCH/bad.g2o" --out "$SCRATCH/b.tum"
+expect_in "$SCRATCH/err" "bad.g2o:5: 'zero' is not a finite number"
+[ -e "$SCRATCH/b.tum" ] && fail "a rejected graph left a trajectory"
+
+# Stopped by a damaged frame half way through painting (at the ground truth's poses: with
+# estimated ones the mapping stops at it first): no map, a checkpoint (which is not a map); the
 # frame repaired, --resume continues after the frames already painted and gives the same map.
+expect_exit 0 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/ds" --out "$SCRATCH/gt.mosaic" --tile-size 64 \
+  --poses groundtruth
 cp -r "$SCRATCH/ds" "$SCRATCH/ds2"
 frame=$(sed -n '47p' "$SCRATCH/ds2/cam0/data.csv" | cut -d, -f2)
 cp "$SCRATCH/ds2/cam0/data/$frame" "$SCRATCH/frame.png"
 head -c 100 "$SCRATCH/frame.png" > "$SCRATCH/ds2/cam0/data/$frame"
+expect_exit 2 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/ds2" --out "$SCRATCH/e.mosaic" --tile-size 64
+expect_in "$SCRATCH/err" "cannot be decoded"
+[ -e "$SCRATCH/e.mosaic" ] && fail "a mapping stopped by a damaged frame left a map"
 expect_exit 2 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/ds2" --out "$SCRATCH/r.mosaic" --tile-size 64 \
-  --checkpoint-s 0
+  --checkpoint-s 0 --poses groundtruth
 expect_in "$SCRATCH/err" "cannot be decoded"
 [ -e "$SCRATCH/r.mosaic" ] && fail "an interrupted build left a map"
 [ -s "$SCRATCH/r.mosaic.checkpoint" ] || fail "an interrupted build left no checkpoint"
 expect_exit 2 "$MOSAICLOC" map info "$SCRATCH/r.mosaic.checkpoint"
 cp "$SCRATCH/frame.png" "$SCRATCH/ds2/cam0/data/$frame"
 expect_exit 2 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/ds2" --out "$SCRATCH/r.mosaic" --tile-size 64 \
-  --resume --blend best-view
+  --resume --blend best-view --poses groundtruth
 expect_in "$SCRATCH/err" "made by a build with blend 'feather', not 'best-view'"
-expect_exit 0 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/ds2" --out "$SCRATCH/r.mosaic" --tile-size 64 --resume
+expect_exit 0 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/ds2" --out "$SCRATCH/r.mosaic" --tile-size 64 --resume \
+  --poses groundtruth
 expect_in "$SCRATCH/out" "90 frames painted"
 expect_in "$SCRATCH/out" "resumed after 45 of 90 frames"
-same_map "$SCRATCH/ref.mosaic" "$SCRATCH/r.mosaic"
+same_map "$SCRATCH/gt.mosaic" "$SCRATCH/r.mosaic"
 [ -e "$SCRATCH/r.mosaic.checkpoint" ] && fail "a resumed build left its checkpoint"
 
-# kill -9 part way through painting (once 20 frames are saved), then --resume.
+# kill -9 part way through painting at the estimated poses (once 20 frames are saved), then
+# --resume: the resumed build paints at the poses the killed one estimated.
 killed_at=$(python3 - "$MOSAICLOC" "$SCRATCH" <<'PY'
 import signal, sqlite3, subprocess, sys, time
 program, scratch = sys.argv[1:3]
@@ -103,7 +127,7 @@ build = subprocess.Popen([program, "--quiet", "map", "build", "--dataset", scrat
 done, deadline = 0, time.time() + 30
 while build.poll() is None and time.time() < deadline:
     try:
-        db = sqlite3.connect(out + ".checkpoint", timeout=0.05)
+        db = sqlite3.connect("file:" + out + ".checkpoint?mode=ro", uri=True, timeout=0.05)
         row = db.execute("SELECT value FROM build WHERE name = 'frames_done'").fetchone()
         db.close()
         done = int(row[0]) if row else 0

@@ -19,7 +19,7 @@ YAML
 { cat "$SCRATCH/map.yaml"; echo 'encoders: {left_radius_error: 0.02, right_radius_error: 0.025}'; } > "$SCRATCH/drive.yaml"
 expect_exit 0 "$MOSAICLOC" --quiet simulate --out "$SCRATCH/map" --floor "$FLOOR" --route loop --laps 1 \
   --speed-mps 0.5 --seed 21 --config "$SCRATCH/map.yaml"
-expect_exit 0 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/map" --out "$SCRATCH/floor.mosaic"
+expect_exit 0 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/map" --out "$SCRATCH/floor.mosaic" --poses groundtruth
 expect_exit 0 "$MOSAICLOC" --quiet simulate --out "$SCRATCH/drive" --floor "$FLOOR" --route loop --laps 1 \
   --speed-mps 1.5 --seed 22 --config "$SCRATCH/drive.yaml"
 expect_exit 0 "$MOSAICLOC" --quiet --json replay --dataset "$SCRATCH/drive" --map "$SCRATCH/floor.mosaic" \

@@ -28,7 +28,7 @@ make_site() {
   printf 'route: {straight_length_m: 2.0, stop_s: 0.7}\n' > "$SCRATCH/site.yaml"
   "$MOSAICLOC" --quiet simulate --out "$SCRATCH/$1-map" --config "$SCRATCH/site.yaml" --floor "$texture" \
     --route straight --laps 1 --speed-mps 0.5 --seed 31 >/dev/null || fail "simulate map run"
-  "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/$1-map" --out "$SCRATCH/$1.mosaic" >/dev/null || fail "map build"
+  "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/$1-map" --out "$SCRATCH/$1.mosaic" --poses groundtruth >/dev/null || fail "map build"
   "$MOSAICLOC" --quiet simulate --out "$SCRATCH/$1-run" --config "$SCRATCH/site.yaml" --floor "$texture" \
     --route straight --laps 1 --speed-mps "$2" --seed 32 >/dev/null || fail "simulate run"
 }

@@ -21,7 +21,7 @@ printf 'floor: {kind: image, image: %s}\ncamera: {width_px: 560, height_px: 400}
   "$TEXTURE" > "$SCRATCH/site.yaml"
 "$MOSAICLOC" --quiet simulate --out "$SCRATCH/map-run" --config "$SCRATCH/site.yaml" --laps 1 --speed-mps 0.5 \
   --seed 31 >/dev/null || fail "simulate the mapping run"
-"$MOSAICLOC" --quiet map build --dataset "$SCRATCH/map-run" --out "$SCRATCH/site.mosaic" >/dev/null || fail "map build"
+"$MOSAICLOC" --quiet map build --dataset "$SCRATCH/map-run" --out "$SCRATCH/site.mosaic" --poses groundtruth >/dev/null || fail "map build"
 "$MOSAICLOC" --quiet simulate --out "$SCRATCH/run" --config "$SCRATCH/site.yaml" --laps 1 --speed-mps 1.0 \
   --seed 32 >/dev/null || fail "simulate the drive"
 "$MOSAICLOC" --quiet calibrate simulate-raw --dataset "$SCRATCH/run" --config "$SCRATCH/site.yaml" \

@@ -13,7 +13,7 @@ run: {seed: 32, laps: 1}
 YAML
 "$MOSAICLOC" --quiet simulate --out "$SCRATCH/map-run" --config "$SCRATCH/drive.yaml" --speed-mps 0.5 --seed 31 \
   >/dev/null || fail "simulate the mapping run"
-"$MOSAICLOC" --quiet map build --dataset "$SCRATCH/map-run" --out "$SCRATCH/site.mosaic" >/dev/null || fail "map build"
+"$MOSAICLOC" --quiet map build --dataset "$SCRATCH/map-run" --out "$SCRATCH/site.mosaic" --poses groundtruth >/dev/null || fail "map build"
 PORT=$(free_port)
 printf 'map: %s\ncamera: {source: simulator, simulator: {config: %s}}\nplc: {port: %s}\n' \
   "$SCRATCH/site.mosaic" "$SCRATCH/drive.yaml" "$PORT" > "$SCRATCH/run.yaml"

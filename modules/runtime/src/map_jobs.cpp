@@ -45,13 +45,30 @@ std::string FileCrc(const fs::path& file) {
 MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(double)>& progress) {
   const dataset::DatasetReader reader(args.dataset);
   const dataset::DatasetInfo& info = reader.info();
-  const dataset::Trajectory poses =
-      args.poses == "groundtruth" ? reader.GroundTruth() : dataset::ReadTum(args.poses);
   std::error_code ec;
   if (fs::exists(args.out, ec) && !args.overwrite) {
     core::ThrowInvalidInput(args.out.string() + ": already exists (add --overwrite to replace it)");
   }
   if (!(args.checkpoint_s >= 0.0)) core::ThrowInvalidInput("--checkpoint-s must be >= 0");
+  const bool estimate = args.poses == "estimate";
+  const fs::path checkpoint_file = args.out.string() + ".checkpoint";
+  const fs::path estimated_file = args.out.string() + ".poses.tum";
+  std::optional<MapPosesSummary> mapping;
+  // Estimated poses are kept beside the checkpoint: a resumed build paints with the same ones.
+  const bool estimated_before = estimate && args.resume && fs::exists(checkpoint_file, ec) && fs::exists(estimated_file, ec);
+  if (estimate && !estimated_before) {
+    MapPosesOptions pose_options;
+    pose_options.dataset = args.dataset;
+    pose_options.out = estimated_file;
+    pose_options.report = args.report;
+    mapping = EstimateMapPoses(pose_options, [&](double fraction) {
+      if (progress) progress(0.5 * fraction);
+    });
+  }
+  const double painting_from = estimate ? 0.5 : 0.0;
+  const dataset::Trajectory poses = args.poses == "groundtruth" ? reader.GroundTruth()
+                                    : estimate                  ? dataset::ReadTum(estimated_file)
+                                                                : dataset::ReadTum(args.poses);
   mosaic::MapGrid grid;
   grid.mm_per_px = info.camera.mm_per_px;
   grid.tile_size_px = args.tile_size_px;
@@ -60,18 +77,20 @@ MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(d
 
   std::int64_t total = 0;
   for (auto count = reader.Frames(); count.Next(false);) ++total;
-  const fs::path poses_file = args.poses == "groundtruth" ? args.dataset / "groundtruth" / "data.tum" : fs::path(args.poses);
+  const fs::path poses_file = args.poses == "groundtruth" ? args.dataset / "groundtruth" / "data.tum"
+                             : estimate                  ? estimated_file
+                                                         : fs::path(args.poses);
   const std::map<std::string, std::string> identity = {
       {"dataset", fs::absolute(args.dataset).lexically_normal().string()},
       {"frames", std::to_string(total)},
       {"frame_list_crc32", FileCrc(args.dataset / "cam0" / "data.csv")},
       {"dataset_yaml_crc32", FileCrc(args.dataset / "dataset.yaml")},
-      {"poses", args.poses == "groundtruth" ? "groundtruth" : fs::absolute(args.poses).lexically_normal().string()},
+      {"poses", args.poses == "groundtruth" || estimate ? args.poses
+                                                        : fs::absolute(args.poses).lexically_normal().string()},
       {"poses_crc32", FileCrc(poses_file)},
       {"blend", args.blend},
       {"tile_size_px", std::to_string(args.tile_size_px)},
       {"levels", std::to_string(args.levels)}};
-  const fs::path checkpoint_file = args.out.string() + ".checkpoint";
   std::unique_ptr<mosaic::BuildCheckpoint> checkpoint;
   std::int64_t painted = 0;
   std::int64_t skipped = 0;
@@ -106,7 +125,10 @@ MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(d
       save(done);
       last_save = std::chrono::steady_clock::now();
     }
-    if (progress) progress(0.8 * static_cast<double>(done) / static_cast<double>(std::max<std::int64_t>(total, 1)));
+    if (progress) {
+      progress(painting_from + (0.8 - painting_from) * static_cast<double>(done) /
+                                   static_cast<double>(std::max<std::int64_t>(total, 1)));
+    }
   }
   if (painted == 0) core::ThrowInvalidInput(args.dataset.string() + ": no frame has a pose in " + args.poses);
   save(done);  // every frame painted: a build killed while writing resumes with the writing
@@ -126,8 +148,9 @@ MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(d
   if (ec) core::ThrowRuntime(args.out.string() + ": cannot move the new map into place (" + ec.message() + ")");
   checkpoint.reset();
   mosaic::BuildCheckpoint::Remove(checkpoint_file);
+  if (estimate) fs::remove(estimated_file, ec);
   const auto store = mosaic::TileStore::Open(args.out, false);
-  return {total, painted, skipped, resumed_after, store->Count(), store->Count(0)};
+  return {total, painted, skipped, resumed_after, store->Count(), store->Count(0), std::move(mapping)};
 }
 
 MapExtent LevelExtent(const mosaic::TileStore& store, int level) {

@@ -24,17 +24,13 @@
 #include "mosaicloc/estimation/odometry.hpp"
 #include "mosaicloc/localizer/localizer.hpp"
 #include "mosaicloc/localizer/speed_limits.hpp"
+#include "mosaicloc/runtime/drive.hpp"
 #include "mosaicloc/runtime/map_session.hpp"
 #include "mosaicloc/runtime/report.hpp"
 #include "mosaicloc/tracking/tracker.hpp"
 
 namespace mosaicloc::runtime {
 namespace {
-
-camera::IdealCamera CameraOf(const dataset::DatasetInfo& info) {
-  return camera::IdealCamera(
-      camera::IdealCameraOptions{info.camera.width_px, info.camera.height_px, info.camera.mm_per_px});
-}
 
 // Overlap speed limit of the run (localizer::SpeedLimits), at the run's mean frame period.
 std::optional<double> OverlapSpeedLimit(const dataset::DatasetInfo& info, const dataset::Trajectory& estimate,
@@ -175,30 +171,6 @@ class ReplayRecord {
   std::vector<double> view_mapped_;
 };
 
-// Where the run starts (as a localizer is told at installation): the ground truth at `time`,
-// else its first pose; without ground truth, the start pose a live recording noted in its
-// provenance ("x_mm,y_mm,yaw_deg"), else the origin.
-core::Pose2 StartPose(const std::optional<dataset::Trajectory>& groundtruth, const dataset::DatasetInfo& info,
-                      core::Timestamp time) {
-  if (groundtruth) {
-    return dataset::PoseAt(*groundtruth, time, std::chrono::seconds(1))
-        .value_or(groundtruth->front().world_from_vehicle);
-  }
-  const auto noted = info.provenance.find("start_pose");
-  if (noted == info.provenance.end()) return core::Pose2::Identity();
-  double x = 0.0, y = 0.0, yaw_deg = 0.0;
-  if (std::sscanf(noted->second.c_str(), "%lf,%lf,%lf", &x, &y, &yaw_deg) != 3) {
-    core::ThrowInvalidInput("dataset.yaml: provenance.start_pose: '" + noted->second +
-                            "' is not x_mm,y_mm,yaw_deg");
-  }
-  return core::Pose2(x, y, yaw_deg * std::numbers::pi / 180.0);
-}
-
-std::optional<dataset::Trajectory> GroundTruthOf(const dataset::DatasetReader& reader) {
-  if (!reader.HasGroundTruth()) return std::nullopt;
-  return reader.GroundTruth();
-}
-
 // The encoder time stamps' uncertainty a live recording noted (its PLC's timing error), else
 // `otherwise`.
 double EncoderTimingSigmaOf(const dataset::DatasetInfo& info, double otherwise) {
@@ -209,30 +181,6 @@ double EncoderTimingSigmaOf(const dataset::DatasetInfo& info, double otherwise) 
   } catch (const std::exception&) {
     core::ThrowInvalidInput("dataset.yaml: provenance.encoder_timing_sigma_ms: '" + noted->second + "' is not a number");
   }
-}
-
-// The wheel encoders integrated from `start` (dead reckoning), one pose per accepted sample.
-// Rejected samples are logged and skipped, and counted in `rejected`.
-dataset::Trajectory WheelTrajectory(const ReplayOptions& options, const dataset::DatasetReader& reader,
-                                    const core::Pose2& start, std::int64_t* rejected) {
-  const localizer::LocalizerOptions geometry = LocalizerOptionsFor(
-      localizer::LocalizerOptions{}, reader.info().camera, reader.info().vehicle, 0.0);
-  estimation::DiffDriveOdometry odometry(geometry.odometry, start);
-  dataset::Trajectory integrated;
-  auto encoders = reader.Encoders();
-  while (const auto sample = encoders.Next()) {
-    const auto increment = odometry.Update(sample->time, sample->left_ticks, sample->right_ticks);
-    if (!increment) {
-      ++*rejected;
-      core::Log().warn("{}: encoder sample at {} ns skipped: {}", options.dataset.string(),
-                       sample->time.nanoseconds(), estimation::ToString(increment.error()));
-      continue;
-    }
-    integrated.push_back({sample->time, odometry.world_from_vehicle()});
-  }
-  if (integrated.empty()) core::ThrowInvalidInput(options.dataset.string() + ": no encoder samples");
-  if (*rejected > 0) core::Log().warn("{} encoder samples rejected", *rejected);
-  return integrated;
 }
 
 // Dead reckoning: integrate the wheel encoders from the starting pose, and report the pose
@@ -246,7 +194,7 @@ ReplaySummary ReplayDeadReckoning(const ReplayOptions& options, const std::funct
   // The start is known (as a localizer would be told at installation): the first ground
   // truth pose, or the origin.
   const dataset::Trajectory integrated =
-      WheelTrajectory(options, reader,
+      WheelTrajectory(reader,
                       StartPose(groundtruth, info, groundtruth ? groundtruth->front().time : core::Timestamp()),
                       &summary.encoder_samples_rejected);
 
@@ -373,7 +321,7 @@ ReplaySummary ReplayVisualOdometry(const ReplayOptions& options, const std::func
   summary.report = options.out;
   // The wheels give each frame pair's predicted motion (only differences are used).
   const dataset::Trajectory wheel =
-      WheelTrajectory(options, reader, core::Pose2::Identity(), &summary.encoder_samples_rejected);
+      WheelTrajectory(reader, core::Pose2::Identity(), &summary.encoder_samples_rejected);
 
   const camera::IdealCamera camera = CameraOf(info);
   const tracking::Tracker tracker(camera, options.settings.localizer.tracker);

@@ -3,10 +3,12 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "mosaicloc/mosaic/tile_store.hpp"
+#include "mosaicloc/runtime/map_poses.hpp"
 
 namespace mosaicloc::runtime {
 
@@ -14,7 +16,10 @@ namespace mosaicloc::runtime {
 struct MapBuildOptions {
   std::filesystem::path dataset;
   std::filesystem::path out;
-  std::string poses = "groundtruth";  ///< the dataset's ground truth, or a TUM file of vehicle poses
+  /// "estimate": the poses from the frames and encoders alone (EstimateMapPoses); "groundtruth":
+  /// the dataset's ground truth; else a TUM file of vehicle poses.
+  std::string poses = "estimate";
+  std::filesystem::path report;  ///< with "estimate": the consistency report's directory, or empty
   std::string blend = "feather";      ///< mosaic::ParseBlend
   int tile_size_px = 256;
   int levels = 6;
@@ -30,8 +35,11 @@ struct MapBuildSummary {
   std::int64_t resumed_after = 0;  ///< frames a resumed build took from its checkpoint
   std::int64_t tiles = 0;
   std::int64_t level0_tiles = 0;
+  std::optional<MapPosesSummary> mapping;  ///< with poses "estimate"
 };
 
+/// With poses "estimate", the poses are estimated first and kept in OUT.poses.tum until the map
+/// is written (a resumed build takes them from there).
 /// Writes the map under a temporary name and renames it into place at the end: an
 /// interrupted build leaves no map (or the previous one). Progress is saved in OUT.checkpoint
 /// as it goes; a resumed build continues from there, and since the saved accumulators are

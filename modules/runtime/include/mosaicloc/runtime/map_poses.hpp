@@ -1,0 +1,61 @@
+#pragma once
+
+#include <filesystem>
+#include <functional>
+#include <optional>
+
+#include "mosaicloc/core/pose2.hpp"
+#include "mosaicloc/dataset/trajectory.hpp"
+#include "mosaicloc/mapping/mapper.hpp"
+
+namespace mosaicloc::runtime {
+
+/// The mapper's defaults for a mapping drive: the localizer's matcher with sixteen templates
+/// (a pair of frames overlaps less than a frame and the map, and the yaw of every pair adds to
+/// the chain's drift: more templates over the view measure it better).
+mapping::MapperOptions DefaultMapperOptions();
+
+/// `mosaicloc map poses` (and the first step of `map build`): a mapping drive's poses from its
+/// frames and encoders alone.
+struct MapPosesOptions {
+  std::filesystem::path dataset;
+  std::filesystem::path out;        ///< the optimized trajectory (TUM), or empty
+  std::filesystem::path report;     ///< the consistency report's directory, or empty
+  std::filesystem::path graph_out;  ///< the pose graph in g2o's format, or empty
+  /// A pose graph (g2o) of this drive's frames, one node per frame with encoder data in order
+  /// (world_from_camera), to optimize instead of registering the frames: e.g. one exported and
+  /// edited, or built by another tool.
+  std::filesystem::path graph_in;
+  /// The vehicle's pose at the first frame, which places the map; else the dataset's
+  /// (StartPose: its ground truth's or a recording's noted start, else the origin).
+  std::optional<core::Pose2> start;
+  mapping::MapperOptions mapper = DefaultMapperOptions();
+};
+
+/// How well a trajectory fits the ground truth after the best rigid alignment of its frame.
+struct AlignedError {
+  double rms_mm = 0.0;
+  double max_mm = 0.0;
+  double heading_rms_deg = 0.0;
+};
+
+struct MapPosesSummary {
+  mapping::MappingResult mapping;
+  dataset::Trajectory poses;  ///< world_from_vehicle at each frame that has a pose
+  std::optional<AlignedError> error;          ///< of the optimized poses, with ground truth
+  std::optional<AlignedError> chained_error;  ///< of the chained poses (before loop closure)
+  double seconds = 0.0;
+  std::int64_t encoder_samples_rejected = 0;
+};
+
+/// Estimates the drive's poses (mapping::MapPoses), writes what the options ask for, and
+/// compares with the ground truth where the dataset has one. Throws core::Error (invalid
+/// input) for a dataset that cannot be read.
+MapPosesSummary EstimateMapPoses(const MapPosesOptions& options, const std::function<void(double)>& progress = {});
+
+/// The consistency report: consistency.json (the figures), loops.csv (every loop tried, why
+/// the rejected ones were), seams.csv (every registered pair's residual before and after
+/// optimization) and residuals.png (where on the map the residuals are large).
+void WriteMappingReport(const std::filesystem::path& directory, const MapPosesSummary& summary);
+
+}  // namespace mosaicloc::runtime

@@ -1,0 +1,310 @@
+#include "mosaicloc/runtime/map_poses.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <numbers>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "mosaicloc/core/error.hpp"
+#include "mosaicloc/core/file.hpp"
+#include "mosaicloc/core/log.hpp"
+#include "mosaicloc/dataset/dataset.hpp"
+#include "mosaicloc/dataset/evaluation.hpp"
+#include "mosaicloc/localizer/localizer.hpp"
+#include "mosaicloc/runtime/drive.hpp"
+
+namespace mosaicloc::runtime {
+namespace {
+
+namespace fs = std::filesystem;
+
+// The best rigid alignment (least squares over the positions, no scale) of `estimate` onto
+// `truth`, frame by frame at the same times, and what is left. In 2-D the rotation is the
+// angle of the summed cross and dot products of the centred points.
+std::optional<AlignedError> Aligned(const std::vector<core::Pose2>& estimate, const std::vector<core::Pose2>& truth) {
+  if (estimate.size() < 2) return std::nullopt;
+  Eigen::Vector2d mean_from = Eigen::Vector2d::Zero(), mean_to = Eigen::Vector2d::Zero();
+  for (std::size_t i = 0; i < estimate.size(); ++i) {
+    mean_from += estimate[i].translation_mm();
+    mean_to += truth[i].translation_mm();
+  }
+  mean_from /= static_cast<double>(estimate.size());
+  mean_to /= static_cast<double>(estimate.size());
+  double dot = 0.0, cross = 0.0;
+  for (std::size_t i = 0; i < estimate.size(); ++i) {
+    const Eigen::Vector2d p = estimate[i].translation_mm() - mean_from, q = truth[i].translation_mm() - mean_to;
+    dot += p.dot(q);
+    cross += p.x() * q.y() - p.y() * q.x();
+  }
+  const double angle = std::atan2(cross, dot);
+  const core::Pose2 rotation(0.0, 0.0, angle);
+  const core::Pose2 truth_from_estimate(mean_to - rotation.Rotation() * mean_from, angle);
+  AlignedError e;
+  double sum = 0.0, sum_yaw = 0.0;
+  for (std::size_t i = 0; i < estimate.size(); ++i) {
+    const core::Pose2 aligned = truth_from_estimate * estimate[i];
+    const double mm = (aligned.translation_mm() - truth[i].translation_mm()).norm();
+    const double deg = core::WrapAngle(aligned.yaw_rad() - truth[i].yaw_rad()) * 180.0 / std::numbers::pi;
+    sum += mm * mm;
+    sum_yaw += deg * deg;
+    e.max_mm = std::max(e.max_mm, mm);
+  }
+  e.rms_mm = std::sqrt(sum / static_cast<double>(estimate.size()));
+  e.heading_rms_deg = std::sqrt(sum_yaw / static_cast<double>(estimate.size()));
+  return e;
+}
+
+struct SeamFigures {
+  std::size_t count = 0;
+  double before_rms = 0.0, before_max = 0.0, after_rms = 0.0, after_max = 0.0, after_p99 = 0.0;
+};
+
+SeamFigures FiguresOf(const std::vector<mapping::Seam>& seams, std::optional<mapping::EdgeKind> kind) {
+  SeamFigures f;
+  std::vector<double> after;
+  double before_sq = 0.0, after_sq = 0.0;
+  for (const mapping::Seam& s : seams) {
+    if (kind && s.kind != *kind) continue;
+    ++f.count;
+    before_sq += s.before_px * s.before_px;
+    after_sq += s.after_px * s.after_px;
+    f.before_max = std::max(f.before_max, s.before_px);
+    f.after_max = std::max(f.after_max, s.after_px);
+    after.push_back(s.after_px);
+  }
+  if (f.count == 0) return f;
+  f.before_rms = std::sqrt(before_sq / static_cast<double>(f.count));
+  f.after_rms = std::sqrt(after_sq / static_cast<double>(f.count));
+  std::sort(after.begin(), after.end());
+  f.after_p99 = dataset::Percentile(after, 99.0);
+  return f;
+}
+
+nlohmann::json JsonOf(const SeamFigures& f) {
+  return {{"count", f.count},           {"before_rms_px", f.before_rms}, {"before_max_px", f.before_max},
+          {"after_rms_px", f.after_rms}, {"after_max_px", f.after_max},   {"after_p99_px", f.after_p99}};
+}
+
+nlohmann::json JsonOf(const std::optional<AlignedError>& e) {
+  if (!e) return nullptr;
+  return {{"rms_mm", e->rms_mm}, {"max_mm", e->max_mm}, {"heading_rms_deg", e->heading_rms_deg}};
+}
+
+// Where the map's residuals are: the drive's path, each frame coloured by the largest residual
+// of a pair it is in (green under 0.05 px, amber under 0.2 px, red above), accepted loop closures
+// as blue lines, rejected ones as red crosses, gaps bridged by the wheels in magenta.
+cv::Mat ResidualMap(const MapPosesSummary& summary) {
+  const mapping::MappingResult& m = summary.mapping;
+  const std::vector<core::Pose2>& nodes = m.graph.nodes;
+  double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
+  for (const core::Pose2& p : nodes) {
+    x0 = std::min(x0, p.x_mm()), x1 = std::max(x1, p.x_mm());
+    y0 = std::min(y0, p.y_mm()), y1 = std::max(y1, p.y_mm());
+  }
+  const int size = 1000, margin = 40;
+  const double span = std::max({x1 - x0, y1 - y0, 1.0});
+  const double scale = (size - 2 * margin) / span;
+  cv::Mat image(size + 40, size, CV_8UC3, cv::Scalar(255, 255, 255));
+  auto at = [&](const core::Pose2& p) {
+    return cv::Point(static_cast<int>(margin + (p.x_mm() - x0) * scale),
+                     static_cast<int>(size - margin - (p.y_mm() - y0) * scale));
+  };
+  std::vector<double> worst(nodes.size(), 0.0);
+  for (const mapping::Seam& s : m.seams) {
+    worst[s.from] = std::max(worst[s.from], s.after_px);
+    worst[s.to] = std::max(worst[s.to], s.after_px);
+  }
+  for (std::size_t i = 1; i < nodes.size(); ++i) cv::line(image, at(nodes[i - 1]), at(nodes[i]), {200, 200, 200}, 3);
+  for (std::size_t i = 0; i < nodes.size(); ++i) {
+    const cv::Scalar colour = worst[i] < 0.05 ? cv::Scalar(60, 170, 60)
+                              : worst[i] < 0.2 ? cv::Scalar(0, 160, 255)
+                                               : cv::Scalar(0, 0, 220);
+    cv::circle(image, at(nodes[i]), worst[i] < 0.05 ? 1 : 3, colour, cv::FILLED);
+  }
+  for (const mapping::MappingGap& g : m.gaps) {
+    for (int i = std::max(g.first, 1); i <= g.last; ++i) cv::line(image, at(nodes[i - 1]), at(nodes[i]), {200, 0, 200}, 3);
+  }
+  for (const mapping::LoopClosure& l : m.loops) {
+    if (l.accepted) {
+      cv::line(image, at(nodes[l.earlier]), at(nodes[l.later]), {200, 80, 0}, 1);
+    } else if (!l.rejected.empty() && l.inliers > 0) {
+      cv::drawMarker(image, at(nodes[l.later]), {0, 0, 220}, cv::MARKER_TILTED_CROSS, 9, 2);
+    }
+  }
+  char text[200];
+  std::snprintf(text, sizeof text, "%zu loops closed, %zu gaps; seams after optimization: green < 0.05 px, amber < 0.2, red",
+                static_cast<std::size_t>(m.loops_accepted), m.gaps.size());
+  cv::putText(image, text, {10, size + 25}, cv::FONT_HERSHEY_SIMPLEX, 0.5, {0, 0, 0}, 1, cv::LINE_AA);
+  return image;
+}
+
+// A pose graph read from a g2o file, solved, as the drive's poses.
+mapping::MappingResult OptimizeImported(const fs::path& file, const mapping::MappingInput& input,
+                                        const mapping::MapperOptions& options) {
+  mapping::MappingResult m;
+  m.graph = mapping::ReadG2o(file);
+  const std::size_t n = input.frame_times.size();
+  if (m.graph.nodes.size() != n) {
+    core::ThrowInvalidInput(file.string() + ": " + std::to_string(m.graph.nodes.size()) + " nodes for the drive's " +
+                            std::to_string(n) + " frames");
+  }
+  std::vector<core::Pose2> before = m.graph.nodes;
+  m.optimize = mapping::Optimize(m.graph, options.optimize);
+  m.frames = static_cast<std::int64_t>(n);
+  m.has_pose.assign(n, 1);
+  for (std::size_t i = 0; i < n; ++i) {
+    m.world_from_vehicle.push_back(m.graph.nodes[i] * input.vehicle_from_camera.Inverse());
+    m.chained_world_from_vehicle.push_back(before[i] * input.vehicle_from_camera.Inverse());
+    if (i > 0) m.path_length_m += 1e-3 * (m.graph.nodes[i].translation_mm() - m.graph.nodes[i - 1].translation_mm()).norm();
+  }
+  for (const mapping::PoseGraphEdge& e : m.graph.edges) m.loops_accepted += e.kind == mapping::EdgeKind::kLoop ? 1 : 0;
+  return m;
+}
+
+}  // namespace
+
+mapping::MapperOptions DefaultMapperOptions() {
+  mapping::MapperOptions options;
+  options.tracker = localizer::LocalizerOptions{}.tracker;
+  options.tracker.templates.count = 16;
+  return options;
+}
+
+MapPosesSummary EstimateMapPoses(const MapPosesOptions& options, const std::function<void(double)>& progress) {
+  const auto started = std::chrono::steady_clock::now();
+  const dataset::DatasetReader reader(options.dataset);
+  const dataset::DatasetInfo& info = reader.info();
+  const std::optional<dataset::Trajectory> groundtruth = GroundTruthOf(reader);
+  MapPosesSummary summary;
+  const dataset::Trajectory wheels = WheelTrajectory(reader, core::Pose2::Identity(), &summary.encoder_samples_rejected);
+
+  mapping::MappingInput input;
+  input.camera = CameraOf(info);
+  input.vehicle_from_camera = info.camera.vehicle_from_camera;
+  std::vector<fs::path> files;
+  std::int64_t without_wheels = 0;
+  for (auto frames = reader.Frames(); const auto frame = frames.Next(false);) {
+    const auto wheel = dataset::PoseAt(wheels, frame->time, std::chrono::milliseconds(100));
+    if (!wheel) {
+      ++without_wheels;
+      continue;
+    }
+    input.frame_times.push_back(frame->time);
+    input.wheels.push_back(*wheel);
+    files.push_back(frame->path);
+  }
+  if (input.frame_times.empty()) core::ThrowInvalidInput(options.dataset.string() + ": no frame has encoder data");
+  if (without_wheels > 0) core::Log().warn("{} frames without encoder data around them are not mapped", without_wheels);
+  const int width = info.camera.width_px, height = info.camera.height_px;
+  // A frame that cannot be read stops the mapping, naming it, as it stops the painting: a
+  // damaged recording is repaired, not mapped around.
+  input.load_frame = [&files, width, height](std::size_t i) {
+    cv::Mat image = cv::imread(files[i].string(), cv::IMREAD_UNCHANGED);
+    if (image.empty()) core::ThrowInvalidInput("image " + files[i].string() + " cannot be decoded");
+    if (image.type() != CV_8UC1 || image.cols != width || image.rows != height) {
+      core::ThrowInvalidInput("image " + files[i].string() + " is not a " + std::to_string(width) + "x" +
+                              std::to_string(height) + " 8-bit grey image as dataset.yaml says");
+    }
+    return image;
+  };
+  input.start = options.start ? *options.start : StartPose(groundtruth, info, input.frame_times.front());
+  if (options.graph_in.empty()) {
+    summary.mapping = mapping::MapPoses(input, options.mapper, progress);
+  } else {
+    summary.mapping = OptimizeImported(options.graph_in, input, options.mapper);
+  }
+  const mapping::MappingResult& m = summary.mapping;
+  for (std::size_t i = 0; i < input.frame_times.size(); ++i) {
+    if (m.has_pose[i]) summary.poses.push_back({input.frame_times[i], m.world_from_vehicle[i]});
+  }
+  summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  if (groundtruth) {
+    std::vector<core::Pose2> estimate, chained, truth;
+    for (std::size_t i = 0; i < input.frame_times.size(); ++i) {
+      const auto t = dataset::PoseAt(*groundtruth, input.frame_times[i], std::chrono::milliseconds(100));
+      if (!t || !m.has_pose[i]) continue;
+      estimate.push_back(m.world_from_vehicle[i]);
+      chained.push_back(m.chained_world_from_vehicle[i]);
+      truth.push_back(*t);
+    }
+    summary.error = Aligned(estimate, truth);
+    summary.chained_error = Aligned(chained, truth);
+  }
+  for (const std::string& warning : m.warnings) core::Log().warn("{}: {}", options.dataset.string(), warning);
+  if (!options.out.empty()) dataset::WriteTum(options.out, summary.poses);
+  if (!options.graph_out.empty()) mapping::WriteG2o(options.graph_out, m.graph);
+  if (!options.report.empty()) WriteMappingReport(options.report, summary);
+  return summary;
+}
+
+void WriteMappingReport(const fs::path& directory, const MapPosesSummary& summary) {
+  std::error_code ec;
+  fs::create_directories(directory, ec);
+  if (ec) core::ThrowRuntime(directory.string() + ": cannot be created (" + ec.message() + ")");
+  const mapping::MappingResult& m = summary.mapping;
+  const double frames = static_cast<double>(m.frames);
+  nlohmann::json loops_rejected = nlohmann::json::object();
+  for (const mapping::LoopClosure& l : m.loops) {
+    if (l.accepted) continue;
+    std::string reason = l.rejected.substr(0, l.rejected.find_first_of("(0123456789"));
+    while (!reason.empty() && reason.back() == ' ') reason.pop_back();
+    loops_rejected[reason] = loops_rejected.value(reason, 0) + 1;
+  }
+  nlohmann::json gaps = nlohmann::json::array();
+  for (const mapping::MappingGap& g : m.gaps) gaps.push_back({{"first", g.first}, {"last", g.last}, {"length_mm", g.length_mm}});
+  const nlohmann::json report = {
+      {"frames", m.frames},
+      {"path_length_m", m.path_length_m},
+      {"registered", m.registered},
+      {"keyframe_edges", m.keyframe_edges},
+      {"loops_tried", m.loops_tried},
+      {"loops_accepted", m.loops_accepted},
+      {"loops_rejected", loops_rejected},
+      {"gaps", gaps},
+      {"warnings", m.warnings},
+      {"seams", JsonOf(FiguresOf(m.seams, std::nullopt))},
+      {"sequential_seams", JsonOf(FiguresOf(m.seams, mapping::EdgeKind::kSequential))},
+      {"loop_seams", JsonOf(FiguresOf(m.seams, mapping::EdgeKind::kLoop))},
+      {"optimization",
+       {{"converged", m.optimize.converged},
+        {"iterations", m.optimize.iterations},
+        {"initial_cost", m.optimize.initial_cost},
+        {"final_cost", m.optimize.final_cost},
+        {"pieces", m.optimize.pieces},
+        {"seconds", m.optimize_seconds}}},
+      {"register_fps", m.register_seconds > 0 ? frames / m.register_seconds : 0.0},
+      {"loop_fps", m.loop_seconds > 0 ? frames / m.loop_seconds : 0.0},
+      {"total_seconds", summary.seconds},
+      {"vs_groundtruth", JsonOf(summary.error)},
+      {"chained_vs_groundtruth", JsonOf(summary.chained_error)}};
+  core::WriteFileAtomically(directory / "consistency.json", report.dump(2) + "\n");
+
+  std::ostringstream loops;
+  loops << "#earlier,later,accepted,correction_mm,chi2,mean_zncc,inliers,reason\n";
+  for (const mapping::LoopClosure& l : m.loops) {
+    std::string reason = l.rejected;
+    std::replace(reason.begin(), reason.end(), ',', ';');
+    loops << l.earlier << ',' << l.later << ',' << (l.accepted ? 1 : 0) << ',' << l.correction_mm << ',' << l.chi2
+          << ',' << l.mean_zncc << ',' << l.inliers << ',' << reason << '\n';
+  }
+  core::WriteFileAtomically(directory / "loops.csv", loops.str());
+  std::ostringstream seams;
+  seams << "#from,to,kind,before_px,after_px\n";
+  for (const mapping::Seam& s : m.seams) {
+    seams << s.from << ',' << s.to << ',' << mapping::ToString(s.kind) << ',' << s.before_px << ',' << s.after_px << '\n';
+  }
+  core::WriteFileAtomically(directory / "seams.csv", seams.str());
+  std::vector<uchar> png;
+  if (!cv::imencode(".png", ResidualMap(summary), png)) core::ThrowRuntime("residuals.png: cannot be encoded");
+  core::WriteFileAtomically(directory / "residuals.png",
+                            std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+}
+
+}  // namespace mosaicloc::runtime
