@@ -41,6 +41,8 @@ nlohmann::json MappingJson(const runtime::MapPosesSummary& s) {
     return {{"rms_mm", e->rms_mm}, {"max_mm", e->max_mm}};
   };
   return {{"frames", m.frames},
+          {"drives", s.poses.size()},
+          {"pieces", m.pieces},
           {"path_length_m", m.path_length_m},
           {"registered", m.registered},
           {"loops_tried", m.loops_tried},
@@ -78,7 +80,11 @@ void Poses(const runtime::MapPosesOptions& args, const GlobalOptions& global) {
     return;
   }
   PrintMapping(r);
-  if (!args.out.empty()) std::printf("trajectory: %s\n", args.out.string().c_str());
+  if (!args.out.empty()) {
+    for (std::size_t d = 0; d < r.poses.size(); ++d) {
+      std::printf("trajectory: %s\n", runtime::DrivePath(args.out, static_cast<int>(d) + 1).string().c_str());
+    }
+  }
   if (!args.report.empty()) std::printf("report: %s\n", (args.report / "consistency.json").string().c_str());
 }
 
@@ -174,6 +180,13 @@ Action AddMapCommand(CLI::App& app, const GlobalOptions& global) {
                     "'estimate' (default: from the frames and encoders alone, loops closed, a pose graph solved), "
                     "'groundtruth' or a TUM trajectory of world_from_vehicle");
   build->add_option("--report", args->build.report, "With --poses estimate: write the consistency report here");
+  build->add_option("--join", args->build.joined,
+                    "A later drive over the same site to paint into the map too (repeatable): with --poses estimate "
+                    "mapped with the first, starting where its dataset says, joined by loop closures")
+      ->take_all();
+  build->add_option("--join-sigma-mm", args->build.join_start_sigma_mm,
+                    "How well a joined drive's start is known, mm (default 20): it sizes the search that joins it")
+      ->check(CLI::PositiveNumber);
   build->add_option("--blend", args->build.blend, "feather (default) or best-view")
       ->check(CLI::IsMember({"feather", "best-view"}));
   build->add_option("--tile-size", args->build.tile_size_px, "Tile size in px, a power of two (default 256)")
@@ -189,6 +202,13 @@ Action AddMapCommand(CLI::App& app, const GlobalOptions& global) {
   poses->add_option("--dataset", args->poses.dataset, "Dataset directory")->required();
   poses->add_option("--out", args->poses.out, "TUM trajectory to write (world_from_vehicle at every frame)");
   poses->add_option("--report", args->poses.report, "Directory for the consistency report");
+  poses->add_option("--join", args->poses.joined,
+                    "A later drive over the same site, mapped with the first (repeatable); its trajectory goes to "
+                    "OUT with .2, .3, ... before the extension")
+      ->take_all();
+  poses->add_option("--join-sigma-mm", args->poses.join_start_sigma_mm,
+                    "How well a joined drive's start is known, mm (default 20): it sizes the search that joins it")
+      ->check(CLI::PositiveNumber);
   poses->add_option("--graph-out", args->poses.graph_out, "Write the pose graph in g2o's format (metres)");
   poses->add_option("--graph-in", args->poses.graph_in,
                     "Optimize this g2o pose graph of the drive's frames instead of registering them");

@@ -86,6 +86,23 @@ expect_exit 2 "$MOSAICLOC" --quiet map poses --dataset "$SCRATCH/ds" --graph-in 
 expect_in "$SCRATCH/err" "bad.g2o:5: 'zero' is not a finite number"
 [ -e "$SCRATCH/b.tum" ] && fail "a rejected graph left a trajectory"
 
+# A second drive over the same floor (other noise, another path within the lane), started
+# where its dataset says to within 4 mm (the 80 mm x 60 mm view must cover the search),
+# mapped with the first into one map: loop closures join it; each drive's poses are written.
+expect_exit 0 "$MOSAICLOC" --quiet simulate --out "$SCRATCH/ds3" --config "$SCRATCH/c.yaml" --seed 7
+expect_exit 0 "$MOSAICLOC" --json map poses --dataset "$SCRATCH/ds" --join "$SCRATCH/ds3" --join-sigma-mm 4 \
+  --out "$SCRATCH/j.tum"
+loops=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['loops_accepted'])" "$SCRATCH/out")
+[ "$loops" -gt 0 ] || fail "no loop closure joined the second drive"
+[ "$(grep -vc '^#' "$SCRATCH/j.2.tum")" -eq 90 ] || fail "j.2.tum does not hold the second drive's 90 poses"
+expect_exit 0 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/ds" --join "$SCRATCH/ds3" --out "$SCRATCH/j.mosaic" \
+  --tile-size 64 --join-sigma-mm 4
+expect_in "$SCRATCH/out" "180 frames painted"
+[ -e "$SCRATCH/j.mosaic.poses.2.tum" ] && fail "a finished build left the second drive's estimated poses"
+expect_exit 2 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/ds" --join "$SCRATCH/ds3" --out "$SCRATCH/x.mosaic" \
+  --poses "$SCRATCH/p.tum"
+expect_in "$SCRATCH/err" "a TUM file holds one drive's poses"
+
 # Stopped by a damaged frame half way through painting (at the ground truth's poses: with
 # estimated ones the mapping stops at it first): no map, a checkpoint (which is not a map); the
 # frame repaired, --resume continues after the frames already painted and gives the same map.

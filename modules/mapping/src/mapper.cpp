@@ -139,6 +139,17 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
   if (input.wheels.size() != input.frame_times.size()) {
     core::ThrowInvalidInput("mapping: the wheels' poses do not match the frames");
   }
+  for (std::size_t d = 0; d < input.later_drives.size(); ++d) {
+    const LaterDrive& later = input.later_drives[d];
+    const int previous_first = d == 0 ? 0 : input.later_drives[d - 1].first;
+    if (later.first <= previous_first || later.first >= n) {
+      core::ThrowInvalidInput("mapping: drive " + std::to_string(d + 2) + " must start after the one before it and "
+                              "before the last frame");
+    }
+    if (!(later.start_sigma_mm > 0.0 && later.start_sigma_deg > 0.0)) {
+      core::ThrowInvalidInput("mapping: drive " + std::to_string(d + 2) + ": the start's sigmas must be positive");
+    }
+  }
   const camera::IdealCamera& camera = input.camera;
   const core::Pose2& vehicle_from_camera = input.vehicle_from_camera;
   const tracking::Tracker tracker(camera, options.tracker);
@@ -157,11 +168,28 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
   result.frames = n;
   result.has_pose.assign(static_cast<std::size_t>(n), 1);
   std::vector<core::Pose2> chain(static_cast<std::size_t>(n));  // world_from_camera
-  std::vector<double> path(static_cast<std::size_t>(n), 0.0);    // camera path length, mm
-  // How far the chain may have drifted since the first frame, one sigma summed edge by edge
-  // (linearly: drift is mostly systematic): drift_mm_per_m along registered frames, the
+  // Camera path length, mm; a new drive starts loop_min_separation_mm further on, so that any of
+  // its frames may close a loop with any frame of the drives before.
+  std::vector<double> path(static_cast<std::size_t>(n), 0.0);
+  double path_length_mm = 0.0;
+  // How far the chain may have drifted since its drive's first frame, one sigma summed edge by
+  // edge (linearly: drift is mostly systematic): drift_mm_per_m along registered frames, the
   // wheels' own uncertainty where they carried it.
   std::vector<double> drift_mm(static_cast<std::size_t>(n), 0.0), drift_rad(static_cast<std::size_t>(n), 0.0);
+  std::vector<int> drive_of(static_cast<std::size_t>(n), 0);
+  // Per drive, how well its start is known in the first drive's frame.
+  std::vector<double> start_mm = {0.0}, start_rad = {0.0};
+  for (const LaterDrive& later : input.later_drives) {
+    start_mm.push_back(later.start_sigma_mm);
+    start_rad.push_back(Rad(later.start_sigma_deg));
+  }
+  // The chain's uncertainty of frame i relative to frame j.
+  auto drift_between = [&](int j, int i) -> std::pair<double, double> {
+    if (drive_of[i] == drive_of[j]) return {std::abs(drift_mm[i] - drift_mm[j]), std::abs(drift_rad[i] - drift_rad[j])};
+    return {drift_mm[i] + drift_mm[j] + start_mm[drive_of[i]] + start_mm[drive_of[j]],
+            drift_rad[i] + drift_rad[j] + start_rad[drive_of[i]] + start_rad[drive_of[j]]};
+  };
+  std::size_t next_drive = 0;  // index into later_drives of the next drive to start
   PoseGraph& graph = result.graph;
   std::vector<int> loop_of_edge;         // per graph edge: index into result.loops, or -1
   std::vector<char> registered_edge;     // per graph edge: 1 for a registration, 0 for the wheels' motion
@@ -187,9 +215,25 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
     const auto started = Clock::now();
     const cv::Mat image = frames.Get(i);
     if (image.empty()) result.has_pose[i] = 0;
+    const bool drive_starts =
+        next_drive < input.later_drives.size() && input.later_drives[next_drive].first == i;
     if (i == 0) {
       chain[0] = input.start * vehicle_from_camera;
+    } else if (drive_starts) {
+      // A later drive: placed where it says it started; only loop closures join it to the rest.
+      const LaterDrive& later = input.later_drives[next_drive++];
+      drive_of[i] = static_cast<int>(next_drive);
+      chain[i] = later.start * vehicle_from_camera;
+      path[i] = path[i - 1] + options.loop_min_separation_mm;
+      previous.release();
+      key.release();
+      keyframe = -1;
+      if (unregistered_from >= 0) {
+        result.gaps.push_back({unregistered_from - 1, i - 1, path[i - 1] - path[unregistered_from - 1]});
+        unregistered_from = -1;
+      }
     } else {
+      drive_of[i] = drive_of[i - 1];
       const core::Pose2 wheel_motion = input.wheels[i - 1].Inverse() * input.wheels[i];
       const core::Pose2 camera_motion = vehicle_from_camera.Inverse() * wheel_motion * vehicle_from_camera;
       const double wheel_mm = options.wheel_sigma_mm + options.wheel_sigma_fraction * camera_motion.translation_mm().norm();
@@ -211,6 +255,7 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
       chain[i] = chain[i - 1] * motion;
       const double step_mm = motion.translation_mm().norm();
       path[i] = path[i - 1] + step_mm;
+      path_length_mm += step_mm;
       drift_mm[i] = drift_mm[i - 1] + (r.ok() ? options.drift_mm_per_m * 1e-3 * step_mm : wheel_mm);
       drift_rad[i] = drift_rad[i - 1] +
                      (r.ok() ? Rad(options.drift_deg_per_m) * 1e-3 * step_mm : Rad(options.wheel_sigma_deg));
@@ -269,16 +314,16 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
       for (const auto& [unused, j] : candidates) {
         // The prediction: along the chain, or through the last loop closed when that is surer.
         core::Pose2 predicted = chain[j].Inverse() * chain[i];
-        double sigma_mm = drift_mm[i] - drift_mm[j], sigma_rad = drift_rad[i] - drift_rad[j];
-        if (last_loop.later >= 0) {
-          const double through_mm =
-              std::abs(drift_mm[i] - drift_mm[last_loop.later]) + std::abs(drift_mm[j] - drift_mm[last_loop.earlier]);
-          if (through_mm < sigma_mm) {
+        auto [sigma_mm, sigma_rad] = drift_between(j, i);
+        if (last_loop.later >= 0 && drive_of[last_loop.later] == drive_of[i] &&
+            drive_of[last_loop.earlier] == drive_of[j]) {
+          const auto [later_mm, later_rad] = drift_between(last_loop.later, i);
+          const auto [earlier_mm, earlier_rad] = drift_between(last_loop.earlier, j);
+          if (later_mm + earlier_mm < sigma_mm) {
             predicted = chain[j].Inverse() * chain[last_loop.earlier] * last_loop.earlier_from_later *
                         chain[last_loop.later].Inverse() * chain[i];
-            sigma_mm = through_mm;
-            sigma_rad = std::abs(drift_rad[i] - drift_rad[last_loop.later]) +
-                        std::abs(drift_rad[j] - drift_rad[last_loop.earlier]);
+            sigma_mm = later_mm + earlier_mm;
+            sigma_rad = later_rad + earlier_rad;
           }
         }
         sigma_mm += options.drift_sigma_mm;
@@ -330,7 +375,7 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
     result.loop_seconds += Seconds(loops_started);
   }
   if (unregistered_from >= 0) result.gaps.push_back({unregistered_from - 1, n - 1, path[n - 1] - path[unregistered_from - 1]});
-  result.path_length_m = 1e-3 * path[n - 1];
+  result.path_length_m = 1e-3 * path_length_mm;
 
   // The pose graph: the chain as the start, the first frame held; loops that the rest of the
   // map contradicts are dropped and the graph solved again.
@@ -372,6 +417,18 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
     seam.after_px = SeamPx(edge.from_T_to, graph.nodes[edge.from].Inverse() * graph.nodes[edge.to], camera);
     result.seams.push_back(seam);
   }
+  // Pieces: frames joined by registrations, of the frames that were read.
+  std::vector<int> parent(static_cast<std::size_t>(n));
+  for (int i = 0; i < n; ++i) parent[i] = i;
+  auto root = [&parent](int i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  for (std::size_t e = 0; e < graph.edges.size(); ++e) {
+    if (registered_edge[e]) parent[root(graph.edges[e].from)] = root(graph.edges[e].to);
+  }
+  for (int i = 0; i < n; ++i) result.pieces += result.has_pose[i] && root(i) == i ? 1 : 0;
+
   result.world_from_vehicle.resize(static_cast<std::size_t>(n));
   result.chained_world_from_vehicle.resize(static_cast<std::size_t>(n));
   for (int i = 0; i < n; ++i) {
@@ -390,6 +447,14 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
     char text[200];
     std::snprintf(text, sizeof text, "frames %d to %d did not register with one another: %.0f mm bridged by the wheels",
                   gap.first, gap.last, gap.length_mm);
+    result.warnings.emplace_back(text);
+  }
+  if (result.pieces > 1) {
+    char text[200];
+    std::snprintf(text, sizeof text,
+                  "the map is %d pieces that no registration joins: only the wheels place them relative to one "
+                  "another (drive over the gaps again to join them)",
+                  result.pieces);
     result.warnings.emplace_back(text);
   }
   if (progress) progress(1.0);

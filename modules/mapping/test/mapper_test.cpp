@@ -107,6 +107,7 @@ TEST_F(MappingDrive, ALoopedDriveIsMappedOntoTheTruth) {
   EXPECT_GE(r.loops_accepted, 3);
   EXPECT_TRUE(r.warnings.empty()) << r.warnings.front();
   EXPECT_TRUE(r.gaps.empty());
+  EXPECT_EQ(r.pieces, 1);
   EXPECT_TRUE(r.optimize.converged) << r.optimize.message;
   EXPECT_NEAR(r.path_length_m, 0.954, 0.01);
   for (const LoopClosure& loop : r.loops) {
@@ -139,6 +140,8 @@ TEST_F(MappingDrive, ARepeatingFloorNeverClosesAWrongLoop) {
   EXPECT_EQ(r.gaps[0].first, 39);
   EXPECT_EQ(r.gaps[0].last, 60);
   EXPECT_EQ(r.has_pose[45], 0);
+  // The loops back over the first piece are refused, so nothing but the wheels joins the two.
+  EXPECT_EQ(r.pieces, 2);
   int rejected = 0;
   for (const LoopClosure& loop : r.loops) {
     if (!loop.accepted) {
@@ -155,9 +158,54 @@ TEST_F(MappingDrive, ARepeatingFloorNeverClosesAWrongLoop) {
     if (!r.has_pose[i]) continue;
     EXPECT_LT(core::Distance(r.world_from_vehicle[i], truth[i]), 8.0) << "frame " << i;
   }
-  bool warned = false;
-  for (const std::string& w : r.warnings) warned |= w.find("frames 39 to 60") != std::string::npos;
-  EXPECT_TRUE(warned);
+  bool warned_gap = false, warned_pieces = false;
+  for (const std::string& w : r.warnings) {
+    warned_gap |= w.find("frames 39 to 60") != std::string::npos;
+    warned_pieces |= w.find("2 pieces") != std::string::npos;
+  }
+  EXPECT_TRUE(warned_gap);
+  EXPECT_TRUE(warned_pieces);
+}
+
+// Two drives over the same floor, the second started where its vehicle was only roughly
+// known to be (10 mm and 0.5 degrees off): loop closures onto the first drive's frames place
+// it, and both come out on the truth as one piece.
+TEST_F(MappingDrive, ALaterDriveIsJoinedToTheFirst) {
+  MakeFloor();
+  if (IsSkipped()) return;
+  std::vector<core::Pose2> truth = Circle(130);
+  for (int i = 0; i < 90; ++i) {
+    const double a = 1.0 + 0.05 * i;
+    truth.emplace_back(265.0 + 120.0 * std::cos(a), 245.0 + 120.0 * std::sin(a), a + std::numbers::pi / 2.0);
+  }
+  MappingInput input = Input(truth);
+  LaterDrive later;
+  later.first = 130;
+  later.start = truth[130] * core::Pose2(8.0, -6.0, 0.5 * std::numbers::pi / 180.0);
+  input.later_drives.push_back(later);
+  const MappingResult r = MapPoses(input, MapperOptions{});
+  int joining = 0;
+  for (const LoopClosure& loop : r.loops) joining += loop.accepted && loop.earlier < 130 && loop.later >= 130 ? 1 : 0;
+  EXPECT_GE(joining, 3);
+  EXPECT_EQ(r.pieces, 1);
+  EXPECT_TRUE(r.gaps.empty());
+  EXPECT_EQ(r.registered, 218) << "every frame but the drives' first to its predecessor";
+  EXPECT_LT(core::Distance(r.chained_world_from_vehicle[130], truth[130]), 11.0) << "placed by its start";
+  EXPECT_LT(MaxError(r.world_from_vehicle, truth), 0.15);
+  EXPECT_NEAR(r.path_length_m, 0.775 + 0.534, 0.02);
+}
+
+TEST_F(MappingDrive, LaterDrivesMustFollowOneAnother) {
+  MakeFloor();
+  if (IsSkipped()) return;
+  MappingInput input = Input(Circle(20));
+  input.later_drives.push_back({10, core::Pose2(), 20.0, 1.0});
+  input.later_drives.push_back({5, core::Pose2(), 20.0, 1.0});
+  EXPECT_THROW(MapPoses(input, MapperOptions{}), core::Error);
+  input.later_drives = {{25, core::Pose2(), 20.0, 1.0}};
+  EXPECT_THROW(MapPoses(input, MapperOptions{}), core::Error);
+  input.later_drives = {{10, core::Pose2(), 0.0, 1.0}};
+  EXPECT_THROW(MapPoses(input, MapperOptions{}), core::Error);
 }
 
 // A drive that never comes back over its floor is mapped, with a warning that nothing bounds

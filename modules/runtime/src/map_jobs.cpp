@@ -43,22 +43,41 @@ std::string FileCrc(const fs::path& file) {
 // is saved in MAP.checkpoint as it goes; --resume continues from there, and since the saved
 // accumulators are exact, the map equals that of an uninterrupted build.
 MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(double)>& progress) {
-  const dataset::DatasetReader reader(args.dataset);
-  const dataset::DatasetInfo& info = reader.info();
+  std::vector<fs::path> datasets = {args.dataset};
+  datasets.insert(datasets.end(), args.joined.begin(), args.joined.end());
+  std::vector<std::unique_ptr<dataset::DatasetReader>> readers;
+  for (const fs::path& d : datasets) readers.push_back(std::make_unique<dataset::DatasetReader>(d));
+  const dataset::DatasetInfo& info = readers.front()->info();
   std::error_code ec;
   if (fs::exists(args.out, ec) && !args.overwrite) {
     core::ThrowInvalidInput(args.out.string() + ": already exists (add --overwrite to replace it)");
   }
   if (!(args.checkpoint_s >= 0.0)) core::ThrowInvalidInput("--checkpoint-s must be >= 0");
   const bool estimate = args.poses == "estimate";
+  const bool groundtruth = args.poses == "groundtruth";
+  if (!estimate && !groundtruth && datasets.size() > 1) {
+    core::ThrowInvalidInput("--poses " + args.poses + ": a TUM file holds one drive's poses; joined drives are "
+                            "painted at estimated poses or at their ground truth");
+  }
+  for (std::size_t d = 1; d < readers.size(); ++d) {
+    if (readers[d]->info().camera.mm_per_px != info.camera.mm_per_px) {
+      core::ThrowInvalidInput(datasets[d].string() + ": its camera's mm_per_px is not " + datasets[0].string() +
+                              "'s: drives painted into one map must share it");
+    }
+  }
   const fs::path checkpoint_file = args.out.string() + ".checkpoint";
   const fs::path estimated_file = args.out.string() + ".poses.tum";
   std::optional<MapPosesSummary> mapping;
   // Estimated poses are kept beside the checkpoint: a resumed build paints with the same ones.
-  const bool estimated_before = estimate && args.resume && fs::exists(checkpoint_file, ec) && fs::exists(estimated_file, ec);
+  bool estimated_before = estimate && args.resume && fs::exists(checkpoint_file, ec);
+  for (std::size_t d = 0; d < datasets.size(); ++d) {
+    estimated_before = estimated_before && fs::exists(DrivePath(estimated_file, static_cast<int>(d) + 1), ec);
+  }
   if (estimate && !estimated_before) {
     MapPosesOptions pose_options;
     pose_options.dataset = args.dataset;
+    pose_options.joined = args.joined;
+    pose_options.join_start_sigma_mm = args.join_start_sigma_mm;
     pose_options.out = estimated_file;
     pose_options.report = args.report;
     mapping = EstimateMapPoses(pose_options, [&](double fraction) {
@@ -66,9 +85,14 @@ MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(d
     });
   }
   const double painting_from = estimate ? 0.5 : 0.0;
-  const dataset::Trajectory poses = args.poses == "groundtruth" ? reader.GroundTruth()
-                                    : estimate                  ? dataset::ReadTum(estimated_file)
-                                                                : dataset::ReadTum(args.poses);
+  std::vector<fs::path> poses_files;
+  std::vector<dataset::Trajectory> poses;
+  for (std::size_t d = 0; d < datasets.size(); ++d) {
+    poses_files.push_back(groundtruth ? datasets[d] / "groundtruth" / "data.tum"
+                          : estimate  ? DrivePath(estimated_file, static_cast<int>(d) + 1)
+                                      : fs::path(args.poses));
+    poses.push_back(groundtruth ? readers[d]->GroundTruth() : dataset::ReadTum(poses_files.back()));
+  }
   mosaic::MapGrid grid;
   grid.mm_per_px = info.camera.mm_per_px;
   grid.tile_size_px = args.tile_size_px;
@@ -76,21 +100,22 @@ MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(d
   mosaic::MapBuilder builder(grid, mosaic::ParseBlend(args.blend));
 
   std::int64_t total = 0;
-  for (auto count = reader.Frames(); count.Next(false);) ++total;
-  const fs::path poses_file = args.poses == "groundtruth" ? args.dataset / "groundtruth" / "data.tum"
-                             : estimate                  ? estimated_file
-                                                         : fs::path(args.poses);
-  const std::map<std::string, std::string> identity = {
-      {"dataset", fs::absolute(args.dataset).lexically_normal().string()},
-      {"frames", std::to_string(total)},
-      {"frame_list_crc32", FileCrc(args.dataset / "cam0" / "data.csv")},
-      {"dataset_yaml_crc32", FileCrc(args.dataset / "dataset.yaml")},
-      {"poses", args.poses == "groundtruth" || estimate ? args.poses
-                                                        : fs::absolute(args.poses).lexically_normal().string()},
-      {"poses_crc32", FileCrc(poses_file)},
+  std::map<std::string, std::string> identity = {
+      {"poses", groundtruth || estimate ? args.poses : fs::absolute(args.poses).lexically_normal().string()},
       {"blend", args.blend},
       {"tile_size_px", std::to_string(args.tile_size_px)},
       {"levels", std::to_string(args.levels)}};
+  for (std::size_t d = 0; d < datasets.size(); ++d) {
+    std::int64_t frames = 0;
+    for (auto count = readers[d]->Frames(); count.Next(false);) ++frames;
+    total += frames;
+    const std::string suffix = d == 0 ? "" : "." + std::to_string(d + 1);
+    identity["dataset" + suffix] = fs::absolute(datasets[d]).lexically_normal().string();
+    identity["frames" + suffix] = std::to_string(frames);
+    identity["frame_list_crc32" + suffix] = FileCrc(datasets[d] / "cam0" / "data.csv");
+    identity["dataset_yaml_crc32" + suffix] = FileCrc(datasets[d] / "dataset.yaml");
+    identity["poses_crc32" + suffix] = FileCrc(poses_files[d]);
+  }
   std::unique_ptr<mosaic::BuildCheckpoint> checkpoint;
   std::int64_t painted = 0;
   std::int64_t skipped = 0;
@@ -107,27 +132,34 @@ MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(d
   const auto save = [&](std::int64_t frames_done) {
     checkpoint->Save(builder, frames_done, {{"painted", painted}, {"skipped", skipped}});
   };
-  auto frames = reader.Frames();
+  // The drives one after another; `done` counts frames over all of them.
   std::int64_t done = 0;
-  for (; done < resumed_after && frames.Next(false); ++done) {
-  }
   auto last_save = std::chrono::steady_clock::now();
-  while (const auto frame = frames.Next()) {
-    const auto pose = dataset::PoseAt(poses, frame->time, std::chrono::milliseconds(100));
-    if (pose) {
-      builder.AddFrame(frame->image, *pose * info.camera.vehicle_from_camera, info.camera.mm_per_px);
-      ++painted;
-    } else {
-      ++skipped;
+  for (std::size_t d = 0; d < datasets.size(); ++d) {
+    const dataset::CameraInfo& camera = readers[d]->info().camera;
+    auto frames = readers[d]->Frames();
+    while (done < resumed_after) {
+      if (!frames.Next(false)) break;
+      ++done;
     }
-    ++done;
-    if (std::chrono::duration<double>(std::chrono::steady_clock::now() - last_save).count() >= args.checkpoint_s) {
-      save(done);
-      last_save = std::chrono::steady_clock::now();
-    }
-    if (progress) {
-      progress(painting_from + (0.8 - painting_from) * static_cast<double>(done) /
-                                   static_cast<double>(std::max<std::int64_t>(total, 1)));
+    if (done < resumed_after) continue;  // this drive was painted before the interruption
+    while (const auto frame = frames.Next()) {
+      const auto pose = dataset::PoseAt(poses[d], frame->time, std::chrono::milliseconds(100));
+      if (pose) {
+        builder.AddFrame(frame->image, *pose * camera.vehicle_from_camera, camera.mm_per_px);
+        ++painted;
+      } else {
+        ++skipped;
+      }
+      ++done;
+      if (std::chrono::duration<double>(std::chrono::steady_clock::now() - last_save).count() >= args.checkpoint_s) {
+        save(done);
+        last_save = std::chrono::steady_clock::now();
+      }
+      if (progress) {
+        progress(painting_from + (0.8 - painting_from) * static_cast<double>(done) /
+                                     static_cast<double>(std::max<std::int64_t>(total, 1)));
+      }
     }
   }
   if (painted == 0) core::ThrowInvalidInput(args.dataset.string() + ": no frame has a pose in " + args.poses);
@@ -148,7 +180,9 @@ MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(d
   if (ec) core::ThrowRuntime(args.out.string() + ": cannot move the new map into place (" + ec.message() + ")");
   checkpoint.reset();
   mosaic::BuildCheckpoint::Remove(checkpoint_file);
-  if (estimate) fs::remove(estimated_file, ec);
+  if (estimate) {
+    for (std::size_t d = 0; d < datasets.size(); ++d) fs::remove(DrivePath(estimated_file, static_cast<int>(d) + 1), ec);
+  }
   const auto store = mosaic::TileStore::Open(args.out, false);
   return {total, painted, skipped, resumed_after, store->Count(), store->Count(0), std::move(mapping)};
 }

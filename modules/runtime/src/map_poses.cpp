@@ -157,6 +157,7 @@ mapping::MappingResult OptimizeImported(const fs::path& file, const mapping::Map
   }
   std::vector<core::Pose2> before = m.graph.nodes;
   m.optimize = mapping::Optimize(m.graph, options.optimize);
+  m.pieces = m.optimize.pieces;
   m.frames = static_cast<std::int64_t>(n);
   m.has_pose.assign(n, 1);
   for (std::size_t i = 0; i < n; ++i) {
@@ -177,34 +178,75 @@ mapping::MapperOptions DefaultMapperOptions() {
   return options;
 }
 
+fs::path DrivePath(const fs::path& out, int k) {
+  if (k <= 1) return out;
+  fs::path path = out;
+  return path.replace_extension("." + std::to_string(k) + out.extension().string());
+}
+
 MapPosesSummary EstimateMapPoses(const MapPosesOptions& options, const std::function<void(double)>& progress) {
   const auto started = std::chrono::steady_clock::now();
-  const dataset::DatasetReader reader(options.dataset);
-  const dataset::DatasetInfo& info = reader.info();
-  const std::optional<dataset::Trajectory> groundtruth = GroundTruthOf(reader);
-  MapPosesSummary summary;
-  const dataset::Trajectory wheels = WheelTrajectory(reader, core::Pose2::Identity(), &summary.encoder_samples_rejected);
-
-  mapping::MappingInput input;
-  input.camera = CameraOf(info);
-  input.vehicle_from_camera = info.camera.vehicle_from_camera;
-  std::vector<fs::path> files;
-  std::int64_t without_wheels = 0;
-  for (auto frames = reader.Frames(); const auto frame = frames.Next(false);) {
-    const auto wheel = dataset::PoseAt(wheels, frame->time, std::chrono::milliseconds(100));
-    if (!wheel) {
-      ++without_wheels;
-      continue;
-    }
-    input.frame_times.push_back(frame->time);
-    input.wheels.push_back(*wheel);
-    files.push_back(frame->path);
+  std::vector<fs::path> datasets = {options.dataset};
+  datasets.insert(datasets.end(), options.joined.begin(), options.joined.end());
+  if (!options.graph_in.empty() && datasets.size() > 1) {
+    core::ThrowInvalidInput("an imported pose graph is of one drive: it cannot be joined with others");
   }
-  if (input.frame_times.empty()) core::ThrowInvalidInput(options.dataset.string() + ": no frame has encoder data");
-  if (without_wheels > 0) core::Log().warn("{} frames without encoder data around them are not mapped", without_wheels);
-  const int width = info.camera.width_px, height = info.camera.height_px;
+  MapPosesSummary summary;
+  mapping::MappingInput input;
+  std::vector<fs::path> files;
+  std::vector<std::optional<dataset::Trajectory>> truths;
+  std::vector<std::size_t> firsts;  // per drive, its first frame in the input
+  for (std::size_t d = 0; d < datasets.size(); ++d) {
+    const dataset::DatasetReader reader(datasets[d]);
+    const dataset::DatasetInfo& info = reader.info();
+    const camera::IdealCamera camera = CameraOf(info);
+    if (d == 0) {
+      input.camera = camera;
+      input.vehicle_from_camera = info.camera.vehicle_from_camera;
+    } else if (camera.width_px() != input.camera.width_px() || camera.height_px() != input.camera.height_px() ||
+               camera.mm_per_px() != input.camera.mm_per_px() ||
+               core::Distance(info.camera.vehicle_from_camera, input.vehicle_from_camera) > 1e-9 ||
+               info.camera.vehicle_from_camera.yaw_rad() != input.vehicle_from_camera.yaw_rad()) {
+      core::ThrowInvalidInput(datasets[d].string() + ": its camera (size, mm_per_px or mounting) is not " +
+                              datasets[0].string() + "'s: drives mapped together must share one camera");
+    }
+    truths.push_back(GroundTruthOf(reader));
+    std::int64_t rejected = 0;
+    const dataset::Trajectory wheels = WheelTrajectory(reader, core::Pose2::Identity(), &rejected);
+    summary.encoder_samples_rejected += rejected;
+    std::int64_t without_wheels = 0;
+    const std::size_t first = input.frame_times.size();
+    for (auto frames = reader.Frames(); const auto frame = frames.Next(false);) {
+      const auto wheel = dataset::PoseAt(wheels, frame->time, std::chrono::milliseconds(100));
+      if (!wheel) {
+        ++without_wheels;
+        continue;
+      }
+      input.frame_times.push_back(frame->time);
+      input.wheels.push_back(*wheel);
+      files.push_back(frame->path);
+    }
+    if (input.frame_times.size() == first) {
+      core::ThrowInvalidInput(datasets[d].string() + ": no frame has encoder data");
+    }
+    if (without_wheels > 0) {
+      core::Log().warn("{}: {} frames without encoder data around them are not mapped", datasets[d].string(),
+                       without_wheels);
+    }
+    firsts.push_back(first);
+    const core::Pose2 start = d == 0 && options.start ? *options.start
+                                                      : StartPose(truths.back(), info, input.frame_times[first]);
+    if (d == 0) {
+      input.start = start;
+    } else {
+      input.later_drives.push_back(
+          {static_cast<int>(first), start, options.join_start_sigma_mm, options.join_start_sigma_deg});
+    }
+  }
+  firsts.push_back(input.frame_times.size());
   // A frame that cannot be read stops the mapping, naming it, as it stops the painting: a
   // damaged recording is repaired, not mapped around.
+  const int width = input.camera.width_px(), height = input.camera.height_px();
   input.load_frame = [&files, width, height](std::size_t i) {
     cv::Mat image = cv::imread(files[i].string(), cv::IMREAD_UNCHANGED);
     if (image.empty()) core::ThrowInvalidInput("image " + files[i].string() + " cannot be decoded");
@@ -214,31 +256,35 @@ MapPosesSummary EstimateMapPoses(const MapPosesOptions& options, const std::func
     }
     return image;
   };
-  input.start = options.start ? *options.start : StartPose(groundtruth, info, input.frame_times.front());
   if (options.graph_in.empty()) {
     summary.mapping = mapping::MapPoses(input, options.mapper, progress);
   } else {
     summary.mapping = OptimizeImported(options.graph_in, input, options.mapper);
   }
   const mapping::MappingResult& m = summary.mapping;
-  for (std::size_t i = 0; i < input.frame_times.size(); ++i) {
-    if (m.has_pose[i]) summary.poses.push_back({input.frame_times[i], m.world_from_vehicle[i]});
-  }
-  summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
-  if (groundtruth) {
-    std::vector<core::Pose2> estimate, chained, truth;
-    for (std::size_t i = 0; i < input.frame_times.size(); ++i) {
-      const auto t = dataset::PoseAt(*groundtruth, input.frame_times[i], std::chrono::milliseconds(100));
-      if (!t || !m.has_pose[i]) continue;
+  std::vector<core::Pose2> estimate, chained, truth;
+  for (std::size_t d = 0; d + 1 < firsts.size(); ++d) {
+    dataset::Trajectory& poses = summary.poses.emplace_back();
+    for (std::size_t i = firsts[d]; i < firsts[d + 1]; ++i) {
+      if (!m.has_pose[i]) continue;
+      poses.push_back({input.frame_times[i], m.world_from_vehicle[i]});
+      if (!truths[d]) continue;
+      const auto t = dataset::PoseAt(*truths[d], input.frame_times[i], std::chrono::milliseconds(100));
+      if (!t) continue;
       estimate.push_back(m.world_from_vehicle[i]);
       chained.push_back(m.chained_world_from_vehicle[i]);
       truth.push_back(*t);
     }
-    summary.error = Aligned(estimate, truth);
-    summary.chained_error = Aligned(chained, truth);
   }
+  summary.error = Aligned(estimate, truth);
+  summary.chained_error = Aligned(chained, truth);
+  summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   for (const std::string& warning : m.warnings) core::Log().warn("{}: {}", options.dataset.string(), warning);
-  if (!options.out.empty()) dataset::WriteTum(options.out, summary.poses);
+  if (!options.out.empty()) {
+    for (std::size_t d = 0; d < summary.poses.size(); ++d) {
+      dataset::WriteTum(DrivePath(options.out, static_cast<int>(d) + 1), summary.poses[d]);
+    }
+  }
   if (!options.graph_out.empty()) mapping::WriteG2o(options.graph_out, m.graph);
   if (!options.report.empty()) WriteMappingReport(options.report, summary);
   return summary;
@@ -268,6 +314,7 @@ void WriteMappingReport(const fs::path& directory, const MapPosesSummary& summar
       {"loops_accepted", m.loops_accepted},
       {"loops_rejected", loops_rejected},
       {"gaps", gaps},
+      {"pieces", m.pieces},
       {"warnings", m.warnings},
       {"seams", JsonOf(FiguresOf(m.seams, std::nullopt))},
       {"sequential_seams", JsonOf(FiguresOf(m.seams, mapping::EdgeKind::kSequential))},
@@ -277,7 +324,7 @@ void WriteMappingReport(const fs::path& directory, const MapPosesSummary& summar
         {"iterations", m.optimize.iterations},
         {"initial_cost", m.optimize.initial_cost},
         {"final_cost", m.optimize.final_cost},
-        {"pieces", m.optimize.pieces},
+        {"graph_pieces", m.optimize.pieces},
         {"seconds", m.optimize_seconds}}},
       {"register_fps", m.register_seconds > 0 ? frames / m.register_seconds : 0.0},
       {"loop_fps", m.loop_seconds > 0 ? frames / m.loop_seconds : 0.0},

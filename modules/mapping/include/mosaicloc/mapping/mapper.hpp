@@ -64,8 +64,20 @@ struct MapperOptions {
   bool Check(std::string* why) const;
 };
 
-/// A mapping drive: its frames (ideal images), in time order, read on demand, and the wheels'
-/// dead-reckoned pose (only its differences are used).
+/// A later drive over the same site, mapped together with the first: its frames follow the
+/// first drive's (and any before it) in MappingInput, from index `first` on.
+struct LaterDrive {
+  int first = 0;
+  /// Where the vehicle was at the drive's first frame (world_from_vehicle, the first drive's
+  /// world), and how well that is known, one standard deviation: it sizes the search for the
+  /// loop closures that join the drive to the others and gates them.
+  core::Pose2 start;
+  double start_sigma_mm = 20.0;
+  double start_sigma_deg = 1.0;
+};
+
+/// A mapping drive (or several): the frames (ideal images), in time order, read on demand, and
+/// the wheels' dead-reckoned pose (only its differences within a drive are used).
 struct MappingInput {
   camera::IdealCamera camera{camera::IdealCameraOptions{}};
   core::Pose2 vehicle_from_camera;
@@ -76,6 +88,9 @@ struct MappingInput {
   std::vector<core::Pose2> wheels;
   /// Where the vehicle was at the first frame: the map's frame.
   core::Pose2 start;
+  /// Further drives, in order of their first frames: no wheel motion joins a drive to the one
+  /// before; loop closures onto the floor the others mapped do.
+  std::vector<LaterDrive> later_drives;
 };
 
 /// A loop closure tried between a frame and an earlier one that sees the same floor.
@@ -116,6 +131,10 @@ struct MappingResult {
   std::vector<LoopClosure> loops;
   std::vector<Seam> seams;
   std::vector<MappingGap> gaps;
+  /// The drive's pieces: frames joined by registrations (loop closures included). More than
+  /// one: only the wheels place the pieces relative to one another (each gap that no loop
+  /// bridges splits the map).
+  int pieces = 0;
   OptimizeReport optimize;
   std::int64_t frames = 0;
   std::int64_t registered = 0;       ///< frames registered against their predecessor

@@ -20,6 +20,10 @@ struct MapBuildOptions {
   /// the dataset's ground truth; else a TUM file of vehicle poses.
   std::string poses = "estimate";
   std::filesystem::path report;  ///< with "estimate": the consistency report's directory, or empty
+  /// Later drives over the same site painted into the same map: with "estimate" mapped with
+  /// the first (MapPosesOptions::joined), with "groundtruth" at their own ground truth.
+  std::vector<std::filesystem::path> joined;
+  double join_start_sigma_mm = 20.0;  ///< MapPosesOptions::join_start_sigma_mm
   std::string blend = "feather";      ///< mosaic::ParseBlend
   int tile_size_px = 256;
   int levels = 6;
@@ -38,8 +42,9 @@ struct MapBuildSummary {
   std::optional<MapPosesSummary> mapping;  ///< with poses "estimate"
 };
 
-/// With poses "estimate", the poses are estimated first and kept in OUT.poses.tum until the map
-/// is written (a resumed build takes them from there).
+/// With poses "estimate", the poses are estimated first and kept in OUT.poses.tum (and
+/// OUT.poses.K.tum for the joined drives) until the map is written (a resumed build takes them
+/// from there).
 /// Writes the map under a temporary name and renames it into place at the end: an
 /// interrupted build leaves no map (or the previous one). Progress is saved in OUT.checkpoint
 /// as it goes; a resumed build continues from there, and since the saved accumulators are

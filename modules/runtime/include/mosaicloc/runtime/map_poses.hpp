@@ -29,8 +29,19 @@ struct MapPosesOptions {
   /// The vehicle's pose at the first frame, which places the map; else the dataset's
   /// (StartPose: its ground truth's or a recording's noted start, else the origin).
   std::optional<core::Pose2> start;
+  /// Later drives over the same site, mapped with the first into one map: each starts where
+  /// its dataset says (StartPose), known to within join_start_sigma_mm / _deg; loop closures
+  /// onto the floor the drives before it mapped join it to them. Drive k's (2, 3, ...) poses
+  /// go to DrivePath(out, k).
+  std::vector<std::filesystem::path> joined;
+  double join_start_sigma_mm = 20.0;
+  double join_start_sigma_deg = 1.0;
   mapping::MapperOptions mapper = DefaultMapperOptions();
 };
+
+/// Where drive k's trajectory goes when drive 1's goes to `out`: out itself for k = 1, else
+/// out with ".k" before its extension (poses.tum, poses.2.tum, ...).
+std::filesystem::path DrivePath(const std::filesystem::path& out, int k);
 
 /// How well a trajectory fits the ground truth after the best rigid alignment of its frame.
 struct AlignedError {
@@ -41,9 +52,12 @@ struct AlignedError {
 
 struct MapPosesSummary {
   mapping::MappingResult mapping;
-  dataset::Trajectory poses;  ///< world_from_vehicle at each frame that has a pose
-  std::optional<AlignedError> error;          ///< of the optimized poses, with ground truth
-  std::optional<AlignedError> chained_error;  ///< of the chained poses (before loop closure)
+  /// world_from_vehicle at each frame that has a pose, per drive (the first, then the joined)
+  std::vector<dataset::Trajectory> poses;
+  /// Of the optimized poses, and the chained ones (before loop closure), against the ground
+  /// truth of every drive that has one.
+  std::optional<AlignedError> error;
+  std::optional<AlignedError> chained_error;
   double seconds = 0.0;
   std::int64_t encoder_samples_rejected = 0;
 };
