@@ -34,6 +34,19 @@ echo "== replay, localized against the self-built mosaic"
 "$MOSAICLOC" replay --dataset "$OUT/dataset" --map "$OUT/floor.mosaic" --out "$OUT/report"
 "$MOSAICLOC" map export "$OUT/floor.mosaic" --out "$OUT/report/map.png" --level 2
 echo
+echo "== result"
+/usr/bin/python3 - "$OUT/report/metrics.json" "$OUT/dead-reckoning/metrics.json" "$OUT/consistency/consistency.json" <<'PY'
+import json, sys
+m, d, c = (json.load(open(f)) for f in sys.argv[1:4])
+e = c["vs_groundtruth"]
+print(f"map built from the mapping drive's frames and encoders: {c['loops_accepted']} loop closures, seams "
+      f"{c['seams']['after_rms_px']:.4f} px RMS, poses {e['rms_mm']:.3f} mm RMS from the truth (best rigid alignment)")
+print(f"localized on it:  {100 * m['fix_rate']:.1f} % of {m['frames']} frames fixed, {m['wrong_fixes']} wrong, "
+      f"{m['lock_losses']} lock losses, {m['position_rms_mm']:.3f} mm RMS, repeatability {m['repeatability_mm']:.4f} mm")
+print(f"dead reckoning:   {d['position_rms_mm']:.1f} mm RMS, {d['final_position_error_mm']:.1f} mm off after "
+      f"{d['path_length_m']:.0f} m ({d['drift_percent']:.2f} % of the path)")
+PY
+echo
 echo "Report: $(pwd)/$OUT/report (metrics.json, estimate.tum, fixes.csv, trajectory.png,"
 echo "        position_error.png, heading_error.png, map.png); dead reckoning: $(pwd)/$OUT/dead-reckoning;"
 echo "        the map's consistency: $(pwd)/$OUT/consistency (consistency.json, loops.csv, seams.csv, residuals.png)"
