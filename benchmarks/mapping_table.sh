@@ -46,22 +46,34 @@ config() {
 # aligned TUM GROUNDTRUTH_TUM: "rms max" of the positions after the best rigid alignment
 aligned() {
   "$PYTHON" - "$1" "$2" <<'PY'
-import sys, numpy as np
+import bisect, math, sys
 def read(path):
     rows = [l.split() for l in open(path) if l.strip() and not l.startswith("#")]
-    a = np.array([[float(v) for v in r[:3]] for r in rows])
-    return a[:, 0], a[:, 1:3] * 1000.0
+    return [float(r[0]) for r in rows], [(1000 * float(r[1]), 1000 * float(r[2])) for r in rows]
 te, pe = read(sys.argv[1])
 tt, pt = read(sys.argv[2])
-keep = (te >= tt[0]) & (te <= tt[-1])
-te, pe = te[keep], pe[keep]
-q = np.column_stack([np.interp(te, tt, pt[:, 0]), np.interp(te, tt, pt[:, 1])])
-mp, mq = pe.mean(0), q.mean(0)
-P, Q = pe - mp, q - mq
-angle = np.arctan2((P[:, 0] * Q[:, 1] - P[:, 1] * Q[:, 0]).sum(), (P * Q).sum())
-R = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
-e = np.linalg.norm(P @ R.T - Q, axis=1)
-print(f"{np.sqrt((e * e).mean()):.4f} {e.max():.4f}")
+pairs = []
+for t, p in zip(te, pe):
+    k = bisect.bisect_left(tt, t)
+    if k == 0 or k == len(tt):
+        continue
+    w = (t - tt[k - 1]) / (tt[k] - tt[k - 1])
+    q = tuple(pt[k - 1][i] + w * (pt[k][i] - pt[k - 1][i]) for i in range(2))
+    pairs.append((p, q))
+n = len(pairs)
+mp = [sum(p[i] for p, _ in pairs) / n for i in range(2)]
+mq = [sum(q[i] for _, q in pairs) / n for i in range(2)]
+dot = cross = 0.0
+for p, q in pairs:
+    a, b = (p[0] - mp[0], p[1] - mp[1]), (q[0] - mq[0], q[1] - mq[1])
+    dot += a[0] * b[0] + a[1] * b[1]
+    cross += a[0] * b[1] - a[1] * b[0]
+c, s = math.cos(math.atan2(cross, dot)), math.sin(math.atan2(cross, dot))
+errors = []
+for p, q in pairs:
+    a = (p[0] - mp[0], p[1] - mp[1])
+    errors.append(math.hypot(c * a[0] - s * a[1] + mq[0] - q[0], s * a[0] + c * a[1] + mq[1] - q[1]))
+print(f"{math.sqrt(sum(e * e for e in errors) / n):.4f} {max(errors):.4f}")
 PY
 }
 
@@ -102,9 +114,10 @@ for case in $CASES; do
       vo) err=$(aligned "$D/vo-replay/estimate.tum" "$D/map/groundtruth/data.tum"); seams="- -"; loops="-" ;;
       est)
         err=$(aligned "$D/est.tum" "$D/map/groundtruth/data.tum")
-        read -r seams loops < <("$PYTHON" -c "import json,sys; c=json.load(open(sys.argv[1])); \
-print(f\"{c['seams']['after_rms_px']:.4f} {c['seams']['after_max_px']:.4f}\", f\"{c['loops_accepted']}/{c['loops_tried']}\")" \
-          "$D/consistency/consistency.json" | awk '{print $1" "$2, $3}')
+        read -r seam_rms seam_max loops < <("$PYTHON" -c "import json,sys; c=json.load(open(sys.argv[1])); \
+print(f\"{c['seams']['after_rms_px']:.4f} {c['seams']['after_max_px']:.4f} {c['loops_accepted']}/{c['loops_tried']}\")" \
+          "$D/consistency/consistency.json")
+        seams="$seam_rms $seam_max"
         ;;
     esac
     for drive in d1.5 d7.2; do

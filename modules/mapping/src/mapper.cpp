@@ -125,6 +125,8 @@ bool MapperOptions::Check(std::string* why) const {
     return fail("the wheel sigmas must be positive");
   }
   if (loop_max_search_px < tracker.min_search_px) return fail("loop_max_search_px must be at least the tracker's min_search_px");
+  if (!(optimize.loop_huber_sigmas > 0.0)) return fail("optimize.loop_huber_sigmas must be positive");
+  if (optimize.max_iterations < 1 || optimize.threads < 1) return fail("optimize: iterations and threads must be 1 or more");
   if (outlier_rounds < 1) return fail("outlier_rounds must be 1 or more");
   if (frame_cache < 2) return fail("frame_cache must be 2 or more");
   return true;
@@ -136,6 +138,7 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
   if (!options.Check(&why)) core::ThrowInvalidInput("mapping options: " + why);
   const int n = static_cast<int>(input.frame_times.size());
   if (n == 0) core::ThrowInvalidInput("mapping: the drive has no frames");
+  if (!input.load_frame) core::ThrowInvalidInput("mapping: no way to read the frames (load_frame is empty)");
   if (input.wheels.size() != input.frame_times.size()) {
     core::ThrowInvalidInput("mapping: the wheels' poses do not match the frames");
   }
@@ -159,6 +162,8 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
   const double view_short_mm = std::min(camera.width_px(), camera.height_px()) * camera.mm_per_px();
   const double keyframe_mm = options.keyframe_fraction * view_short_mm;
   const double loop_radius_mm = options.loop_radius_fraction * view_short_mm;
+  // A template at the view's corner moves this far per radian of yaw.
+  const double half_diagonal_px = 0.5 * std::hypot(camera.width_px(), camera.height_px());
   auto edge_information = [&](const Eigen::Matrix3d& covariance) {
     return Eigen::Matrix3d(
         (covariance + Diagonal(options.edge_min_sigma_mm, Rad(options.edge_min_sigma_deg))).inverse());
@@ -261,26 +266,37 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
                      (r.ok() ? Rad(options.drift_deg_per_m) * 1e-3 * step_mm : Rad(options.wheel_sigma_deg));
       bool keyed = false;
       if (keyframe >= 0 && keyframe != i - 1 && !image.empty()) {
-        const tracking::TrackResult k = tracking::RegisterFrames(
-            tracker, key, image, chain[keyframe].Inverse() * chain[i], Diagonal(1.0 + 0.02 * (path[i] - path[keyframe]), Rad(0.2)));
-        if (k.ok()) {
+        // The chain predicts the keyframe's pose well; a match far off it (a copy of a
+        // repeating floor) is refused as a loop closure would be.
+        const core::Pose2 predicted = chain[keyframe].Inverse() * chain[i];
+        const Eigen::Matrix3d prior = Diagonal(1.0 + 0.02 * (path[i] - path[keyframe]), Rad(0.2));
+        const tracking::TrackResult k = tracking::RegisterFrames(tracker, key, image, predicted, prior);
+        const Eigen::Vector3d d = Difference(k.world_from_camera, predicted);
+        if (k.ok() && d.dot((prior + k.covariance).inverse() * d) <= options.loop_gate_chi2) {
           ++result.keyframe_edges;
           keyed = true;
           add_edge(keyframe, i, k.world_from_camera, edge_information(k.covariance), EdgeKind::kSequential, -1);
         }
       }
       if (r.ok() || keyed) {
+        // Registered to a keyframe from before the frames that did not register, the frame
+        // joins the piece they left: the keyframe bridged them, not the wheels.
+        const bool bridged = keyed && keyframe < unregistered_from;
         if (unregistered_from >= 0) {
-          // Registered to its predecessor, the frame joins the piece the wheels' edge ended at.
-          const int last = r.ok() ? std::max(unregistered_from, i - 1) : i;
-          result.gaps.push_back({unregistered_from - 1, last, path[last] - path[unregistered_from - 1]});
+          if (!bridged) {
+            // Registered to its predecessor, the frame joins the piece the wheels' edge ended at.
+            const int last = r.ok() ? std::max(unregistered_from, i - 1) : i;
+            result.gaps.push_back({unregistered_from - 1, last, path[last] - path[unregistered_from - 1]});
+          }
           unregistered_from = -1;
         }
       } else if (unregistered_from < 0) {
         unregistered_from = i;
       }
     }
-    if (!image.empty()) {
+    if (image.empty()) {
+      previous.release();  // the next frame has no predecessor to register against
+    } else {
       previous = image;
       if (keyframe < 0 || (chain[i].translation_mm() - chain[keyframe].translation_mm()).norm() > keyframe_mm) {
         keyframe = i;
@@ -334,11 +350,13 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
         loop.later = i;
         // A search that cannot cover the prediction's 3-sigma region could take a copy of a
         // repeating floor for the place: such a loop is not tried.
-        if (loop_options.search_sigmas * sigma_mm > loop_options.max_search_px * camera.mm_per_px()) {
+        if (loop_options.search_sigmas * (sigma_mm / camera.mm_per_px() + sigma_rad * half_diagonal_px) >
+            loop_options.max_search_px) {
           char text[160];
           std::snprintf(text, sizeof text,
                         "the chain is uncertain by %.1f mm here, more than the search covers: not verifiable", sigma_mm);
           loop.rejected = text;
+          loop.rejected_by = "not verifiable";
           result.loops.push_back(loop);
           continue;
         }
@@ -350,6 +368,7 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
         loop.inliers = r.inliers;
         if (!r.ok()) {
           loop.rejected = r.reason.empty() ? tracking::ToString(r.failure) : r.reason;
+          loop.rejected_by = tracking::ToString(r.failure);
           result.loops.push_back(loop);
           continue;
         }
@@ -361,6 +380,7 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
           std::snprintf(text, sizeof text, "%.2f mm off the chain's prediction (chi2 %.1f > %.1f)", loop.correction_mm,
                         loop.chi2, options.loop_gate_chi2);
           loop.rejected = text;
+          loop.rejected_by = "off the prediction";
           result.loops.push_back(loop);
           continue;
         }
@@ -393,6 +413,7 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
         std::snprintf(text, sizeof text, "contradicted by the rest of the map (chi2 %.1f after optimization)", chi2);
         loop.accepted = false;
         loop.rejected = text;
+        loop.rejected_by = "contradicted by the map";
         graph.edges.erase(graph.edges.begin() + static_cast<std::ptrdiff_t>(e));
         loop_of_edge.erase(loop_of_edge.begin() + static_cast<std::ptrdiff_t>(e));
         registered_edge.erase(registered_edge.begin() + static_cast<std::ptrdiff_t>(e));
@@ -402,6 +423,11 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
       }
     }
     if (!dropped) break;
+    if (round + 1 == options.outlier_rounds) result.optimize = Optimize(graph, options.optimize);
+  }
+  if (!result.optimize.converged) {
+    result.warnings.push_back("the pose graph's solution did not converge (" + result.optimize.message +
+                              "): the poses may not be the best the registrations allow");
   }
   result.optimize_seconds = Seconds(optimize_started);
   for (const LoopClosure& loop : result.loops) result.loops_accepted += loop.accepted ? 1 : 0;

@@ -89,6 +89,19 @@ void CheckNodes(const PoseGraph& graph, const PoseGraphEdge& edge) {
   }
 }
 
+// The first line of a graph this code wrote.
+constexpr const char* kHeader = "# mosaicloc pose graph";
+
+// g2o's SE2 error is the measured pose's inverse times the predicted relative pose: its
+// translation is ours (in the `from` node's frame) turned by the measured yaw. J maps ours to
+// g2o's, so an information matrix is J Ω Jᵀ in g2o's frame and Jᵀ Ω J back.
+Eigen::Matrix3d G2oFromOurs(const core::Pose2& measured) {
+  const double c = std::cos(measured.yaw_rad()), s = std::sin(measured.yaw_rad());
+  Eigen::Matrix3d J = Eigen::Matrix3d::Identity();
+  J.topLeftCorner<2, 2>() << c, s, -s, c;  // R(yaw)ᵀ
+  return J;
+}
+
 int Root(std::vector<int>& parent, int i) {
   while (parent[i] != i) i = parent[i] = parent[parent[i]];
   return i;
@@ -186,7 +199,8 @@ OptimizeReport Optimize(PoseGraph& graph, const OptimizeOptions& options) {
 void WriteG2o(const std::filesystem::path& file, const PoseGraph& graph) {
   std::ostringstream out;
   out << std::setprecision(17);
-  out << "# mosaicloc pose graph: metres, radians; information in metres\n";
+  out << kHeader << ": metres, radians; information in metres, in g2o's error frame; '# loop' marks each loop "
+         "closure's edge\n";
   for (std::size_t i = 0; i < graph.nodes.size(); ++i) {
     const core::Pose2& p = graph.nodes[i];
     out << "VERTEX_SE2 " << i << ' ' << p.x_mm() * 1e-3 << ' ' << p.y_mm() * 1e-3 << ' ' << p.yaw_rad() << '\n';
@@ -195,7 +209,9 @@ void WriteG2o(const std::filesystem::path& file, const PoseGraph& graph) {
   // Information in metres: the position rows and columns scale by 1000 each.
   const Eigen::Vector3d to_m(1e3, 1e3, 1.0);
   for (const PoseGraphEdge& e : graph.edges) {
-    const Eigen::Matrix3d info = to_m.asDiagonal() * e.information * to_m.asDiagonal();
+    const Eigen::Matrix3d J = G2oFromOurs(e.from_T_to);
+    const Eigen::Matrix3d info = to_m.asDiagonal() * (J * e.information * J.transpose()) * to_m.asDiagonal();
+    if (e.kind == EdgeKind::kLoop) out << "# loop\n";
     out << "EDGE_SE2 " << e.from << ' ' << e.to << ' ' << e.from_T_to.x_mm() * 1e-3 << ' '
         << e.from_T_to.y_mm() * 1e-3 << ' ' << e.from_T_to.yaw_rad() << ' ' << info(0, 0) << ' ' << info(0, 1)
         << ' ' << info(0, 2) << ' ' << info(1, 1) << ' ' << info(1, 2) << ' ' << info(2, 2) << '\n';
@@ -212,6 +228,8 @@ PoseGraph ReadG2o(const std::filesystem::path& file) {
   std::vector<std::pair<long, int>> fixed;  // id, line
   std::string line;
   int number = 0;
+  bool marked = false;  // a file of ours: loops are marked, not guessed from the node ids
+  bool loop_next = false;
   auto fail_at = [&](int at, const std::string& why) {
     core::ThrowInvalidInput(file.string() + ":" + std::to_string(at) + ": " + why);
   };
@@ -220,7 +238,14 @@ PoseGraph ReadG2o(const std::filesystem::path& file) {
     ++number;
     std::istringstream fields(line);
     std::string tag;
-    if (!(fields >> tag) || tag[0] == '#') continue;
+    if (!(fields >> tag)) continue;
+    if (tag[0] == '#') {
+      marked = marked || line.rfind(kHeader, 0) == 0;
+      loop_next = marked && line == "# loop";
+      continue;
+    }
+    const bool is_loop_marked = loop_next;
+    loop_next = false;
     std::vector<double> v;
     std::string word;
     while (fields >> word) {
@@ -250,11 +275,13 @@ PoseGraph ReadG2o(const std::filesystem::path& file) {
       Eigen::Matrix3d info;
       info << v[5], v[6], v[7], v[6], v[8], v[9], v[7], v[9], v[10];
       const Eigen::Vector3d to_mm(1e-3, 1e-3, 1.0);
-      e.information = to_mm.asDiagonal() * info * to_mm.asDiagonal();
+      const Eigen::Matrix3d J = G2oFromOurs(e.from_T_to);
+      e.information = J.transpose() * (to_mm.asDiagonal() * info * to_mm.asDiagonal()) * J;
       if (Eigen::LLT<Eigen::Matrix3d>(e.information).info() != Eigen::Success) {
         fail("the information matrix is not positive definite");
       }
-      e.kind = std::abs(e.to - e.from) == 1 ? EdgeKind::kSequential : EdgeKind::kLoop;
+      const bool loop = marked ? is_loop_marked : std::abs(e.to - e.from) != 1;
+      e.kind = loop ? EdgeKind::kLoop : EdgeKind::kSequential;
       graph.edges.push_back(e);
       edge_lines.push_back(number);
     } else if (tag == "FIX") {

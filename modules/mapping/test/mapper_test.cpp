@@ -125,6 +125,24 @@ TEST_F(MappingDrive, ALoopedDriveIsMappedOntoTheTruth) {
   EXPECT_EQ(r.graph.nodes.size(), 160U);
 }
 
+// A frame that cannot be read: the next one is not registered against the one before it (a
+// whole step further back than the wheels say); the keyframe carries the chain over it.
+TEST_F(MappingDrive, AnUnreadableFrameIsStepped) {
+  MakeFloor();
+  if (IsSkipped()) return;
+  const std::vector<core::Pose2> truth = Circle(160);
+  const MappingResult r = MapPoses(Input(truth, 50, 51), MapperOptions{});
+  EXPECT_EQ(r.has_pose[50], 0);
+  EXPECT_EQ(r.registered, 157) << "frames 50 and 51 have no predecessor to register against";
+  EXPECT_TRUE(r.gaps.empty()) << "frame 51 registered against its keyframe";
+  EXPECT_EQ(r.pieces, 1);
+  double worst = 0.0;
+  for (std::size_t i = 0; i < truth.size(); ++i) {
+    if (r.has_pose[i]) worst = std::max(worst, core::Distance(r.world_from_vehicle[i], truth[i]));
+  }
+  EXPECT_LT(worst, 0.1);
+}
+
 // Over a floor that repeats every 32 mm, with frames lost so that the wheels carry the chain
 // for 120 mm: the second pass sees a copy of the place a period away wherever it looks.
 // A loop is closed only where it is the place itself, and every frame stays within a

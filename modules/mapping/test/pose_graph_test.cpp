@@ -4,6 +4,7 @@
 #include <fstream>
 #include <numbers>
 #include <random>
+#include <sstream>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -131,6 +132,7 @@ TEST(PoseGraph, G2oRoundTripKeepsEveryNumber) {
   Eigen::Matrix3d correlated;
   correlated << 4.0, 0.5, 0.1, 0.5, 3.0, -0.2, 0.1, -0.2, 2e4;
   graph.edges.push_back({2, 9, core::Pose2(1.5, -2.25, 0.125), correlated, EdgeKind::kLoop});
+  graph.edges.push_back({3, 7, core::Pose2(0.5, 0.25, -0.5), correlated, EdgeKind::kSequential});  // a keyframe's
   graph.fixed = {0, 5};
   const auto file = scratch.path() / "graph.g2o";
   WriteG2o(file, graph);
@@ -149,6 +151,7 @@ TEST(PoseGraph, G2oRoundTripKeepsEveryNumber) {
     EXPECT_EQ(a.to, b.to);
     EXPECT_EQ(a.kind, b.kind);
     EXPECT_NEAR(a.from_T_to.x_mm(), b.from_T_to.x_mm(), 1e-9);
+    EXPECT_NEAR(a.from_T_to.y_mm(), b.from_T_to.y_mm(), 1e-9);
     EXPECT_NEAR(a.from_T_to.yaw_rad(), b.from_T_to.yaw_rad(), 1e-12);
     EXPECT_LT((a.information - b.information).cwiseAbs().maxCoeff(), 1e-9 * a.information.cwiseAbs().maxCoeff());
   }
@@ -157,6 +160,48 @@ TEST(PoseGraph, G2oRoundTripKeepsEveryNumber) {
   Optimize(solved);
   Optimize(solved_read);
   EXPECT_LT(MaxError(solved.nodes, solved_read.nodes), 1e-6);
+}
+
+// The information written is that of g2o's own error, toVector(measured⁻¹ (from⁻¹ to)) in
+// metres: at any poses, its chi-square is the edge's here.
+TEST(PoseGraph, G2oInformationIsInG2osErrorFrame) {
+  test::ScratchDir scratch;
+  PoseGraph graph;
+  graph.nodes = {core::Pose2(10.0, -20.0, 0.3), core::Pose2(140.0, 35.0, 1.2)};
+  Eigen::Matrix3d information;
+  information << 9.0, 2.0, 0.5, 2.0, 1.0, -0.3, 0.5, -0.3, 4e4;
+  graph.edges.push_back({0, 1, core::Pose2(120.0, 95.0, 0.8), information, EdgeKind::kLoop});
+  const auto file = scratch.path() / "one.g2o";
+  WriteG2o(file, graph);
+  std::ifstream in(file);
+  std::string line;
+  std::vector<double> v;
+  while (std::getline(in, line)) {
+    if (line.rfind("EDGE_SE2", 0) != 0) continue;
+    std::istringstream fields(line.substr(8));
+    for (double x; fields >> x;) v.push_back(x);
+  }
+  ASSERT_EQ(v.size(), 11U);
+  Eigen::Matrix3d omega;
+  omega << v[5], v[6], v[7], v[6], v[8], v[9], v[7], v[9], v[10];
+  const core::Pose2 measured(v[2], v[3], v[4]);  // metres
+  auto metres = [](const core::Pose2& p) { return core::Pose2(p.x_mm() * 1e-3, p.y_mm() * 1e-3, p.yaw_rad()); };
+  const core::Pose2 error = measured.Inverse() * (metres(graph.nodes[0]).Inverse() * metres(graph.nodes[1]));
+  const Eigen::Vector3d e(error.x_mm(), error.y_mm(), error.yaw_rad());
+  EXPECT_NEAR(e.dot(omega * e), EdgeResidual(graph, graph.edges[0]).squaredNorm(), 1e-9 * e.dot(omega * e));
+  EXPECT_GT(e.dot(omega * e), 1.0) << "the poses are off the measurement";
+}
+
+TEST(PoseGraph, AnotherToolsG2oFileHasItsLoopsFoundByTheirNodes) {
+  test::ScratchDir scratch;
+  const auto file = scratch.path() / "foreign.g2o";
+  std::ofstream(file) << "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 0.1 0 0\nVERTEX_SE2 2 0.2 0 0\n"
+                      << "EDGE_SE2 0 1 0.1 0 0 1e6 0 0 1e6 0 1e4\nEDGE_SE2 1 2 0.1 0 0 1e6 0 0 1e6 0 1e4\n"
+                      << "EDGE_SE2 0 2 0.2 0 0 1e6 0 0 1e6 0 1e4\n";
+  const PoseGraph graph = ReadG2o(file);
+  ASSERT_EQ(graph.edges.size(), 3U);
+  EXPECT_EQ(graph.edges[1].kind, EdgeKind::kSequential);
+  EXPECT_EQ(graph.edges[2].kind, EdgeKind::kLoop);
 }
 
 // A g2o file with one line replaced by `bad` is rejected naming the file and that line.

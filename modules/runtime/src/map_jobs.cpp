@@ -176,6 +176,8 @@ MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(d
     store->Checkpoint();
   }
   for (const char* suffix : {"-wal", "-shm"}) fs::remove(partial.string() + suffix, ec);
+  // A log the replaced map left beside it would be taken for the new map's.
+  for (const char* suffix : {"-wal", "-shm"}) fs::remove(args.out.string() + suffix, ec);
   fs::rename(partial, args.out, ec);
   if (ec) core::ThrowRuntime(args.out.string() + ": cannot move the new map into place (" + ec.message() + ")");
   checkpoint.reset();

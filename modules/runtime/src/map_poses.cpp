@@ -299,9 +299,7 @@ void WriteMappingReport(const fs::path& directory, const MapPosesSummary& summar
   nlohmann::json loops_rejected = nlohmann::json::object();
   for (const mapping::LoopClosure& l : m.loops) {
     if (l.accepted) continue;
-    std::string reason = l.rejected.substr(0, l.rejected.find_first_of("(0123456789"));
-    while (!reason.empty() && reason.back() == ' ') reason.pop_back();
-    loops_rejected[reason] = loops_rejected.value(reason, 0) + 1;
+    loops_rejected[l.rejected_by] = loops_rejected.value(l.rejected_by, 0) + 1;
   }
   nlohmann::json gaps = nlohmann::json::array();
   for (const mapping::MappingGap& g : m.gaps) gaps.push_back({{"first", g.first}, {"last", g.last}, {"length_mm", g.length_mm}});

@@ -99,6 +99,10 @@ struct LoopClosure {
   int later = 0;
   bool accepted = false;
   std::string rejected;         ///< why not, when not
+  /// The kind of reason, for counting: "not verifiable" (the search could not cover the
+  /// chain's uncertainty), the tracker's failure ("ambiguous", "no-match", ...), "off the
+  /// prediction" (the drift gate) or "contradicted by the map" (after optimization).
+  std::string rejected_by;
   double correction_mm = 0.0;   ///< how far the chain's prediction was off
   double chi2 = 0.0;            ///< of the correction against the drift's covariance
   double mean_zncc = 0.0;

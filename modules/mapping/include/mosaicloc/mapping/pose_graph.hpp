@@ -38,8 +38,9 @@ struct PoseGraph {
   std::vector<int> fixed;
 };
 
-/// Whitened residual r of an edge at the graph's poses: r = L (measured⁻¹ ∘ predicted) with
-/// Lᵀ L the information; |r|² is the edge's chi-square (3 degrees of freedom).
+/// Whitened residual r of an edge at the graph's poses: r = L e with Lᵀ L the information and
+/// e = (R_fromᵀ (p_to - p_from) - measured translation, predicted yaw - measured yaw), the
+/// error of Ceres' pose_graph_2d; |r|² is the edge's chi-square (3 degrees of freedom).
 Eigen::Vector3d EdgeResidual(const PoseGraph& graph, const PoseGraphEdge& edge);
 
 struct OptimizeOptions {
@@ -68,12 +69,15 @@ OptimizeReport Optimize(PoseGraph& graph, const OptimizeOptions& options = {});
 
 /// The graph in g2o's text format, as other 2-D mapping tools read it: `VERTEX_SE2 id x y
 /// theta` (metres, radians), `EDGE_SE2 from to dx dy dtheta` and the upper triangle of the
-/// information matrix (in metres), `FIX id` for held nodes. Sequential edges join
-/// consecutive nodes; an edge between others is a loop. Written atomically.
+/// information matrix (in metres, of g2o's error: the translation turned by the measured yaw),
+/// `FIX id` for held nodes; a comment line `# loop` before each loop closure's edge. Written
+/// atomically.
 void WriteG2o(const std::filesystem::path& file, const PoseGraph& graph);
 
 /// Reads a g2o file written by WriteG2o or another tool (VERTEX_SE2, EDGE_SE2, FIX; comment
-/// lines start with '#'). Node ids must be 0..n-1 in any order. Throws core::Error (invalid
+/// lines start with '#'). Node ids must be 0..n-1 in any order. In a file WriteG2o wrote, the
+/// loops are the marked edges; in another tool's, every edge that does not join consecutive
+/// nodes. Throws core::Error (invalid
 /// input) naming the file and line of the first problem.
 PoseGraph ReadG2o(const std::filesystem::path& file);
 
