@@ -9,6 +9,8 @@
 #include <sstream>
 
 #include <Eigen/Cholesky>
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
 #include <ceres/ceres.h>
 
 #include "mosaicloc/core/error.hpp"
@@ -107,6 +109,91 @@ int Root(std::vector<int>& parent, int i) {
   return i;
 }
 
+// Solves A x = b for the free nodes (index[i] >= 0); false if A is not positive definite.
+bool SolveSparse(int size, std::vector<Eigen::Triplet<double>>& triplets, const Eigen::VectorXd& b,
+                 Eigen::VectorXd* x) {
+  Eigen::SparseMatrix<double> a(size, size);
+  a.setFromTriplets(triplets.begin(), triplets.end());
+  const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(a);
+  if (ldlt.info() != Eigen::Success) return false;
+  *x = ldlt.solve(b);
+  return ldlt.info() == Eigen::Success && x->allFinite();
+}
+
+// A start near the optimum, so that the nonlinear solve needs few iterations (the two linear
+// steps of Carlone et al.'s LAGO): first the yaws alone, a linear least-squares correction of
+// each edge's yaw error weighted by its yaw variance; then, the yaws fixed, the positions,
+// whose error is linear in them. Held nodes stay. Robust losses are not applied here: the
+// nonlinear solve that follows applies them. Leaves the poses unchanged if a system is singular.
+bool LinearInitialization(const PoseGraph& graph, const std::vector<char>& constant, std::vector<double>& positions,
+                          std::vector<double>& yaws) {
+  const int n = static_cast<int>(graph.nodes.size());
+  std::vector<int> index(static_cast<std::size_t>(n), -1);
+  int m = 0;
+  for (int i = 0; i < n; ++i) {
+    if (!constant[i]) index[i] = m++;
+  }
+  if (m == 0) return false;
+  std::vector<Eigen::Triplet<double>> triplets;
+  // Yaws: Δ_to − Δ_from = wrap(measured − (θ_to − θ_from)), weight 1 / σ²_yaw.
+  Eigen::VectorXd b = Eigen::VectorXd::Zero(m);
+  for (const PoseGraphEdge& e : graph.edges) {
+    const double w = 1.0 / e.information.inverse()(2, 2);
+    const double r = Wrapped(e.from_T_to.yaw_rad() - (yaws[e.to] - yaws[e.from]));
+    const int f = index[e.from], t = index[e.to];
+    if (f >= 0) triplets.emplace_back(f, f, w), b(f) -= w * r;
+    if (t >= 0) triplets.emplace_back(t, t, w), b(t) += w * r;
+    if (f >= 0 && t >= 0) triplets.emplace_back(f, t, -w), triplets.emplace_back(t, f, -w);
+  }
+  Eigen::VectorXd dyaw;
+  if (!SolveSparse(m, triplets, b, &dyaw)) return false;
+  std::vector<double> new_yaws = yaws;
+  for (int i = 0; i < n; ++i) {
+    if (index[i] >= 0) new_yaws[i] = Wrapped(yaws[i] + dyaw(index[i]));
+  }
+  // Positions: p_to − p_from = R(θ_from) t, weight R W Rᵀ with W the translation's information
+  // (the inverse of its marginal covariance).
+  triplets.clear();
+  b = Eigen::VectorXd::Zero(2 * m);
+  for (const PoseGraphEdge& e : graph.edges) {
+    const double c = std::cos(new_yaws[e.from]), s = std::sin(new_yaws[e.from]);
+    Eigen::Matrix2d rotation;
+    rotation << c, -s, s, c;
+    const Eigen::Matrix2d w =
+        rotation * Eigen::Matrix2d(e.information.inverse().topLeftCorner<2, 2>()).inverse() * rotation.transpose();
+    const Eigen::Vector2d d = rotation * e.from_T_to.translation_mm();
+    const Eigen::Vector2d p_from(positions[2 * e.from], positions[2 * e.from + 1]);
+    const Eigen::Vector2d p_to(positions[2 * e.to], positions[2 * e.to + 1]);
+    const int f = index[e.from], t = index[e.to];
+    // Unknowns are the free nodes' positions; a held node's is a constant on the right.
+    Eigen::Vector2d rhs = d;
+    if (f < 0) rhs += p_from;
+    if (t < 0) rhs -= p_to;
+    const Eigen::Vector2d wr = w * rhs;
+    for (int r = 0; r < 2; ++r) {
+      for (int k = 0; k < 2; ++k) {
+        if (f >= 0) triplets.emplace_back(2 * f + r, 2 * f + k, w(r, k));
+        if (t >= 0) triplets.emplace_back(2 * t + r, 2 * t + k, w(r, k));
+        if (f >= 0 && t >= 0) {
+          triplets.emplace_back(2 * f + r, 2 * t + k, -w(r, k));
+          triplets.emplace_back(2 * t + r, 2 * f + k, -w(r, k));
+        }
+      }
+      if (t >= 0) b(2 * t + r) += wr(r);
+      if (f >= 0) b(2 * f + r) -= wr(r);
+    }
+  }
+  Eigen::VectorXd p;
+  if (!SolveSparse(2 * m, triplets, b, &p)) return false;
+  yaws = new_yaws;
+  for (int i = 0; i < n; ++i) {
+    if (index[i] < 0) continue;
+    positions[2 * i] = p(2 * index[i]);
+    positions[2 * i + 1] = p(2 * index[i] + 1);
+  }
+  return true;
+}
+
 }  // namespace
 
 const char* ToString(EdgeKind kind) { return kind == EdgeKind::kLoop ? "loop" : "sequential"; }
@@ -150,10 +237,11 @@ OptimizeReport Optimize(PoseGraph& graph, const OptimizeOptions& options) {
     used[edge.from] = used[edge.to] = 1;
   }
   OptimizeReport report;
-  std::vector<char> held(static_cast<std::size_t>(n), 0);
+  std::vector<char> held(static_cast<std::size_t>(n), 0), constant(static_cast<std::size_t>(n), 0);
   for (const int f : graph.fixed) {
     if (f < 0 || f >= n) core::ThrowInvalidInput("pose graph: fixed node " + std::to_string(f) + " does not exist");
     held[Root(parent, f)] = 1;
+    constant[f] = 1;
     if (used[f]) {
       problem.SetParameterBlockConstant(&positions[2 * f]);
       problem.SetParameterBlockConstant(&yaws[f]);
@@ -169,9 +257,16 @@ OptimizeReport Optimize(PoseGraph& graph, const OptimizeOptions& options) {
     counted[root] = 1;
     ++report.pieces;
     if (!held[root]) {
+      constant[i] = 1;
       problem.SetParameterBlockConstant(&positions[2 * i]);
       problem.SetParameterBlockConstant(&yaws[i]);
     }
+  }
+  if (options.linear_initialization && problem.NumResidualBlocks() > 0) {
+    const auto initialization_started = std::chrono::steady_clock::now();
+    report.initialized = LinearInitialization(graph, constant, positions, yaws);
+    report.initialization_seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - initialization_started).count();
   }
   if (problem.NumResidualBlocks() == 0) {
     report.converged = true;
@@ -180,6 +275,9 @@ OptimizeReport Optimize(PoseGraph& graph, const OptimizeOptions& options) {
   ceres::Solver::Options solver;
   solver.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
   solver.max_num_iterations = options.max_iterations;
+  // From the linear estimate the first steps are Gauss-Newton's: Levenberg-Marquardt's default
+  // damping would creep the last per cent of the cost down over ten iterations instead of three.
+  if (report.initialized) solver.initial_trust_region_radius = 1e12;
   solver.num_threads = options.threads;
   solver.logging_type = ceres::SILENT;
   ceres::Solver::Summary summary;

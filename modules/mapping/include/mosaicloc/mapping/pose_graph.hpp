@@ -49,6 +49,10 @@ struct OptimizeOptions {
   double loop_huber_sigmas = 3.0;
   int max_iterations = 200;
   int threads = 1;
+  /// Start the solve from the linear estimate (yaws, then positions, each a sparse linear
+  /// least-squares problem) instead of the nodes' poses: far from the optimum (a long chain's
+  /// drift) the nonlinear solve then needs a few iterations instead of tens.
+  bool linear_initialization = true;
 };
 
 struct OptimizeReport {
@@ -58,6 +62,8 @@ struct OptimizeReport {
   double final_cost = 0.0;
   double seconds = 0.0;
   int pieces = 0;  ///< connected pieces of the graph (each has its own gauge)
+  bool initialized = false;             ///< started from the linear estimate
+  double initialization_seconds = 0.0;
   std::string message;
 };
 
