@@ -44,38 +44,7 @@ config() {
 }
 
 # aligned TUM GROUNDTRUTH_TUM: "rms max" of the positions after the best rigid alignment
-aligned() {
-  "$PYTHON" - "$1" "$2" <<'PY'
-import bisect, math, sys
-def read(path):
-    rows = [l.split() for l in open(path) if l.strip() and not l.startswith("#")]
-    return [float(r[0]) for r in rows], [(1000 * float(r[1]), 1000 * float(r[2])) for r in rows]
-te, pe = read(sys.argv[1])
-tt, pt = read(sys.argv[2])
-pairs = []
-for t, p in zip(te, pe):
-    k = bisect.bisect_left(tt, t)
-    if k == 0 or k == len(tt):
-        continue
-    w = (t - tt[k - 1]) / (tt[k] - tt[k - 1])
-    q = tuple(pt[k - 1][i] + w * (pt[k][i] - pt[k - 1][i]) for i in range(2))
-    pairs.append((p, q))
-n = len(pairs)
-mp = [sum(p[i] for p, _ in pairs) / n for i in range(2)]
-mq = [sum(q[i] for _, q in pairs) / n for i in range(2)]
-dot = cross = 0.0
-for p, q in pairs:
-    a, b = (p[0] - mp[0], p[1] - mp[1]), (q[0] - mq[0], q[1] - mq[1])
-    dot += a[0] * b[0] + a[1] * b[1]
-    cross += a[0] * b[1] - a[1] * b[0]
-c, s = math.cos(math.atan2(cross, dot)), math.sin(math.atan2(cross, dot))
-errors = []
-for p, q in pairs:
-    a = (p[0] - mp[0], p[1] - mp[1])
-    errors.append(math.hypot(c * a[0] - s * a[1] + mq[0] - q[0], s * a[0] + c * a[1] + mq[1] - q[1]))
-print(f"{math.sqrt(sum(e * e for e in errors) / n):.4f} {max(errors):.4f}")
-PY
-}
+aligned() { "$PYTHON" "$HERE/benchmarks/aligned.py" "$1" "$2"; }
 
 printf '%-22s %-5s %9s %9s %8s %8s %9s %7s %7s | %-5s %8s %6s %6s %8s %8s %8s\n' case map err_rms err_max seam_rms \
   seam_max loops est_s build_s drive fix% losses wrong rms_mm aligned repeat

@@ -40,8 +40,21 @@ void PrintLimits(const localizer::SpeedLimitOptions& o, const localizer::SpeedLi
               l.tilt_tolerance_deg);
   std::printf("  tilt lever              p a                            = %7.3f mm per deg (pivot p = %.4g mm; out of the fix only with the tilt estimated)\n",
               l.tilt_lever_mm_per_deg, o.tilt_pivot_height_mm);
-  std::printf("  mosaic speed limit      min(blur, prediction)          = %7.2f m/s   (%.1f x the overlap speed limit)\n\n",
+  std::printf("  mosaic speed limit      min(blur, prediction)          = %7.2f m/s   (%.1f x the overlap speed limit)\n",
               l.mosaic_limit_mps, l.mosaic_limit_mps / l.overlap_limit_mps);
+  if (o.relief_depth_mm > 0.0) {
+    std::printf("relief (joints d = %.3g mm below the tops, ring light rho = %.4g mm):\n", o.relief_depth_mm,
+                o.light_ring_radius_mm);
+    std::printf("  image speed of the joints against the tops  d / (h + d) = %7.3f %%\n", 100.0 * l.relief_scale);
+    std::printf("  parallax at the image corner  R d / (h + d)            = %7.2f px    (%.3f mm: a template there can be biased by up to this)\n",
+                l.relief_parallax_px, l.relief_parallax_mm);
+    std::printf("  shadow into a joint at the image centre  d rho / h     = %7.3f mm\n", l.relief_shadow_mm);
+    std::printf("  relief distortion limit  V < e s (h + d) / (d T_cyc)   = %7.2f m/s   (frame-to-frame registration)\n",
+                l.relief_distortion_limit_mps);
+  } else {
+    std::printf("relief: none (floor.relief_depth_mm 0)\n");
+  }
+  std::printf("\n");
   const double visual_odometry_max = 1.0 - o.required_overlap;
   std::printf("at %.2f m/s: step S = %.1f mm per frame, instability ratio S / Lambda = %.3f (frame-to-frame needs < %.2f),\n",
               o.speed_mps, l.step_mm, l.instability_ratio, visual_odometry_max);
@@ -89,6 +102,11 @@ Action AddLimitsCommand(CLI::App& app, const GlobalOptions& global) {
         {"rigid_tilt_tolerance_deg", limits.rigid_tilt_tolerance_deg},
         {"tilt_tolerance_deg", limits.tilt_tolerance_deg},
         {"tilt_lever_mm_per_deg", limits.tilt_lever_mm_per_deg},
+        {"relief_scale", limits.relief_scale},
+        {"relief_parallax_px", limits.relief_parallax_px},
+        {"relief_parallax_mm", limits.relief_parallax_mm},
+        {"relief_shadow_mm", limits.relief_shadow_mm},
+        {"relief_distortion_speed_limit_mps", limits.relief_distortion_limit_mps},
         {"speed_mps", options.speed_mps},
         {"step_mm", limits.step_mm},
         {"instability_ratio", limits.instability_ratio},

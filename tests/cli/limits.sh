@@ -43,6 +43,14 @@ json_near "$SCRATCH/out" instability_ratio 0.5
 expect_exit 0 "$MOSAICLOC" --json limits --config "$SCRATCH/across.yaml" --speed-mps 1.8
 json_near "$SCRATCH/out" instability_ratio 0.25
 
+# Joints 2 mm deep: the relief's terms (0.5 px x 0.25 mm x 202 mm / (2 mm / 30 Hz) = 0.37875 m/s).
+printf 'floor: {relief_depth_mm: 2.0}\n' >"$SCRATCH/relief.yaml"
+expect_exit 0 "$MOSAICLOC" --json limits --config "$SCRATCH/relief.yaml"
+json_near "$SCRATCH/out" relief_distortion_speed_limit_mps 0.37875
+json_near "$SCRATCH/out" relief_shadow_mm 0.5
+expect_exit 0 "$MOSAICLOC" limits --config "$SCRATCH/relief.yaml"
+expect_in "$SCRATCH/out" "parallax at the image corner"
+
 # Bad configurations: every problem at once, with file, line and key.
 cat >"$SCRATCH/bad.yaml" <<YAML
 camera:

@@ -22,6 +22,10 @@ bool SpeedLimitOptions::Check(std::string* why) const {
   if (!(camera_height_mm > 0.0)) return fail("camera_height_mm must be > 0");
   if (!std::isfinite(travel_direction_rad)) return fail("travel_direction_rad must be finite");
   if (!(depth_gradient > 0.0)) return fail("depth_gradient must be > 0");
+  if (!(relief_depth_mm >= 0.0 && relief_depth_mm <= 100.0)) return fail("relief_depth_mm must be in [0, 100]");
+  if (!(light_ring_radius_mm >= 0.0 && light_ring_radius_mm <= 1000.0)) {
+    return fail("light_ring_radius_mm must be in [0, 1000]");
+  }
   if (!(required_overlap >= 0.0 && required_overlap < 1.0)) return fail("required_overlap must be in [0, 1)");
   if (!(distortion_tolerance_px > 0.0)) return fail("distortion_tolerance_px must be > 0");
   if (!(max_blur_px > 0.0)) return fail("max_blur_px must be > 0");
@@ -60,6 +64,15 @@ SpeedLimits AnalyseSpeedLimits(const SpeedLimitOptions& options) {
   limits.blur_limit_mps = 1e-3 * options.max_blur_px * s / exposure_s;
   limits.prediction_limit_mps = 1e-3 * options.search_range_px * s / (options.odometry_error * cycle_s);
   limits.mosaic_limit_mps = std::min(limits.blur_limit_mps, limits.prediction_limit_mps);
+  const double d = options.relief_depth_mm;
+  const double h = options.camera_height_mm;
+  if (d > 0.0) {
+    limits.relief_scale = d / (h + d);
+    limits.relief_parallax_px = limits.half_diagonal_px * limits.relief_scale;
+    limits.relief_parallax_mm = limits.relief_parallax_px * s;
+    limits.relief_shadow_mm = d * options.light_ring_radius_mm / h;
+    limits.relief_distortion_limit_mps = 1e-3 * options.distortion_tolerance_px * s * (h + d) / (d * cycle_s);
+  }
 
   limits.step_mm = 1e3 * options.speed_mps * cycle_s;
   limits.instability_ratio = limits.step_mm / limits.footprint_along_mm;
@@ -83,6 +96,7 @@ SpeedLimitOptions LoadSpeedLimitConfig(const std::filesystem::path& file) {
   camera.Optional("exposure_us", &o.exposure_us);
   camera.Optional("height_mm", &o.camera_height_mm);
   camera.Optional("tilt_pivot_height_mm", &o.tilt_pivot_height_mm);
+  camera.Optional("light_ring_radius_mm", &o.light_ring_radius_mm);
   double yaw_rad = -o.travel_direction_rad;
   camera.Optional("vehicle_from_camera_yaw_rad", &yaw_rad);
   o.travel_direction_rad = -yaw_rad;
@@ -90,6 +104,7 @@ SpeedLimitOptions LoadSpeedLimitConfig(const std::filesystem::path& file) {
   camera.Finish();
   core::YamlMap floor = root.OptionalMap("floor");
   floor.Optional("depth_gradient", &o.depth_gradient);
+  floor.Optional("relief_depth_mm", &o.relief_depth_mm);
   floor.CheckOwnKeys(o);
   floor.Finish();
   core::YamlMap tracker = root.OptionalMap("tracker");

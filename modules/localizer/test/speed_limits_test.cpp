@@ -35,6 +35,24 @@ TEST(SpeedLimits, NominalSetup) {
   EXPECT_NEAR(limits.prediction_error_mm, 4.8, 1e-12);
 }
 
+// Joints 2 mm deep under a camera 200 mm up with a 50 mm ring light.
+TEST(SpeedLimits, ReliefTerms) {
+  EXPECT_EQ(AnalyseSpeedLimits(SpeedLimitOptions{}).relief_distortion_limit_mps, 0.0);  // flat
+  SpeedLimitOptions options;
+  options.relief_depth_mm = 2.0;
+  const SpeedLimits limits = AnalyseSpeedLimits(options);
+  EXPECT_NEAR(limits.relief_scale, 2.0 / 202.0, 1e-12);
+  EXPECT_NEAR(limits.relief_parallax_px, 400.0 * 2.0 / 202.0, 1e-9);  // 3.96 px at the corner
+  EXPECT_NEAR(limits.relief_parallax_mm, 0.25 * 400.0 * 2.0 / 202.0, 1e-9);
+  EXPECT_NEAR(limits.relief_shadow_mm, 0.5, 1e-12);  // 2 mm x 50 / 200
+  // 0.5 px x 0.25 mm x 202 / (2 mm x 1/30 s) = 378.75 mm/s
+  EXPECT_NEAR(limits.relief_distortion_limit_mps, 0.37875, 1e-9);
+  // A pinhole check of the parallax: a point d below the top seen at the corner.
+  const double corner_mm = 400.0 * 0.25;
+  const double seen_at = corner_mm * 200.0 / (200.0 + 2.0);  // where its ray crosses the top surface
+  EXPECT_NEAR((corner_mm - seen_at) / 0.25, 400.0 * 2.0 / 202.0, 1e-9);
+}
+
 TEST(SpeedLimits, TravelAlongTheShortSideHalvesLess) {
   SpeedLimitOptions options;
   options.travel_direction_rad = std::numbers::pi / 2.0;  // along image up: 480 px of footprint

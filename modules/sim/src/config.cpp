@@ -113,6 +113,29 @@ void ReadSimulatorConfig(const YAML::Node& node, const std::string& file_name, S
   changes.Check(f);
   changes.Finish();
 
+  core::YamlMap relief = root.OptionalMap("relief");
+  ReliefOptions& h = options->relief;
+  relief.Optional("depth_mm", &h.depth_mm);
+  relief.Optional("source", &h.source);
+  std::string height_image = h.height_image.string();
+  relief.Optional("height_image", &height_image);
+  h.height_image = height_image;
+  relief.Optional("low_fraction", &h.low_fraction);
+  relief.Optional("slope_fraction", &h.slope_fraction);
+  relief.Optional("smoothing_mm", &h.smoothing_mm);
+  relief.Check(h);
+  relief.Finish();
+
+  core::YamlMap light = root.OptionalMap("light");
+  LightOptions& l = options->light;
+  light.Optional("sources", &l.sources);
+  light.Optional("ring_radius_mm", &l.ring_radius_mm);
+  light.Optional("height_over_lens_mm", &l.height_over_lens_mm);
+  light.Optional("ambient", &l.ambient);
+  light.Optional("ring_gain", &l.ring_gain);
+  light.Check(l);
+  light.Finish();
+
   core::YamlMap imaging = root.OptionalMap("imaging");
   ImagingOptions& i = options->imaging;
   imaging.Optional("exposure_us", &i.exposure_us);

@@ -13,6 +13,55 @@
 namespace mosaicloc::sim {
 namespace {
 
+// The map of a ray render is evaluated exactly on a grid of nodes every kStep pixels from the
+// image's outer edge (pixel -0.5) and interpolated bilinearly between: a smooth map's error is
+// far below a thousandth of a pixel.
+class NodeGrid {
+ public:
+  static constexpr double kStep = 8.0;
+  NodeGrid(int width_px, int height_px)
+      : nodes_u_(static_cast<int>(std::ceil(width_px / kStep)) + 1),
+        nodes_v_(static_cast<int>(std::ceil(height_px / kStep)) + 1) {}
+  std::size_t size() const { return static_cast<std::size_t>(nodes_u_) * nodes_v_; }
+  Eigen::Vector2d Pixel(std::size_t n) const {
+    const auto i = static_cast<int>(n % static_cast<std::size_t>(nodes_u_));
+    const auto j = static_cast<int>(n / static_cast<std::size_t>(nodes_u_));
+    return {-0.5 + kStep * i, -0.5 + kStep * j};
+  }
+  /// The value at supersample (us, vs) of a k-times supersampled image, whose centre is at
+  /// pixel ((us + 0.5) / k - 0.5, ...).
+  template <class T>
+  T Interpolate(const std::vector<T>& nodes, int us, int vs, int k) const {
+    const double gv = ((vs + 0.5) / k) / kStep;
+    const int j = std::min(static_cast<int>(gv), nodes_v_ - 2);
+    const double fv = gv - j;
+    const double gu = ((us + 0.5) / k) / kStep;
+    const int i = std::min(static_cast<int>(gu), nodes_u_ - 2);
+    const double fu = gu - i;
+    const std::size_t n = static_cast<std::size_t>(j) * nodes_u_ + i;
+    return (1 - fv) * ((1 - fu) * nodes[n] + fu * nodes[n + 1]) +
+           fv * ((1 - fu) * nodes[n + nodes_u_] + fu * nodes[n + nodes_u_ + 1]);
+  }
+
+ private:
+  int nodes_u_;
+  int nodes_v_;
+};
+
+// Texel (c, r) has its centre at x = (c + 0.5) t, y = -(r + 0.5) t.
+Eigen::Vector2d TexelOf(const Eigen::Vector2d& world, double t) { return {world.x() / t - 0.5, -world.y() / t - 0.5}; }
+
+// The bounding box of texel coordinates.
+struct Box {
+  double min_c = 1e300, min_r = 1e300, max_c = -1e300, max_r = -1e300;
+  void Add(const Eigen::Vector2d& cr) {
+    min_c = std::min(min_c, cr.x());
+    max_c = std::max(max_c, cr.x());
+    min_r = std::min(min_r, cr.y());
+    max_r = std::max(max_r, cr.y());
+  }
+};
+
 // A line kernel of length `length_px` along (dx, dy), anti-aliased by splatting points with
 // bilinear weights; sums to one.
 cv::Mat MotionKernel(double length_px, double dx, double dy) {
@@ -62,10 +111,25 @@ bool ImagingOptions::Check(std::string* why) const {
 }
 
 Imager::Imager(const Floor& floor, const camera::IdealCamera& camera, const ImagingOptions& options,
-               std::uint64_t seed)
-    : floor_(floor), camera_(camera), options_(options) {
+               std::uint64_t seed, const Surface& surface)
+    : floor_(floor), camera_(camera), options_(options), surface_(surface) {
   std::string why;
   if (!options_.Check(&why)) core::ThrowInvalidInput("imaging: " + why);
+  if (!surface_.light.Check(&why)) core::ThrowInvalidInput("light: " + why);
+  if (surface_.light.any()) {
+    // The ring in camera axes, and what it shines on the image centre of a flat floor at the
+    // calibrated height: the light's unit.
+    const LightOptions& light = surface_.light;
+    const double over_floor = surface_.calibrated_height_mm + light.height_over_lens_mm;
+    if (!(over_floor > 1.0)) core::ThrowInvalidInput("light: the ring must be above the floor (height_over_lens_mm)");
+    for (int i = 0; i < light.sources; ++i) {
+      const double angle = 2.0 * std::numbers::pi * (i + 0.5) / light.sources;
+      light_in_camera_.emplace_back(light.ring_radius_mm * std::cos(angle), light.ring_radius_mm * std::sin(angle),
+                                    light.height_over_lens_mm);
+    }
+    const double distance2 = light.ring_radius_mm * light.ring_radius_mm + over_floor * over_floor;
+    light_e0_ = light.sources * (over_floor * over_floor / distance2) / distance2;
+  }
   // At least 2x2 samples per pixel, and at least one per floor texel.
   supersampling_ = std::max(2, static_cast<int>(std::ceil(camera_.mm_per_px() / floor_.mm_per_texel() - 1e-9)));
 
@@ -161,47 +225,26 @@ cv::Mat Imager::RenderSupersampled(const PixelToWorld& pixel_to_world) const {
   const double t = floor_.mm_per_texel();
   const int width = camera_.width_px() * k;
   const int height = camera_.height_px() * k;
-  // The map exactly on a grid of nodes every kStep pixels from the image's outer edge
-  // (pixel -0.5), bilinear between: a smooth map's error is far below a thousandth of a pixel.
-  constexpr double kStep = 8.0;
-  const int nodes_u = static_cast<int>(std::ceil(camera_.width_px() / kStep)) + 1;
-  const int nodes_v = static_cast<int>(std::ceil(camera_.height_px() / kStep)) + 1;
-  std::vector<Eigen::Vector2d> texel(static_cast<std::size_t>(nodes_u) * nodes_v);
-  double min_c = 1e300, min_r = 1e300, max_c = -1e300, max_r = -1e300;
-  for (int j = 0; j < nodes_v; ++j) {
-    for (int i = 0; i < nodes_u; ++i) {
-      const Eigen::Vector2d world = pixel_to_world(Eigen::Vector2d(-0.5 + kStep * i, -0.5 + kStep * j));
-      // Texel (c, r) has its centre at x = (c + 0.5) t, y = -(r + 0.5) t.
-      const Eigen::Vector2d cr(world.x() / t - 0.5, -world.y() / t - 0.5);
-      texel[static_cast<std::size_t>(j) * nodes_u + i] = cr;
-      min_c = std::min(min_c, cr.x());
-      max_c = std::max(max_c, cr.x());
-      min_r = std::min(min_r, cr.y());
-      max_r = std::max(max_r, cr.y());
-    }
+  const NodeGrid grid(camera_.width_px(), camera_.height_px());
+  std::vector<Eigen::Vector2d> texel(grid.size());
+  Box box;
+  for (std::size_t n = 0; n < grid.size(); ++n) {
+    texel[n] = TexelOf(pixel_to_world(grid.Pixel(n)), t);
+    box.Add(texel[n]);
   }
-  const auto col0 = static_cast<std::int64_t>(std::floor(min_c)) - 2;
-  const auto row0 = static_cast<std::int64_t>(std::floor(min_r)) - 2;
-  const int cols = static_cast<int>(std::ceil(max_c) - static_cast<double>(col0)) + 3;
-  const int rows = static_cast<int>(std::ceil(max_r) - static_cast<double>(row0)) + 3;
+  const auto col0 = static_cast<std::int64_t>(std::floor(box.min_c)) - 2;
+  const auto row0 = static_cast<std::int64_t>(std::floor(box.min_r)) - 2;
+  const int cols = static_cast<int>(std::ceil(box.max_c) - static_cast<double>(col0)) + 3;
+  const int rows = static_cast<int>(std::ceil(box.max_r) - static_cast<double>(row0)) + 3;
   const cv::Mat patch = floor_.Render(col0, row0, cols, rows);
 
   cv::Mat map_c(height, width, CV_32F);
   cv::Mat map_r(height, width, CV_32F);
   for (int vs = 0; vs < height; ++vs) {
-    // Supersample (u', v') has its centre at pixel ((u' + 0.5) / k - 0.5, ...).
-    const double gv = ((vs + 0.5) / k) / kStep;
-    const int j = std::min(static_cast<int>(gv), nodes_v - 2);
-    const double fv = gv - j;
     auto* out_c = map_c.ptr<float>(vs);
     auto* out_r = map_r.ptr<float>(vs);
     for (int us = 0; us < width; ++us) {
-      const double gu = ((us + 0.5) / k) / kStep;
-      const int i = std::min(static_cast<int>(gu), nodes_u - 2);
-      const double fu = gu - i;
-      const std::size_t n = static_cast<std::size_t>(j) * nodes_u + i;
-      const Eigen::Vector2d value = (1 - fv) * ((1 - fu) * texel[n] + fu * texel[n + 1]) +
-                                    fv * ((1 - fu) * texel[n + nodes_u] + fu * texel[n + nodes_u + 1]);
+      const Eigen::Vector2d value = grid.Interpolate(texel, us, vs, k);
       out_c[us] = static_cast<float>(value.x() - static_cast<double>(col0));
       out_r[us] = static_cast<float>(value.y() - static_cast<double>(row0));
     }
@@ -209,6 +252,138 @@ cv::Mat Imager::RenderSupersampled(const PixelToWorld& pixel_to_world) const {
   cv::Mat super;
   cv::remap(patch, super, map_c, map_r, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
   return super;
+}
+
+cv::Mat Imager::RenderSurface(const PixelToWorld& pixel_to_world, const SurfaceView& view) const {
+  const int k = supersampling_;
+  const double t = floor_.mm_per_texel();
+  const int width = camera_.width_px() * k;
+  const int height = camera_.height_px() * k;
+  const double depth_max = surface_.relief != nullptr ? surface_.relief->depth_mm() : 0.0;
+  std::vector<Eigen::Vector3d> lights;
+  for (const Eigen::Vector3d& light : light_in_camera_) lights.push_back(view.lens_mm + view.world_from_camera * light);
+  const Eigen::Vector3d axis_down = -view.world_from_camera.col(2);
+
+  // Per node: where the ray meets the top surface (texels), how far it moves on for every mm
+  // it goes deeper (texels per mm), and the top surface's height there.
+  const NodeGrid grid(camera_.width_px(), camera_.height_px());
+  std::vector<Eigen::Vector2d> texel(grid.size());
+  std::vector<Eigen::Vector2d> parallax(grid.size());
+  std::vector<double> top_z(grid.size());
+  Box box;
+  double reach = 0.0;  // texels per mm of depth, along a ray or towards a light
+  for (std::size_t n = 0; n < grid.size(); ++n) {
+    const Eigen::Vector2d world = pixel_to_world(grid.Pixel(n));
+    top_z[n] = view.floor_height_mm ? view.floor_height_mm(world) : 0.0;
+    const Eigen::Vector2d away = (world - view.lens_mm.head<2>()) / (view.lens_mm.z() - top_z[n]);
+    texel[n] = TexelOf(world, t);
+    parallax[n] = Eigen::Vector2d(away.x() / t, -away.y() / t);
+    reach = std::max(reach, parallax[n].norm());
+    for (const Eigen::Vector3d& light : lights) {
+      reach = std::max(reach, (light.head<2>() - world).norm() / std::max(light.z() - top_z[n], 1.0) / t);
+    }
+    box.Add(texel[n]);
+  }
+  const int margin = static_cast<int>(std::ceil(depth_max * reach)) + 3;
+  const auto col0 = static_cast<std::int64_t>(std::floor(box.min_c)) - margin;
+  const auto row0 = static_cast<std::int64_t>(std::floor(box.min_r)) - margin;
+  const int cols = static_cast<int>(std::ceil(box.max_c) - static_cast<double>(col0)) + margin + 1;
+  const int rows = static_cast<int>(std::ceil(box.max_r) - static_cast<double>(row0)) + margin + 1;
+  cv::Mat albedo;
+  floor_.Render(col0, row0, cols, rows).convertTo(albedo, CV_32F);
+  const cv::Mat depth = depth_max > 0.0 ? surface_.relief->Depth(col0, row0, cols, rows) : cv::Mat();
+
+  // Bilinear samples at patch coordinates (texel centres at integers), clamped to the patch.
+  const auto sample = [](const cv::Mat& raster, double c, double r) {
+    c = std::clamp(c, 0.0, raster.cols - 1.001);
+    r = std::clamp(r, 0.0, raster.rows - 1.001);
+    const int c0 = static_cast<int>(c);
+    const int r0 = static_cast<int>(r);
+    const double fc = c - c0;
+    const double fr = r - r0;
+    const float* a = raster.ptr<float>(r0) + c0;
+    const float* b = raster.ptr<float>(r0 + 1) + c0;
+    return (1 - fr) * ((1 - fc) * a[0] + fc * a[1]) + fr * ((1 - fc) * b[0] + fc * b[1]);
+  };
+  const auto depth_at = [&](double c, double r) { return depth_max > 0.0 ? sample(depth, c, r) : 0.0; };
+
+  cv::Mat super(height, width, CV_32F);
+  const LightOptions& light = surface_.light;
+  for (int vs = 0; vs < height; ++vs) {
+    auto* out = super.ptr<float>(vs);
+    for (int us = 0; us < width; ++us) {
+      const Eigen::Vector2d top = grid.Interpolate(texel, us, vs, k) -
+                                  Eigen::Vector2d(static_cast<double>(col0), static_cast<double>(row0));
+      const Eigen::Vector2d step_dir = grid.Interpolate(parallax, us, vs, k);
+      // March down the ray until it is below the surface, then place the hit between the last
+      // two steps (the surface's first crossing: what lies in front hides what lies behind).
+      double hit_depth = 0.0;
+      if (depth_max > 0.0) {
+        double gap = depth_at(top.x(), top.y());
+        if (gap > 0.0) {
+          const double step = std::min(0.25 * depth_max, 0.5 / std::max(step_dir.norm(), 1e-9));
+          double previous_depth = 0.0;
+          double previous_gap = gap;
+          for (double d = step;; d += step) {
+            d = std::min(d, depth_max);
+            gap = depth_at(top.x() + d * step_dir.x(), top.y() + d * step_dir.y()) - d;
+            if (gap <= 0.0 || d >= depth_max) {
+              hit_depth = gap <= 0.0 ? previous_depth + (d - previous_depth) * previous_gap / (previous_gap - gap) : d;
+              break;
+            }
+            previous_depth = d;
+            previous_gap = gap;
+          }
+        }
+      }
+      const Eigen::Vector2d hit = top + hit_depth * step_dir;
+      double value = sample(albedo, hit.x(), hit.y());
+      if (!lights.empty()) {
+        // The surface's normal from the depth's slope (height = top - depth).
+        const double ddx = (depth_at(hit.x() + 0.5, hit.y()) - depth_at(hit.x() - 0.5, hit.y())) / t;
+        const double ddy = -(depth_at(hit.x(), hit.y() + 0.5) - depth_at(hit.x(), hit.y() - 0.5)) / t;
+        const Eigen::Vector3d normal = Eigen::Vector3d(ddx, ddy, 1.0).normalized();
+        const Eigen::Vector3d point((hit.x() + static_cast<double>(col0) + 0.5) * t,
+                                    -(hit.y() + static_cast<double>(row0) + 0.5) * t,
+                                    grid.Interpolate(top_z, us, vs, k) - hit_depth);
+        double irradiance = 0.0;
+        for (const Eigen::Vector3d& source : lights) {
+          const Eigen::Vector3d to_light = source - point;
+          const double distance2 = to_light.squaredNorm();
+          const Eigen::Vector3d l = to_light / std::sqrt(distance2);
+          const double incidence = normal.dot(l);
+          const double emission = -l.dot(axis_down);
+          if (incidence <= 0.0 || emission <= 0.0) continue;
+          // Shadow: walk towards the light while below the top surface.
+          bool shadowed = false;
+          if (hit_depth > 0.0) {
+            const Eigen::Vector2d rise(to_light.x() / to_light.z() / t, -to_light.y() / to_light.z() / t);
+            const double step = std::min(hit_depth, 0.5 / std::max(rise.norm(), 1e-9));
+            for (double e = step; e < hit_depth && !shadowed; e += step) {
+              shadowed = depth_at(hit.x() + e * rise.x(), hit.y() + e * rise.y()) < hit_depth - e - 1e-3;
+            }
+          }
+          if (!shadowed) irradiance += incidence * emission / distance2;
+        }
+        value *= light.ambient + (1.0 - light.ambient) * light.ring_gain * irradiance / light_e0_;
+      }
+      out[us] = static_cast<float>(value);
+    }
+  }
+  return super;
+}
+
+cv::Mat Imager::RenderClean(const PixelToWorld& pixel_to_world, const SurfaceView& view) const {
+  cv::Mat image;
+  cv::resize(RenderSurface(pixel_to_world, view), image, cv::Size(camera_.width_px(), camera_.height_px()), 0, 0,
+             cv::INTER_AREA);
+  image.convertTo(image, CV_8U);
+  return image;
+}
+
+cv::Mat Imager::Render(const PixelToWorld& pixel_to_world, const SurfaceView& view,
+                       const Eigen::Vector2d& camera_velocity_mm_per_s, double time_s, std::uint64_t frame_seed) const {
+  return Develop(RenderSurface(pixel_to_world, view), camera_velocity_mm_per_s, time_s, frame_seed);
 }
 
 cv::Mat Imager::RenderClean(const PixelToWorld& pixel_to_world) const {

@@ -107,6 +107,18 @@ std::unique_ptr<Floor> MakeFloor(const FloorChoice& choice) {
   core::ThrowInvalidInput("floor: kind '" + choice.kind + "'");  // Check() refused it above
 }
 
+std::unique_ptr<Relief> MakeRelief(const FloorChoice& floor, const ReliefOptions& relief) {
+  std::string why;
+  if (!relief.Check(&why)) core::ThrowInvalidInput("relief: " + why);
+  if (!relief.any()) return nullptr;
+  if (relief.source == "albedo") return std::make_unique<Relief>(MakeFloor(floor), relief);
+  // The height image lies on the floor's texel grid.
+  ImageFloorOptions heights;
+  heights.image = relief.height_image;
+  heights.mm_per_texel = MakeFloor(floor)->mm_per_texel();
+  return std::make_unique<Relief>(MakeImageFloor(heights), relief);
+}
+
 bool SimulatorOptions::Check(std::string* why) const {
   if (!(frame_rate_hz > 0.0 && frame_rate_hz <= 10000.0)) {
     *why = "frame_rate_hz must be in (0, 10000]";
@@ -161,6 +173,18 @@ bool SimulatorOptions::Check(std::string* why) const {
     *why = "changes." + *why;
     return false;
   }
+  if (!relief.Check(why)) {
+    *why = "relief." + *why;
+    return false;
+  }
+  if (!light.Check(why)) {
+    *why = "light." + *why;
+    return false;
+  }
+  if (light.any() && !(camera_height_mm + light.height_over_lens_mm > 1.0)) {
+    *why = "light.height_over_lens_mm puts the ring light below the floor";
+    return false;
+  }
   return route.Check(why) && camera.Check(why) && imaging.Check(why) && encoders.Check(why);
 }
 
@@ -191,13 +215,14 @@ SimulationSummary Simulate(const SimulatorOptions& options, const std::filesyste
   std::unique_ptr<Floor> floor = MakeFloor(options.floor);
   if (options.changes.any()) floor = ChangedFloor(std::move(floor), options.changes, WheelPaths(drive, options));
   const CameraPlacement placement = MakeCameraPlacement(options);
+  const std::unique_ptr<Relief> relief = MakeRelief(options.floor, options.relief);
+  const Surface surface{relief.get(), options.light, options.camera_height_mm};
   // The frames as the camera really sees them: straight down from its true height, or
-  // through the rays of its 3-D pose.
+  // through the rays of its 3-D pose (into the relief, under the camera's light).
+  const bool rays = !placement.straight_down() || surface.any();
   const camera::IdealCamera seen =
-      placement.straight_down()
-          ? camera.Scaled((options.camera_height_mm + options.height_offset_mm) / options.camera_height_mm)
-          : camera;
-  const Imager imager(*floor, seen, options.imaging, options.seed);
+      rays ? camera : camera.Scaled((options.camera_height_mm + options.height_offset_mm) / options.camera_height_mm);
+  const Imager imager(*floor, seen, options.imaging, options.seed, surface);
   EncoderModel encoders(options.encoders, options.seed);
 
   const double period_s = 1.0 / options.frame_rate_hz;
@@ -260,6 +285,20 @@ SimulationSummary Simulate(const SimulatorOptions& options, const std::filesyste
     p["pivot_height_mm"] = Number(options.suspension.pivot_height_mm);
     p["caster_x_mm"] = Number(options.suspension.caster_x_mm);
   }
+  if (options.relief.any()) {
+    p["relief_depth_mm"] = Number(options.relief.depth_mm);
+    p["relief_source"] = options.relief.source == "image" ? options.relief.height_image.string() : "albedo";
+    p["relief_low_fraction"] = Number(options.relief.low_fraction);
+    p["relief_slope_fraction"] = Number(options.relief.slope_fraction);
+    p["relief_smoothing_mm"] = Number(options.relief.smoothing_mm);
+  }
+  if (options.light.any()) {
+    p["light_sources"] = std::to_string(options.light.sources);
+    p["light_ring_radius_mm"] = Number(options.light.ring_radius_mm);
+    p["light_height_over_lens_mm"] = Number(options.light.height_over_lens_mm);
+    p["light_ambient"] = Number(options.light.ambient);
+    p["light_ring_gain"] = Number(options.light.ring_gain);
+  }
 
   dataset::DatasetWriter writer(out, info, overwrite);
 
@@ -293,12 +332,20 @@ SimulationSummary Simulate(const SimulatorOptions& options, const std::filesyste
       const std::uint64_t frame_seed = Mix(options.seed, first + i + 1);
       const CameraView view = placement.At(world_from_vehicle, Acceleration(drive, t), t);
       camera_truth[i] = placement.Truth(view, world_from_vehicle);
-      if (placement.straight_down()) {
-        encoded[i] = dataset::DatasetWriter::EncodeFrame(imager.Render(world_from_camera, velocity_camera, t, frame_seed));
+      const auto to_floor = [&](const Eigen::Vector2d& pixel) { return placement.PixelToWorld(view, pixel); };
+      cv::Mat image;
+      if (surface.any()) {
+        SurfaceView surface_view{view.lens_mm, view.world_from_camera, {}};
+        if (!placement.floor().flat()) {
+          surface_view.floor_height_mm = [&](const Eigen::Vector2d& xy) { return placement.floor().HeightMm(xy); };
+        }
+        image = imager.Render(to_floor, surface_view, velocity_camera, t, frame_seed);
+      } else if (rays) {
+        image = imager.Render(to_floor, velocity_camera, t, frame_seed);
       } else {
-        const auto rays = [&](const Eigen::Vector2d& pixel) { return placement.PixelToWorld(view, pixel); };
-        encoded[i] = dataset::DatasetWriter::EncodeFrame(imager.Render(rays, velocity_camera, t, frame_seed));
+        image = imager.Render(world_from_camera, velocity_camera, t, frame_seed);
       }
+      encoded[i] = dataset::DatasetWriter::EncodeFrame(image);
     };
     std::vector<std::future<void>> workers;
     for (int w = 0; w < options.threads; ++w) {

@@ -61,6 +61,17 @@ TEST(SimulatorConfig, DefaultFileEqualsCompiledDefaults) {
   EXPECT_EQ(loaded.encoders.initial_right_ticks, defaults.encoders.initial_right_ticks);
   EXPECT_EQ(loaded.camera_height_mm, defaults.camera_height_mm);
   EXPECT_EQ(loaded.height_offset_mm, defaults.height_offset_mm);
+  EXPECT_EQ(loaded.relief.depth_mm, defaults.relief.depth_mm);
+  EXPECT_EQ(loaded.relief.source, defaults.relief.source);
+  EXPECT_EQ(loaded.relief.height_image, defaults.relief.height_image);
+  EXPECT_EQ(loaded.relief.low_fraction, defaults.relief.low_fraction);
+  EXPECT_EQ(loaded.relief.slope_fraction, defaults.relief.slope_fraction);
+  EXPECT_EQ(loaded.relief.smoothing_mm, defaults.relief.smoothing_mm);
+  EXPECT_EQ(loaded.light.sources, defaults.light.sources);
+  EXPECT_EQ(loaded.light.ring_radius_mm, defaults.light.ring_radius_mm);
+  EXPECT_EQ(loaded.light.height_over_lens_mm, defaults.light.height_over_lens_mm);
+  EXPECT_EQ(loaded.light.ambient, defaults.light.ambient);
+  EXPECT_EQ(loaded.light.ring_gain, defaults.light.ring_gain);
   EXPECT_EQ(loaded.seed, defaults.seed);
   EXPECT_EQ(loaded.frames, defaults.frames);
   EXPECT_EQ(loaded.laps, defaults.laps);
@@ -121,6 +132,28 @@ TEST(SimulatorConfig, OverridesApply) {
   EXPECT_DOUBLE_EQ(options.route.speed_mps, 2.5);
   EXPECT_EQ(options.laps, 3);
   EXPECT_EQ(options.frames, 900);
+}
+
+TEST(SimulatorConfig, ReliefAndLightAreReadAndChecked) {
+  SimulatorOptions options;
+  ReadSimulatorConfig(YAML::Load("relief: {depth_mm: 2.5, smoothing_mm: 0.5}\nlight: {sources: 6, ring_gain: 0.85}\n"),
+                      "x.yaml", &options);
+  EXPECT_DOUBLE_EQ(options.relief.depth_mm, 2.5);
+  EXPECT_DOUBLE_EQ(options.relief.smoothing_mm, 0.5);
+  EXPECT_EQ(options.light.sources, 6);
+  EXPECT_DOUBLE_EQ(options.light.ring_gain, 0.85);
+  const auto complaint = [](const std::string& text) {
+    SimulatorOptions ignored;
+    try {
+      ReadSimulatorConfig(YAML::Load(text), "x.yaml", &ignored);
+    } catch (const core::Error& error) {
+      return std::string(error.what());
+    }
+    return std::string();
+  };
+  EXPECT_NE(complaint("relief:\n  depth_mm: 30\n").find("x.yaml:2"), std::string::npos);
+  EXPECT_NE(complaint("relief: {depth_mm: 1, source: image}\n").find("height_image"), std::string::npos);
+  EXPECT_NE(complaint("light:\n  sources: 1\n  height_over_lens_mm: -250\n").find("below the floor"), std::string::npos);
 }
 
 }  // namespace

@@ -28,6 +28,12 @@ struct SpeedLimitOptions {
   /// Change of floor height (or of the camera's height through suspension pitch) per unit
   /// of travel, mm per mm: a slope of 1 mm per metre is 0.001.
   double depth_gradient = 0.002;
+  /// The floor's relief: how deep its joints, grout or pits lie below the top surface the
+  /// camera is calibrated to, mm (0: a flat floor).
+  double relief_depth_mm = 0.0;
+  /// The ring light carried with the camera: its radius around the lens, mm (in the lens's
+  /// plane).
+  double light_ring_radius_mm = 50.0;
 
   // The tracker.
   double required_overlap = 0.5;         ///< beta: share of the footprint consecutive frames must share
@@ -90,6 +96,25 @@ struct SpeedLimits {
   double prediction_limit_mps = 0.0;
   /// The fastest the mosaic tracker holds the lock: min(blur, prediction).
   double mosaic_limit_mps = 0.0;
+
+  // Relief (the founding paper's distortion term from depth within the view), for a floor
+  // whose low parts lie d below its tops; all 0 on a flat floor.
+  /// The low parts move slower in the image than the tops by d / (h + d), relative: a fit
+  /// of the scale follows the mean of what it matches.
+  double relief_scale = 0.0;
+  /// Parallax at the image corner, R d / (h + d) px (and mm on the floor): how far a low
+  /// point seen there lies from where a view straight down puts it, against the tops. The
+  /// mosaic averages the looks from all over the view; a template at the corner over relief
+  /// can be biased by up to this.
+  double relief_parallax_px = 0.0;
+  double relief_parallax_mm = 0.0;
+  /// The shadow a ring light of radius rho casts into a joint of depth d at the image centre,
+  /// d rho / h, mm; it grows towards the corners by the parallax.
+  double relief_shadow_mm = 0.0;
+  /// Relief distortion speed limit V < e s (h + d) / (d T_cyc): above it the low parts and
+  /// the tops drift more than e apart between consecutive frames. Binds frame-to-frame
+  /// registration (visual odometry and the mapping chain).
+  double relief_distortion_limit_mps = 0.0;
 
   // At speed_mps.
   double step_mm = 0.0;            ///< S

@@ -3,6 +3,7 @@
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include <Eigen/Core>
 #include <opencv2/core/mat.hpp>
@@ -10,6 +11,7 @@
 #include "mosaicloc/camera/ideal_camera.hpp"
 #include "mosaicloc/core/pose2.hpp"
 #include "mosaicloc/sim/floor.hpp"
+#include "mosaicloc/sim/relief.hpp"
 
 namespace mosaicloc::sim {
 
@@ -32,7 +34,10 @@ struct ImagingOptions {
 /// and takes its randomness from the caller's per-frame seed.
 class Imager {
  public:
-  Imager(const Floor& floor, const camera::IdealCamera& camera, const ImagingOptions& options, std::uint64_t seed);
+  /// `surface`: the floor's relief and the camera's light, drawn by the ray renders that are
+  /// given a SurfaceView; the relief outlives the Imager.
+  Imager(const Floor& floor, const camera::IdealCamera& camera, const ImagingOptions& options, std::uint64_t seed,
+         const Surface& surface = {});
 
   /// The image at world_from_camera; `camera_velocity_mm_per_s` is the camera's velocity in
   /// its own floor frame C (for motion blur); `time_s` drives the illumination change.
@@ -49,12 +54,22 @@ class Imager {
   cv::Mat Render(const PixelToWorld& pixel_to_world, const Eigen::Vector2d& camera_velocity_mm_per_s, double time_s,
                  std::uint64_t frame_seed) const;
   cv::Mat RenderClean(const PixelToWorld& pixel_to_world) const;
+  /// The same through rays that meet a floor with relief, lit by the camera's ring light
+  /// (the Surface given at construction): every supersample's ray is followed down into the
+  /// relief to the first surface it meets, which is shaded by the light it sees (Lambertian,
+  /// with shadows) and the ambient light. `pixel_to_world` gives where a ray meets the top
+  /// surface.
+  cv::Mat Render(const PixelToWorld& pixel_to_world, const SurfaceView& view,
+                 const Eigen::Vector2d& camera_velocity_mm_per_s, double time_s, std::uint64_t frame_seed) const;
+  cv::Mat RenderClean(const PixelToWorld& pixel_to_world, const SurfaceView& view) const;
 
   int supersampling() const { return supersampling_; }
 
  private:
   cv::Mat RenderSupersampled(const core::Pose2& world_from_camera, double blur_margin_px) const;
   cv::Mat RenderSupersampled(const PixelToWorld& pixel_to_world) const;
+  /// A supersampled CV_32F view of the surface (relief and light).
+  cv::Mat RenderSurface(const PixelToWorld& pixel_to_world, const SurfaceView& view) const;
   /// Motion blur, area average to pixels, shading and noise of a supersampled view.
   cv::Mat Develop(cv::Mat super, const Eigen::Vector2d& camera_velocity_mm_per_s, double time_s,
                   std::uint64_t frame_seed) const;
@@ -65,6 +80,9 @@ class Imager {
   ImagingOptions options_;
   int supersampling_ = 2;
   cv::Mat static_gain_;  ///< vignetting x dust, CV_32F
+  Surface surface_;
+  std::vector<Eigen::Vector3d> light_in_camera_;  ///< the ring's sources, camera axes, from the lens
+  double light_e0_ = 1.0;                         ///< irradiance of the calibrated image centre
   double illumination_phase_ = 0.0;
 };
 

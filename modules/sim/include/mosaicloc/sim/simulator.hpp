@@ -12,6 +12,7 @@
 #include "mosaicloc/sim/floor.hpp"
 #include "mosaicloc/sim/floor_changes.hpp"
 #include "mosaicloc/sim/imaging.hpp"
+#include "mosaicloc/sim/relief.hpp"
 #include "mosaicloc/sim/route.hpp"
 #include "mosaicloc/sim/stance.hpp"
 
@@ -35,6 +36,8 @@ struct FloorChoice {
 
 /// Builds the floor; throws core::Error (invalid input) naming the image file or option.
 std::unique_ptr<Floor> MakeFloor(const FloorChoice& choice);
+/// The floor's relief (null when its depth is 0); throws core::Error naming the height image.
+std::unique_ptr<Relief> MakeRelief(const FloorChoice& floor, const ReliefOptions& relief);
 
 struct SimulatorOptions {
   FloorChoice floor;
@@ -58,6 +61,11 @@ struct SimulatorOptions {
   /// How the floor has changed since it was mapped (grime, stains, tyre marks along this
   /// drive's lanes, a wet patch, a replaced tile, a lane line); none by default.
   FloorChangeOptions changes;
+  /// The floor's relief (joints, grout, pits below the top surface) and the light carried
+  /// with the camera; with either, every pixel is a ray followed into the relief and shaded.
+  /// None by default.
+  ReliefOptions relief;
+  LightOptions light;
   ImagingOptions imaging;
   EncoderOptions encoders;
   double frame_rate_hz = 30.0;
