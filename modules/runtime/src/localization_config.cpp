@@ -52,6 +52,7 @@ void ReadLocalizerConfig(const YAML::Node& node, const std::string& file_name, L
   refine.Optional("min_zncc", &t.min_zncc);
   refine.Optional("visp_pyramid_levels", &t.refine.visp_pyramid_levels);
   refine.Optional("min_mapped_fraction", &t.refine.min_mapped_fraction);
+  refine.Optional("robust", &t.refine.robust);
   refine.Check(t.refine);
   refine.CheckOwnKeys(t, {{"refine_passes", "passes"}});
   refine.Finish();
@@ -63,6 +64,7 @@ void ReadLocalizerConfig(const YAML::Node& node, const std::string& file_name, L
   solver.Optional("min_inliers", &t.solver.min_inliers);
   solver.Optional("estimate_scale", &t.solver.estimate_scale);
   solver.Optional("estimate_tilt", &t.solver.estimate_tilt);
+  solver.Optional("posterior_variance", &t.solver.posterior_variance);
   solver.Optional("min_tilt_points", &t.solver.min_tilt_points);
   solver.Optional("camera_height_mm", &t.solver.camera_height_mm);
   solver.Optional("tilt_pivot_height_mm", &o.tilt_pivot_height_mm);

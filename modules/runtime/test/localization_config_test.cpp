@@ -41,11 +41,13 @@ TEST(LocalizerConfig, DefaultFileEqualsCompiledDefaults) {
   EXPECT_EQ(a.min_zncc, b.min_zncc);
   EXPECT_EQ(a.refine.visp_pyramid_levels, b.refine.visp_pyramid_levels);
   EXPECT_EQ(a.refine.min_mapped_fraction, b.refine.min_mapped_fraction);
+  EXPECT_EQ(a.refine.robust, b.refine.robust);
   EXPECT_EQ(a.solver.loss, b.solver.loss);
   EXPECT_EQ(a.solver.loss_scale_mm, b.solver.loss_scale_mm);
   EXPECT_EQ(a.solver.outlier_threshold_mm, b.solver.outlier_threshold_mm);
   EXPECT_EQ(a.solver.min_inliers, b.solver.min_inliers);
   EXPECT_EQ(a.solver.estimate_scale, b.solver.estimate_scale);
+  EXPECT_EQ(a.solver.posterior_variance, b.solver.posterior_variance);
   const localizer::LocalizerOptions& l = loaded.localizer;
   const localizer::LocalizerOptions& m = compiled.localizer;
   EXPECT_EQ(l.filter.gate_chi2, m.filter.gate_chi2);

@@ -411,6 +411,15 @@ PoseSolution SolvePlanarPose(const std::vector<Correspondence>& correspondences,
   Matrix6d unit;
   if (spread && PoseCovariance(correspondences, use, scale, pose, options, free, &unit)) {
     // With the scale (and the tilt) estimated, the pose's covariance is its marginal one.
+    const int redundancy = 2 * inliers - free;
+    if (options.posterior_variance && redundancy > 0) {
+      double chi2 = 0.0;
+      for (std::size_t i = 0; i < n; ++i) {
+        if (use[i]) chi2 += std::pow(solution.residual_mm[i] / sigmas[i], 2);
+      }
+      solution.variance_factor = std::max(1.0, chi2 / redundancy);
+    }
+    unit *= solution.variance_factor;
     solution.covariance = unit.topLeftCorner<3, 3>() * sigma_ref * sigma_ref;
     if (free >= 4) solution.scale_sigma = std::sqrt(unit(3, 3)) * sigma_ref;
     if (free == 6) solution.tilt_sigma_rad = std::sqrt(std::max(unit(4, 4), unit(5, 5))) * sigma_ref;

@@ -67,6 +67,112 @@ void LoadRaster(const ReferenceRaster& reference, const detail::RasterBounds& bo
   }
 }
 
+// Tukey's biweight reweighting after the least-squares fit, from shift *t: the residuals of
+// the normalised template against the raster, e_k = (M_k - mu) / sigma - T_k, get the weights
+// (1 - (e_k / c)^2)^2 inside c = 4.685 x their robust standard deviation (1.4826 x the median
+// |e_k|) and 0 outside, and Gauss-Newton steps of the weighted sum follow until the shift
+// settles; the weights are those of the last residuals. Fills the covariance (the weighted
+// residual variance times the inverse of the weighted normal matrix) and the unweighted ZNCC;
+// false, with the failure set, when the weighted fit diverges, leaves the map or does not settle.
+bool RobustPasses(const FilteredRaster& filtered, const std::vector<double>& base_x, const std::vector<double>& base_y,
+                  const std::vector<double>& templ, const std::vector<double>& jac_x, const std::vector<double>& jac_y,
+                  std::size_t n, const RefineOptions& options, Eigen::Vector2d* t, RefinedMatch* match) {
+  const float* pixels = filtered.raster.ptr<float>(0);
+  const std::size_t stride = filtered.raster.step1();
+  const int max_col = filtered.raster.cols - 2, max_row = filtered.raster.rows - 2;
+  thread_local std::vector<double> value, residual, magnitude;
+  thread_local std::vector<unsigned char> known;
+  value.resize(n);
+  residual.resize(n);
+  known.resize(n);
+  Eigen::Matrix2d weighted_hessian = Eigen::Matrix2d::Identity();
+  double weighted_e2 = 0.0, weight_sum = 0.0;
+  double sum_e2 = 0.0;
+  std::size_t used = 0;
+  for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
+    // Samples at the current shift, and the raster's moments over the known ones.
+    double sm = 0.0, smm = 0.0;
+    used = 0;
+    for (std::size_t k = 0; k < n; ++k) {
+      const double x = base_x[k] + t->x(), y = base_y[k] + t->y();
+      const int ix = static_cast<int>(x) - filtered.offset_x, iy = static_cast<int>(y) - filtered.offset_y;
+      bool ok = ix >= 0 && iy >= 0 && ix <= max_col && iy <= max_row;
+      if (ok && !filtered.region.all_mapped) {
+        const std::uint8_t* m0 = filtered.mask.ptr<std::uint8_t>(iy) + ix;
+        const std::uint8_t* m1 = filtered.mask.ptr<std::uint8_t>(iy + 1) + ix;
+        ok = (m0[0] & m0[1] & m1[0] & m1[1]) != 0;
+      }
+      known[k] = ok ? 1 : 0;
+      if (!ok) continue;
+      const float* p0 = pixels + static_cast<std::size_t>(iy) * stride + ix;
+      const float* p1 = p0 + stride;
+      const double fx = x - (ix + filtered.offset_x), fy = y - (iy + filtered.offset_y);
+      const double top = p0[0] + fx * (p0[1] - p0[0]);
+      const double bottom = p1[0] + fx * (p1[1] - p1[0]);
+      value[k] = top + fy * (bottom - top);
+      sm += value[k];
+      smm += value[k] * value[k];
+      ++used;
+    }
+    if (used < 8 || static_cast<double>(used) < options.min_mapped_fraction * static_cast<double>(n)) {
+      match->failure = RefineFailure::kOffMap;
+      return false;
+    }
+    const double count = static_cast<double>(used);
+    const double mean_m = sm / count;
+    const double std_m = std::sqrt(std::max(smm / count - mean_m * mean_m, 1e-12));
+    magnitude.clear();
+    sum_e2 = 0.0;
+    for (std::size_t k = 0; k < n; ++k) {
+      if (!known[k]) continue;
+      residual[k] = (value[k] - mean_m) / std_m - templ[k];
+      sum_e2 += residual[k] * residual[k];
+      magnitude.push_back(std::abs(residual[k]));
+    }
+    const auto middle = magnitude.begin() + static_cast<std::ptrdiff_t>(magnitude.size() / 2);
+    std::nth_element(magnitude.begin(), middle, magnitude.end());
+    const double c = 4.685 * std::max(1.4826 * *middle, 1e-6);
+    Eigen::Matrix2d h = Eigen::Matrix2d::Zero();
+    Eigen::Vector2d gradient = Eigen::Vector2d::Zero();
+    weighted_e2 = 0.0;
+    weight_sum = 0.0;
+    for (std::size_t k = 0; k < n; ++k) {
+      if (!known[k]) continue;
+      const double u = residual[k] / c;
+      if (std::abs(u) >= 1.0) continue;
+      const double w = (1.0 - u * u) * (1.0 - u * u);
+      h(0, 0) += w * jac_x[k] * jac_x[k];
+      h(0, 1) += w * jac_x[k] * jac_y[k];
+      h(1, 1) += w * jac_y[k] * jac_y[k];
+      gradient += w * residual[k] * Eigen::Vector2d(jac_x[k], jac_y[k]);
+      weighted_e2 += w * residual[k] * residual[k];
+      weight_sum += w;
+    }
+    h(1, 0) = h(0, 1);
+    if (!(h.determinant() > 1e-12)) {
+      match->failure = RefineFailure::kDiverged;
+      match->detail = "no texture left after reweighting";
+      return false;
+    }
+    weighted_hessian = h;
+    const Eigen::Vector2d delta = -(h.inverse() * gradient);
+    *t += delta;
+    match->iterations += 1;
+    if (!t->allFinite() || t->norm() > options.max_shift_px) {
+      match->failure = RefineFailure::kDiverged;
+      return false;
+    }
+    if (delta.norm() < options.tolerance_px) {
+      const double dof = std::max(1.0, weight_sum - 2.0);
+      match->covariance_px2 = (weighted_e2 / dof) * weighted_hessian.inverse();
+      match->zncc = 1.0 - sum_e2 / (2.0 * static_cast<double>(used));
+      return true;
+    }
+  }
+  match->failure = RefineFailure::kNotConverged;
+  return false;
+}
+
 // Inverse-compositional Gauss-Newton on the translation t of the template in the raster,
 // with ZNCC normalisation of both sides:
 //   min_t sum_k ( N[M](A x_k + b + t) - N[T](x_k) )^2,   N[f] = (f - mean f) / std f,
@@ -261,6 +367,14 @@ RefinedMatch RefineDirect(const cv::Mat& frame, const cv::Rect& rect, const Refe
   }
   if (!converged) {
     match.failure = RefineFailure::kNotConverged;
+    return match;
+  }
+  if (options.robust) {
+    // The reweighted fit may move further: every sample it may ask for.
+    if (!filtered.whole) LoadRaster(reference, bounds, full_margin, full_margin, options.prefilter_sigma_px, &filtered);
+    if (!RobustPasses(filtered, base_x, base_y, templ, jac_x, jac_y, n, options, &t, &match)) return match;
+    const Eigen::Vector2d centre(rect.x + 0.5 * (rect.width - 1), rect.y + 0.5 * (rect.height - 1));
+    match.centre_raster = ApplyAffine(frame_to_raster, centre) + t;
     return match;
   }
   const double dof = std::max(1.0, static_cast<double>(used) - 2.0);

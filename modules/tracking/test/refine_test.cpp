@@ -70,6 +70,46 @@ TEST(Refine, DirectRecoversAShiftOfSeveralPixels) {
   }
 }
 
+// A quarter of the template shows the floor 2.5 px further on (a joint's bottom seen from
+// elsewhere in the view): least squares is pulled towards it; the reweighted fit follows the
+// other three quarters.
+TEST(Refine, RobustReweightingIgnoresAPartThatMovedElsewhere) {
+  REQUIRE_ASPHALT(texture);
+  const Scene scene(*texture);
+  const Pose2 truth(0.3 * kMmPerPx, -0.2 * kMmPerPx, 0.0);
+  cv::Mat frame = scene.Frame(truth, 1.0);
+  const cv::Mat moved = scene.Frame(Pose2(truth.x_mm() + 2.5 * kMmPerPx, truth.y_mm(), 0.0), 1.0);
+  const cv::Rect rect(250, 180, 96, 96);
+  const cv::Rect quarter(rect.x + 48, rect.y + 48, 48, 48);
+  moved(quarter).copyTo(frame(quarter));
+  const Affine frame_to_raster =
+      ComposeAffine(scene.reference().WorldToRaster(), scene.camera().PixelToWorldAffine(Pose2::Identity()));
+  const Eigen::Vector2d centre(rect.x + 47.5, rect.y + 47.5);
+  const Eigen::Vector2d expected = scene.reference().WorldToRaster().leftCols<2>() *
+                                       scene.camera().PixelToWorld(centre, truth) +
+                                   scene.reference().WorldToRaster().col(2);
+  RefineOptions options;
+  options.max_iterations = 50;
+  const RefinedMatch plain = RefineTemplate(frame, rect, scene.reference(), frame_to_raster, options);
+  options.robust = true;
+  const RefinedMatch robust = RefineTemplate(frame, rect, scene.reference(), frame_to_raster, options);
+  ASSERT_TRUE(plain.ok()) << ToString(plain.failure) << " " << plain.detail;
+  ASSERT_TRUE(robust.ok()) << ToString(robust.failure) << " " << robust.detail;
+  const double plain_error = (plain.centre_raster - expected).norm();
+  const double robust_error = (robust.centre_raster - expected).norm();
+  EXPECT_GT(plain_error, 0.2);
+  EXPECT_LT(robust_error, 0.05);
+  // On an unchanged template the two agree.
+  const cv::Mat clean = scene.Frame(truth, 1.0);
+  options.robust = false;
+  const RefinedMatch clean_plain = RefineTemplate(clean, rect, scene.reference(), frame_to_raster, options);
+  options.robust = true;
+  const RefinedMatch clean_robust = RefineTemplate(clean, rect, scene.reference(), frame_to_raster, options);
+  ASSERT_TRUE(clean_plain.ok() && clean_robust.ok());
+  EXPECT_LT((clean_plain.centre_raster - clean_robust.centre_raster).norm(), 0.02);
+  EXPECT_LT((clean_robust.centre_raster - expected).norm(), 0.03);
+}
+
 // The AVX2 build of the refinement's sampling loop (when the processor has it) and the
 // baseline build give the same match bit for bit, inside the reference and at its edge.
 TEST(Refine, DirectVectorBuildsAgreeExactly) {

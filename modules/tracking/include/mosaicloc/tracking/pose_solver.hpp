@@ -37,6 +37,11 @@ struct PoseSolverOptions {
   /// false: skip the covariance, for a pose that only seeds a finer one;
   /// PoseSolution::covariance is then NaN.
   bool compute_covariance = true;
+  /// Scale the covariance by the residuals' a-posteriori variance factor, sum (r_i / sigma_i)^2
+  /// over the redundancy (2 inliers - parameters), where it exceeds 1: templates that agree
+  /// less than their own sigmas promise (a view that differs from the map by more than noise:
+  /// relief, changed floor) make a less certain fix.
+  bool posterior_variance = false;
   /// Also estimate the image scale k (camera_mm is k times the true offset of a point from
   /// the camera: the camera is k times as high over the floor as calibrated) where four or
   /// more inliers determine it; the pose is then a similarity fit, its covariance marginal.
@@ -64,6 +69,8 @@ struct PoseSolution {
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
   std::vector<bool> inlier;       ///< per correspondence
   std::vector<double> residual_mm;  ///< per correspondence, at the solution
+  /// The a-posteriori variance factor the covariance was scaled by (1 when not, or below 1).
+  double variance_factor = 1.0;
   int inliers = 0;
   int iterations = 0;
   double rms_residual_mm = 0.0;   ///< over inliers

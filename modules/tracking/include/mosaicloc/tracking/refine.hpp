@@ -46,6 +46,11 @@ struct RefineOptions {
   double prefilter_sigma_px = 1.0;
   /// Share of the template that must land on mapped reference pixels.
   double min_mapped_fraction = 0.9;
+  /// kDirect: after the ZNCC fit, reweight the pixels by Tukey's biweight of their residual
+  /// (iteratively reweighted least squares) so that parts of the template that look different
+  /// from the map (joints and grout seen from another place in the view, a changed patch) stop
+  /// pulling the fit; the covariance is the weighted one. false: plain least squares.
+  bool robust = false;
   bool Check(std::string* why) const;
 };
 
