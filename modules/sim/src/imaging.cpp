@@ -62,6 +62,25 @@ struct Box {
   }
 };
 
+// What the LEDs at `lights` (world) shine on a Lambertian surface at `point` with `normal`:
+// each an emitter along `axis_down` (cosine of the emission angle) at the inverse square,
+// times the cosine of incidence, unless `shadowed(to_light)`.
+template <class Shadowed>
+double Irradiance(const std::vector<Eigen::Vector3d>& lights, const Eigen::Vector3d& axis_down,
+                  const Eigen::Vector3d& point, const Eigen::Vector3d& normal, const Shadowed& shadowed) {
+  double irradiance = 0.0;
+  for (const Eigen::Vector3d& source : lights) {
+    const Eigen::Vector3d to_light = source - point;
+    const double distance2 = to_light.squaredNorm();
+    const Eigen::Vector3d l = to_light / std::sqrt(distance2);
+    const double incidence = normal.dot(l);
+    const double emission = -l.dot(axis_down);
+    if (incidence <= 0.0 || emission <= 0.0 || shadowed(to_light)) continue;
+    irradiance += incidence * emission / distance2;
+  }
+  return irradiance;
+}
+
 // A line kernel of length `length_px` along (dx, dy), anti-aliased by splatting points with
 // bilinear weights; sums to one.
 cv::Mat MotionKernel(double length_px, double dx, double dy) {
@@ -270,6 +289,7 @@ cv::Mat Imager::RenderSurface(const PixelToWorld& pixel_to_world, const SurfaceV
   std::vector<Eigen::Vector2d> texel(grid.size());
   std::vector<Eigen::Vector2d> parallax(grid.size());
   std::vector<double> top_z(grid.size());
+  std::vector<double> flat_irradiance(grid.size(), 0.0);  // a level top's, for the common case
   Box box;
   double reach = 0.0;  // texels per mm of depth, along a ray or towards a light
   for (std::size_t n = 0; n < grid.size(); ++n) {
@@ -282,6 +302,8 @@ cv::Mat Imager::RenderSurface(const PixelToWorld& pixel_to_world, const SurfaceV
     for (const Eigen::Vector3d& light : lights) {
       reach = std::max(reach, (light.head<2>() - world).norm() / std::max(light.z() - top_z[n], 1.0) / t);
     }
+    flat_irradiance[n] = Irradiance(lights, axis_down, Eigen::Vector3d(world.x(), world.y(), top_z[n]),
+                                    Eigen::Vector3d::UnitZ(), [](const Eigen::Vector3d&) { return false; });
     box.Add(texel[n]);
   }
   const int margin = static_cast<int>(std::ceil(depth_max * reach)) + 3;
@@ -342,28 +364,25 @@ cv::Mat Imager::RenderSurface(const PixelToWorld& pixel_to_world, const SurfaceV
         // The surface's normal from the depth's slope (height = top - depth).
         const double ddx = (depth_at(hit.x() + 0.5, hit.y()) - depth_at(hit.x() - 0.5, hit.y())) / t;
         const double ddy = -(depth_at(hit.x(), hit.y() + 0.5) - depth_at(hit.x(), hit.y() - 0.5)) / t;
-        const Eigen::Vector3d normal = Eigen::Vector3d(ddx, ddy, 1.0).normalized();
-        const Eigen::Vector3d point((hit.x() + static_cast<double>(col0) + 0.5) * t,
-                                    -(hit.y() + static_cast<double>(row0) + 0.5) * t,
-                                    grid.Interpolate(top_z, us, vs, k) - hit_depth);
         double irradiance = 0.0;
-        for (const Eigen::Vector3d& source : lights) {
-          const Eigen::Vector3d to_light = source - point;
-          const double distance2 = to_light.squaredNorm();
-          const Eigen::Vector3d l = to_light / std::sqrt(distance2);
-          const double incidence = normal.dot(l);
-          const double emission = -l.dot(axis_down);
-          if (incidence <= 0.0 || emission <= 0.0) continue;
+        if (hit_depth == 0.0 && ddx == 0.0 && ddy == 0.0) {
+          irradiance = grid.Interpolate(flat_irradiance, us, vs, k);  // a level top: smooth over the view
+        } else {
+          const Eigen::Vector3d normal = Eigen::Vector3d(ddx, ddy, 1.0).normalized();
+          const Eigen::Vector3d point((hit.x() + static_cast<double>(col0) + 0.5) * t,
+                                      -(hit.y() + static_cast<double>(row0) + 0.5) * t,
+                                      grid.Interpolate(top_z, us, vs, k) - hit_depth);
           // Shadow: walk towards the light while below the top surface.
-          bool shadowed = false;
-          if (hit_depth > 0.0) {
+          const auto shadowed = [&](const Eigen::Vector3d& to_light) {
+            if (hit_depth <= 0.0) return false;
             const Eigen::Vector2d rise(to_light.x() / to_light.z() / t, -to_light.y() / to_light.z() / t);
             const double step = std::min(hit_depth, 0.5 / std::max(rise.norm(), 1e-9));
-            for (double e = step; e < hit_depth && !shadowed; e += step) {
-              shadowed = depth_at(hit.x() + e * rise.x(), hit.y() + e * rise.y()) < hit_depth - e - 1e-3;
+            for (double e = step; e < hit_depth; e += step) {
+              if (depth_at(hit.x() + e * rise.x(), hit.y() + e * rise.y()) < hit_depth - e - 1e-3) return true;
             }
-          }
-          if (!shadowed) irradiance += incidence * emission / distance2;
+            return false;
+          };
+          irradiance = Irradiance(lights, axis_down, point, normal, shadowed);
         }
         value *= light.ambient + (1.0 - light.ambient) * light.ring_gain * irradiance / light_e0_;
       }

@@ -65,11 +65,13 @@ bool LightOptions::Check(std::string* why) const {
   return true;
 }
 
-Relief::Relief(std::unique_ptr<Floor> source, const ReliefOptions& options)
-    : source_(std::move(source)), options_(options) {
+Relief::Relief(std::unique_ptr<Floor> source, const ReliefOptions& options) : Relief(*source, options) {
+  owned_ = std::move(source);
+}
+
+Relief::Relief(const Floor& source, const ReliefOptions& options) : source_(&source), options_(options) {
   std::string why;
   if (!options_.Check(&why)) core::ThrowInvalidInput("relief: " + why);
-  if (!source_) core::ThrowInvalidInput("relief: no floor to take the relief from");
   if (options_.source != "albedo") return;
   sigma_ = options_.smoothing_mm / source_->mm_per_texel();
   margin_ = sigma_ > 0.0 ? static_cast<int>(std::ceil(3.0 * sigma_)) + 1 : 0;

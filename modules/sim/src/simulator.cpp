@@ -107,15 +107,15 @@ std::unique_ptr<Floor> MakeFloor(const FloorChoice& choice) {
   core::ThrowInvalidInput("floor: kind '" + choice.kind + "'");  // Check() refused it above
 }
 
-std::unique_ptr<Relief> MakeRelief(const FloorChoice& floor, const ReliefOptions& relief) {
+std::unique_ptr<Relief> MakeRelief(const Floor& floor, const ReliefOptions& relief) {
   std::string why;
   if (!relief.Check(&why)) core::ThrowInvalidInput("relief: " + why);
   if (!relief.any()) return nullptr;
-  if (relief.source == "albedo") return std::make_unique<Relief>(MakeFloor(floor), relief);
+  if (relief.source == "albedo") return std::make_unique<Relief>(floor, relief);
   // The height image lies on the floor's texel grid.
   ImageFloorOptions heights;
   heights.image = relief.height_image;
-  heights.mm_per_texel = MakeFloor(floor)->mm_per_texel();
+  heights.mm_per_texel = floor.mm_per_texel();
   return std::make_unique<Relief>(MakeImageFloor(heights), relief);
 }
 
@@ -213,9 +213,11 @@ SimulationSummary Simulate(const SimulatorOptions& options, const std::filesyste
                                     : Drive::LapsForFrames(options.route, options.frames, options.frame_rate_hz);
   const Drive drive(options.route, laps, options.seed);
   std::unique_ptr<Floor> floor = MakeFloor(options.floor);
+  // The relief is the floor's own, not its changes' (grime lies on the tops and in the joints).
+  const Floor* base = floor.get();  // kept alive by `floor`, which may wrap it
   if (options.changes.any()) floor = ChangedFloor(std::move(floor), options.changes, WheelPaths(drive, options));
   const CameraPlacement placement = MakeCameraPlacement(options);
-  const std::unique_ptr<Relief> relief = MakeRelief(options.floor, options.relief);
+  const std::unique_ptr<Relief> relief = MakeRelief(*base, options.relief);
   const Surface surface{relief.get(), options.light, options.camera_height_mm};
   // The frames as the camera really sees them: straight down from its true height, or
   // through the rays of its 3-D pose (into the relief, under the camera's light).

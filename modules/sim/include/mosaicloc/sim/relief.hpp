@@ -59,12 +59,16 @@ class Relief {
   /// `source`: the floor itself (source "albedo") or the height image's floor ("image"),
   /// on the same texel grid as the floor the camera sees. Throws core::Error for bad options.
   Relief(std::unique_ptr<Floor> source, const ReliefOptions& options);
+  /// The same from a floor the caller keeps alive as long as the Relief (the floor the camera
+  /// sees, for source "albedo", sharing its tiles).
+  Relief(const Floor& source, const ReliefOptions& options);
   double depth_mm() const { return options_.depth_mm; }
   /// Depths of texels [col0, col0 + cols) x [row0, row0 + rows), CV_32F mm (rows x cols).
   cv::Mat Depth(std::int64_t col0, std::int64_t row0, int cols, int rows) const;
 
  private:
-  std::unique_ptr<Floor> source_;
+  std::unique_ptr<Floor> owned_;
+  const Floor* source_ = nullptr;
   ReliefOptions options_;
   int margin_ = 0;      ///< texels rendered around a window for the smoothing
   double sigma_ = 0.0;  ///< smoothing, texels

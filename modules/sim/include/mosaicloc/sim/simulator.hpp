@@ -36,8 +36,9 @@ struct FloorChoice {
 
 /// Builds the floor; throws core::Error (invalid input) naming the image file or option.
 std::unique_ptr<Floor> MakeFloor(const FloorChoice& choice);
-/// The floor's relief (null when its depth is 0); throws core::Error naming the height image.
-std::unique_ptr<Relief> MakeRelief(const FloorChoice& floor, const ReliefOptions& relief);
+/// The relief of `floor` (which must outlive it), null when its depth is 0; throws core::Error
+/// naming the height image.
+std::unique_ptr<Relief> MakeRelief(const Floor& floor, const ReliefOptions& relief);
 
 struct SimulatorOptions {
   FloorChoice floor;
