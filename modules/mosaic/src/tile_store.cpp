@@ -269,6 +269,9 @@ void TileStore::Checkpoint() {
   if (rc != SQLITE_OK) {
     core::ThrowRuntime(file_.string() + ": cannot checkpoint the write-ahead log into the map: " + sqlite3_errmsg(db_));
   }
+  // A finished map in WAL mode makes every reader leave a log and a shared-memory file beside
+  // it (a read-only connection cannot remove them); the next writable Open turns WAL on again.
+  Execute("PRAGMA journal_mode=DELETE;");
 }
 
 std::vector<TileKey> TileStore::List(int level) const {

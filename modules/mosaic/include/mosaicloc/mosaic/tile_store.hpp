@@ -76,9 +76,10 @@ class TileStore {
   std::vector<TileKey> List(int level = -1) const;
   std::int64_t Count(int level = -1) const;
 
-  /// Copies every committed write from the write-ahead log into the map file itself and
-  /// empties the log, so that the file alone holds the map (before it is moved or copied).
-  /// Throws core::Error if a reader keeps it from completing.
+  /// Copies every committed write from the write-ahead log into the map file itself, empties
+  /// the log and leaves WAL mode, so that the file alone holds the map (before it is moved or
+  /// copied) and readers open it without creating files beside it; the next writable Open
+  /// returns to WAL. Throws core::Error if a reader keeps it from completing.
   void Checkpoint();
 
   /// zlib level (0-9) of the tiles Write encodes from now on; throws core::Error (invalid
