@@ -41,8 +41,12 @@ class StraightDriveReplay : public ::testing::Test {
     scratch_ = new test::ScratchDir();
     sim::Simulate(Run(false), scratch_->path() / "map-run", false);
     sim::Simulate(Run(true), scratch_->path() / "drive", false);
+    PaintAtTruth(scratch_->path() / "map-run", scratch_->path() / "floor.mosaic");
+  }
 
-    const dataset::DatasetReader reader(scratch_->path() / "map-run");
+  // The map of the dataset `run` painted at its true poses into `map`.
+  static void PaintAtTruth(const std::filesystem::path& run, const std::filesystem::path& map) {
+    const dataset::DatasetReader reader(run);
     const dataset::Trajectory truth = reader.GroundTruth();
     mosaic::MapBuilder builder(mosaic::MapGrid{}, mosaic::Blend::kFeather);
     auto frames = reader.Frames();
@@ -50,7 +54,7 @@ class StraightDriveReplay : public ::testing::Test {
       const auto pose = dataset::PoseAt(truth, frame->time, std::chrono::milliseconds(100));
       if (pose) builder.AddFrame(frame->image, *pose * reader.info().camera.vehicle_from_camera, 0.25);
     }
-    auto store = mosaic::TileStore::Create(scratch_->path() / "floor.mosaic", mosaic::MapGrid{});
+    auto store = mosaic::TileStore::Create(map, mosaic::MapGrid{});
     builder.Write(*store);
   }
   static void TearDownTestSuite() {
