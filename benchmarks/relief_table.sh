@@ -8,22 +8,20 @@
 # wheels 2 % / 2.5 % larger than calibrated, replayed with the tracker of CONFIG (default: config/default). Every row
 # counts wrong fixes (more than 1 mm from the truth; on a self-built map that includes the
 # map's own frame error, so "aligned" gives the RMS after the best rigid alignment).
-# Usage: benchmarks/relief_table.sh [MOSAICLOC] [WORK_DIR] [DEPTHS] [FLOORS] [CONFIG]
+# Usage: benchmarks/relief_table.sh [MOSAICLOC] [WORK_DIR] [DEPTHS] [FLOORS] [CONFIGS]
 set -euo pipefail
 HERE="$(cd "$(dirname "$0")/.." && pwd)"
 MOSAICLOC=${1:-$HERE/build/release/app/mosaicloc}
 WORK=${2:-$(mktemp -d)}
 DEPTHS=${3:-0 1 2 3}
 FLOORS=${4:-brick procedural}
-CONFIG=${5:-}
+CONFIGS=${5:-$HERE/config/default/localizer.yaml}
 TEXTURES=${MOSAICLOC_SHARED_DATA:-$HERE/../shared/data}/textures
 PYTHON=/usr/bin/python3
 LIGHT='light: {sources: 8, ring_radius_mm: 50.0, ambient: 0.1}'
 DIMMER='light: {sources: 8, ring_radius_mm: 50.0, ambient: 0.1, ring_gain: 0.85}'
 WHEELS='encoders: {left_radius_error: 0.02, right_radius_error: 0.025}'
 mkdir -p "$WORK"
-replay_config=()
-[ -n "$CONFIG" ] && replay_config=(--config "$CONFIG")
 
 row() {  # row LABEL REPORT_DIR ALIGNED_RMS
   "$PYTHON" - "$@" <<'PY'
@@ -32,14 +30,14 @@ label, rep, aligned = sys.argv[1:4]
 try:
     m = json.load(open(rep + "/metrics.json"))
 except OSError:
-    print(f"{label:<28} no report"); sys.exit()
+    print(f"{label:<40} no report"); sys.exit()
 g = lambda k, f: (f % m[k]) if m.get(k) is not None else "n/a"
-print(f"{label:<28} {g('fix_rate','%8.4f')} {g('lock_losses','%6d')} {g('wrong_fixes','%6d')} {g('position_rms_mm','%8.4f')} "
+print(f"{label:<40} {g('fix_rate','%8.4f')} {g('lock_losses','%6d')} {g('wrong_fixes','%6d')} {g('position_rms_mm','%8.4f')} "
       f"{g('position_max_mm','%8.4f')} {aligned:>8} {g('repeatability_mm','%8.4f')} {g('processing_fps','%7.0f')}")
 PY
 }
 
-printf '%-28s %8s %6s %6s %8s %8s %8s %8s %7s\n' case fix_rate losses wrong rms_mm max_mm aligned repeat fps
+printf '%-40s %8s %6s %6s %8s %8s %8s %8s %7s\n' case fix_rate losses wrong rms_mm max_mm aligned repeat fps
 for name in $FLOORS; do
   case $name in
     procedural) floor=procedural; scale=0.5 ;;
@@ -69,13 +67,16 @@ for name in $FLOORS; do
       for drive in drive fast; do
         route=loop
         [ $drive = fast ] && route=straight
-        rm -rf "${d:?}/rep-$poses-$drive"
-        "$MOSAICLOC" -q replay --dataset "$d/$drive" --map "$d/$poses-$route.mosaic" --out "$d/rep-$poses-$drive" \
-          "${replay_config[@]}" >/dev/null 2>&1 || true
-        rep="$d/rep-$poses-$drive"
-        al=$("$PYTHON" "$HERE/benchmarks/aligned.py" "$rep/estimate.tum" "$d/$drive/groundtruth/data.tum" 2>/dev/null \
-          | cut -d' ' -f1 || echo n/a)
-        row "$name $(awk "BEGIN{print $depth * $scale}")mm $poses $drive" "$rep" "${al:-n/a}"
+        for config in $CONFIGS; do
+          tag=$(basename "$config" .yaml)
+          rep="$d/rep-$poses-$drive-$tag"
+          rm -rf "$rep"
+          "$MOSAICLOC" -q replay --dataset "$d/$drive" --map "$d/$poses-$route.mosaic" --out "$rep" --config "$config" \
+            >/dev/null 2>&1 || true
+          al=$("$PYTHON" "$HERE/benchmarks/aligned.py" "$rep/estimate.tum" "$d/$drive/groundtruth/data.tum" 2>/dev/null \
+            | cut -d' ' -f1 || echo n/a)
+          row "$name $(awk "BEGIN{print $depth * $scale}")mm $poses $drive $tag" "$rep" "${al:-n/a}"
+        done
       done
     done
   done
