@@ -314,6 +314,19 @@ cv::Mat Imager::RenderSurface(const PixelToWorld& pixel_to_world, const SurfaceV
   cv::Mat albedo;
   floor_.Render(col0, row0, cols, rows).convertTo(albedo, CV_32F);
   const cv::Mat depth = depth_max > 0.0 ? surface_.relief->Depth(col0, row0, cols, rows) : cv::Mat();
+  // Texels whose 4 x 4 neighbourhood (every bilinear sample of a point in the texel and half a
+  // texel around it) is all top: the common case, with no slope to take.
+  cv::Mat level;
+  if (depth_max > 0.0) {
+    cv::Mat low = depth > 0.0f;
+    cv::dilate(low, low, cv::Mat::ones(4, 4, CV_8U), cv::Point(1, 1), 1, cv::BORDER_CONSTANT, cv::Scalar(255));
+    level = low == 0;
+  }
+  const auto is_level = [&](const Eigen::Vector2d& at) {
+    if (depth_max <= 0.0) return true;
+    const int c = static_cast<int>(std::floor(at.x())), r = static_cast<int>(std::floor(at.y()));
+    return c >= 0 && r >= 0 && c < level.cols && r < level.rows && level.at<std::uint8_t>(r, c) != 0;
+  };
 
   // Bilinear samples at patch coordinates (texel centres at integers), clamped to the patch.
   const auto sample = [](const cv::Mat& raster, double c, double r) {
@@ -340,7 +353,8 @@ cv::Mat Imager::RenderSurface(const PixelToWorld& pixel_to_world, const SurfaceV
       // March down the ray until it is below the surface, then place the hit between the last
       // two steps (the surface's first crossing: what lies in front hides what lies behind).
       double hit_depth = 0.0;
-      if (depth_max > 0.0) {
+      const bool level_top = is_level(top);
+      if (!level_top) {
         double gap = depth_at(top.x(), top.y());
         if (gap > 0.0) {
           const double step = std::min(0.25 * depth_max, 0.5 / std::max(step_dir.norm(), 1e-9));
@@ -362,9 +376,11 @@ cv::Mat Imager::RenderSurface(const PixelToWorld& pixel_to_world, const SurfaceV
       double value = sample(albedo, hit.x(), hit.y());
       if (!lights.empty()) {
         // The surface's normal from the depth's slope (height = top - depth).
-        const double ddx = (depth_at(hit.x() + 0.5, hit.y()) - depth_at(hit.x() - 0.5, hit.y())) / t;
-        const double ddy = -(depth_at(hit.x(), hit.y() + 0.5) - depth_at(hit.x(), hit.y() - 0.5)) / t;
         double irradiance = 0.0;
+        const double ddx =
+            level_top ? 0.0 : (depth_at(hit.x() + 0.5, hit.y()) - depth_at(hit.x() - 0.5, hit.y())) / t;
+        const double ddy =
+            level_top ? 0.0 : -(depth_at(hit.x(), hit.y() + 0.5) - depth_at(hit.x(), hit.y() - 0.5)) / t;
         if (hit_depth == 0.0 && ddx == 0.0 && ddy == 0.0) {
           irradiance = grid.Interpolate(flat_irradiance, us, vs, k);  // a level top: smooth over the view
         } else {
@@ -376,7 +392,7 @@ cv::Mat Imager::RenderSurface(const PixelToWorld& pixel_to_world, const SurfaceV
           const auto shadowed = [&](const Eigen::Vector3d& to_light) {
             if (hit_depth <= 0.0) return false;
             const Eigen::Vector2d rise(to_light.x() / to_light.z() / t, -to_light.y() / to_light.z() / t);
-            const double step = std::min(hit_depth, 0.5 / std::max(rise.norm(), 1e-9));
+            const double step = std::min(hit_depth, 1.0 / std::max(rise.norm(), 1e-9));
             for (double e = step; e < hit_depth; e += step) {
               if (depth_at(hit.x() + e * rise.x(), hit.y() + e * rise.y()) < hit_depth - e - 1e-3) return true;
             }
