@@ -180,9 +180,11 @@ TEST(PoseSolver, OptimumEqualsCeresSolve) {
     solver_options.logging_type = ceres::SILENT;
     ceres::Solver::Summary summary;
     ceres::Solve(solver_options, &problem, &summary);
-    EXPECT_NEAR(s.world_from_camera.x_mm(), pose[0], 1e-8) << static_cast<int>(loss);
-    EXPECT_NEAR(s.world_from_camera.y_mm(), pose[1], 1e-8) << static_cast<int>(loss);
-    EXPECT_NEAR(s.world_from_camera.yaw_rad(), pose[2], 1e-10) << static_cast<int>(loss);
+    // The rounds stop once a round moves the position by under 10 nm: a nanometre from the
+    // fixed point.
+    EXPECT_NEAR(s.world_from_camera.x_mm(), pose[0], 2e-6) << static_cast<int>(loss);
+    EXPECT_NEAR(s.world_from_camera.y_mm(), pose[1], 2e-6) << static_cast<int>(loss);
+    EXPECT_NEAR(s.world_from_camera.yaw_rad(), pose[2], 2e-8) << static_cast<int>(loss);
   }
 }
 
