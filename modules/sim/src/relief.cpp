@@ -76,11 +76,7 @@ Relief::Relief(const Floor& source, const ReliefOptions& options) : source_(&sou
   sigma_ = options_.smoothing_mm / source_->mm_per_texel();
   margin_ = sigma_ > 0.0 ? static_cast<int>(std::ceil(3.0 * sigma_)) + 1 : 0;
   // The thresholds: brightness quantiles of the smoothed picture over a window at the origin.
-  cv::Mat window = source_->Render(-margin_, -margin_, kSampleTexels + 2 * margin_, kSampleTexels + 2 * margin_);
-  cv::Mat smooth;
-  window.convertTo(smooth, CV_32F);
-  if (margin_ > 0) cv::GaussianBlur(smooth, smooth, cv::Size(2 * margin_ + 1, 2 * margin_ + 1), sigma_);
-  smooth = smooth(cv::Rect(margin_, margin_, kSampleTexels, kSampleTexels)).clone();
+  const cv::Mat smooth = Smoothed(0, 0, kSampleTexels, kSampleTexels);
   std::vector<float> values(smooth.begin<float>(), smooth.end<float>());
   const auto quantile = [&](double q) {
     const auto k = static_cast<std::ptrdiff_t>(q * static_cast<double>(values.size() - 1));
@@ -89,6 +85,13 @@ Relief::Relief(const Floor& source, const ReliefOptions& options) : source_(&sou
   };
   dark_ = quantile(options_.low_fraction);
   light_ = std::max(quantile(options_.low_fraction + options_.slope_fraction), dark_ + 1.0);
+}
+
+cv::Mat Relief::Smoothed(std::int64_t col0, std::int64_t row0, int cols, int rows) const {
+  cv::Mat smooth;
+  source_->Render(col0 - margin_, row0 - margin_, cols + 2 * margin_, rows + 2 * margin_).convertTo(smooth, CV_32F);
+  if (margin_ > 0) cv::GaussianBlur(smooth, smooth, cv::Size(2 * margin_ + 1, 2 * margin_ + 1), sigma_);
+  return smooth(cv::Rect(margin_, margin_, cols, rows));
 }
 
 cv::Mat Relief::Depth(std::int64_t col0, std::int64_t row0, int cols, int rows) const {
@@ -101,13 +104,11 @@ cv::Mat Relief::Depth(std::int64_t col0, std::int64_t row0, int cols, int rows) 
     cv::subtract(255.0, depth, depth);
     return depth * (options_.depth_mm / 255.0);
   }
-  cv::Mat smooth;
-  source_->Render(col0 - margin_, row0 - margin_, cols + 2 * margin_, rows + 2 * margin_).convertTo(smooth, CV_32F);
-  if (margin_ > 0) cv::GaussianBlur(smooth, smooth, cv::Size(2 * margin_ + 1, 2 * margin_ + 1), sigma_);
+  const cv::Mat smooth = Smoothed(col0, row0, cols, rows);
   depth.create(rows, cols, CV_32F);
   const double scale = 1.0 / (light_ - dark_);
   for (int r = 0; r < rows; ++r) {
-    const float* in = smooth.ptr<float>(r + margin_) + margin_;
+    const float* in = smooth.ptr<float>(r);
     float* out = depth.ptr<float>(r);
     for (int c = 0; c < cols; ++c) {
       // 1 at and below dark_, 0 at and above light_, a smooth step between.

@@ -31,6 +31,25 @@ struct FilteredRaster {
   // the block ends: lo <= x < hi.
   double lo_x = 0.0, lo_y = 0.0, hi_x = 0.0, hi_y = 0.0;
   bool whole = false;  // the largest block, filtered to its edges (every position may be tried)
+
+  // The bilinear sample at raster position (x, y) into *value; false where the block does not
+  // hold it or it touches unmapped floor.
+  bool Sample(double x, double y, double* value) const {
+    const int ix = static_cast<int>(x) - offset_x, iy = static_cast<int>(y) - offset_y;
+    if (ix < 0 || iy < 0 || ix > raster.cols - 2 || iy > raster.rows - 2) return false;
+    if (!region.all_mapped) {
+      const std::uint8_t* m0 = mask.ptr<std::uint8_t>(iy) + ix;
+      const std::uint8_t* m1 = mask.ptr<std::uint8_t>(iy + 1) + ix;
+      if ((m0[0] & m0[1] & m1[0] & m1[1]) == 0) return false;
+    }
+    const float* p0 = raster.ptr<float>(iy) + ix;
+    const float* p1 = raster.ptr<float>(iy + 1) + ix;
+    const double fx = x - (ix + offset_x), fy = y - (iy + offset_y);
+    const double top = p0[0] + fx * (p0[1] - p0[0]);
+    const double bottom = p1[0] + fx * (p1[1] - p1[0]);
+    *value = top + fy * (bottom - top);
+    return true;
+  }
 };
 
 // Fetches and filters the block `margin` px around `bounds`; the largest is `full_margin`.
@@ -77,9 +96,6 @@ void LoadRaster(const ReferenceRaster& reference, const detail::RasterBounds& bo
 bool RobustPasses(const FilteredRaster& filtered, const std::vector<double>& base_x, const std::vector<double>& base_y,
                   const std::vector<double>& templ, const std::vector<double>& jac_x, const std::vector<double>& jac_y,
                   std::size_t n, const RefineOptions& options, Eigen::Vector2d* t, RefinedMatch* match) {
-  const float* pixels = filtered.raster.ptr<float>(0);
-  const std::size_t stride = filtered.raster.step1();
-  const int max_col = filtered.raster.cols - 2, max_row = filtered.raster.rows - 2;
   thread_local std::vector<double> value, residual, magnitude;
   thread_local std::vector<unsigned char> known;
   value.resize(n);
@@ -94,22 +110,8 @@ bool RobustPasses(const FilteredRaster& filtered, const std::vector<double>& bas
     double sm = 0.0, smm = 0.0;
     used = 0;
     for (std::size_t k = 0; k < n; ++k) {
-      const double x = base_x[k] + t->x(), y = base_y[k] + t->y();
-      const int ix = static_cast<int>(x) - filtered.offset_x, iy = static_cast<int>(y) - filtered.offset_y;
-      bool ok = ix >= 0 && iy >= 0 && ix <= max_col && iy <= max_row;
-      if (ok && !filtered.region.all_mapped) {
-        const std::uint8_t* m0 = filtered.mask.ptr<std::uint8_t>(iy) + ix;
-        const std::uint8_t* m1 = filtered.mask.ptr<std::uint8_t>(iy + 1) + ix;
-        ok = (m0[0] & m0[1] & m1[0] & m1[1]) != 0;
-      }
-      known[k] = ok ? 1 : 0;
-      if (!ok) continue;
-      const float* p0 = pixels + static_cast<std::size_t>(iy) * stride + ix;
-      const float* p1 = p0 + stride;
-      const double fx = x - (ix + filtered.offset_x), fy = y - (iy + filtered.offset_y);
-      const double top = p0[0] + fx * (p0[1] - p0[0]);
-      const double bottom = p1[0] + fx * (p1[1] - p1[0]);
-      value[k] = top + fy * (bottom - top);
+      known[k] = filtered.Sample(base_x[k] + t->x(), base_y[k] + t->y(), &value[k]) ? 1 : 0;
+      if (!known[k]) continue;
       sm += value[k];
       smm += value[k] * value[k];
       ++used;
@@ -287,7 +289,6 @@ RefinedMatch RefineDirect(const cv::Mat& frame, const cv::Rect& rect, const Refe
     }
     const float* pixels = filtered.raster.ptr<float>(0);
     const std::size_t stride = filtered.raster.step1();
-    const int max_col = filtered.raster.cols - 2, max_row = filtered.raster.rows - 2;
     const int offset_x = filtered.offset_x, offset_y = filtered.offset_y;
     const bool all_known = filtered.region.all_mapped;
     double sm = 0.0, smm = 0.0, sjxm = 0.0, sjym = 0.0, smt = 0.0;
@@ -307,15 +308,8 @@ RefinedMatch RefineDirect(const cv::Mat& frame, const cv::Rect& rect, const Refe
       used = n;
     } else {
       for (std::size_t k = 0; k < n; ++k) {
-        const double x = base_x[k] + t.x(), y = base_y[k] + t.y();
-        const int ix = static_cast<int>(x) - offset_x, iy = static_cast<int>(y) - offset_y;
-        bool ok = ix >= 0 && iy >= 0 && ix <= max_col && iy <= max_row;
-        if (ok && !all_known) {
-          const std::uint8_t* m0 = filtered.mask.ptr<std::uint8_t>(iy) + ix;
-          const std::uint8_t* m1 = filtered.mask.ptr<std::uint8_t>(iy + 1) + ix;
-          ok = (m0[0] & m0[1] & m1[0] & m1[1]) != 0;
-        }
-        if (!ok) {
+        double v = 0.0;
+        if (!filtered.Sample(base_x[k] + t.x(), base_y[k] + t.y(), &v)) {
           // Take this sample out of the precomputed sums.
           pjx -= jac_x[k];
           pjy -= jac_y[k];
@@ -328,12 +322,6 @@ RefinedMatch RefineDirect(const cv::Mat& frame, const cv::Rect& rect, const Refe
           h(1, 1) -= jac_y[k] * jac_y[k];
           continue;
         }
-        const float* p0 = pixels + static_cast<std::size_t>(iy) * stride + ix;
-        const float* p1 = p0 + stride;
-        const double fx = x - (ix + offset_x), fy = y - (iy + offset_y);
-        const double top = p0[0] + fx * (p0[1] - p0[0]);
-        const double bottom = p1[0] + fx * (p1[1] - p1[0]);
-        const double v = top + fy * (bottom - top);
         sm += v;
         smm += v * v;
         sjxm += jac_x[k] * v;
@@ -373,13 +361,11 @@ RefinedMatch RefineDirect(const cv::Mat& frame, const cv::Rect& rect, const Refe
     // The reweighted fit may move further: every sample it may ask for.
     if (!filtered.whole) LoadRaster(reference, bounds, full_margin, full_margin, options.prefilter_sigma_px, &filtered);
     if (!RobustPasses(filtered, base_x, base_y, templ, jac_x, jac_y, n, options, &t, &match)) return match;
-    const Eigen::Vector2d centre(rect.x + 0.5 * (rect.width - 1), rect.y + 0.5 * (rect.height - 1));
-    match.centre_raster = ApplyAffine(frame_to_raster, centre) + t;
-    return match;
+  } else {
+    const double dof = std::max(1.0, static_cast<double>(used) - 2.0);
+    match.covariance_px2 = (sum_e2 / dof) * hessian.inverse();
+    match.zncc = 1.0 - sum_e2 / (2.0 * static_cast<double>(used));
   }
-  const double dof = std::max(1.0, static_cast<double>(used) - 2.0);
-  match.covariance_px2 = (sum_e2 / dof) * hessian.inverse();
-  match.zncc = 1.0 - sum_e2 / (2.0 * static_cast<double>(used));
   const Eigen::Vector2d centre(rect.x + 0.5 * (rect.width - 1), rect.y + 0.5 * (rect.height - 1));
   match.centre_raster = ApplyAffine(frame_to_raster, centre) + t;
   return match;

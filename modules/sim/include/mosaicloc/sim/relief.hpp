@@ -67,6 +67,10 @@ class Relief {
   cv::Mat Depth(std::int64_t col0, std::int64_t row0, int cols, int rows) const;
 
  private:
+  /// The source's brightness over texels [col0, col0 + cols) x [row0, row0 + rows), CV_32F,
+  /// smoothed by the Gaussian from a margin rendered around them (so any window agrees).
+  cv::Mat Smoothed(std::int64_t col0, std::int64_t row0, int cols, int rows) const;
+
   std::unique_ptr<Floor> owned_;
   const Floor* source_ = nullptr;
   ReliefOptions options_;
