@@ -26,5 +26,6 @@ Action AddRunCommand(CLI::App& app, const GlobalOptions& global);
 Action AddPlcSimCommand(CLI::App& app, const GlobalOptions& global);
 Action AddLimitsCommand(CLI::App& app, const GlobalOptions& global);
 Action AddCalibrateCommand(CLI::App& app, const GlobalOptions& global);
+Action AddLocateCommand(CLI::App& app, const GlobalOptions& global);
 
 }  // namespace mosaicloc::app

@@ -38,6 +38,7 @@ int main(int argc, char** argv) {
   add(app::AddEvaluateCommand);
   add(app::AddReplayCommand);
   add(app::AddMapCommand);
+  add(app::AddLocateCommand);
   add(app::AddBenchCommand);
   add(app::AddRunCommand);
   add(app::AddPlcSimCommand);

@@ -14,6 +14,7 @@
 #include "mosaicloc/mosaic/tile_store.hpp"
 #include "mosaicloc/runtime/map_jobs.hpp"
 #include "mosaicloc/runtime/map_poses.hpp"
+#include "mosaicloc/tracking/place_index.hpp"
 #include "progress.hpp"
 
 namespace mosaicloc::app {
@@ -96,15 +97,18 @@ void Build(const runtime::MapBuildOptions& args, const GlobalOptions& global) {
     nlohmann::json result = {{"map", fs::absolute(args.out).string()}, {"frames_painted", r.painted},
                              {"frames_without_pose", r.without_pose}, {"tiles", r.tiles},
                              {"level0_tiles", r.level0_tiles}, {"resumed_after_frames", r.resumed_after},
+                             {"place_features", r.place_features},
                              {"poses", args.poses}};
     if (r.mapping) result["mapping"] = MappingJson(*r.mapping);
     PrintJson(result);
     return;
   }
   if (r.mapping && !global.quiet) PrintMapping(*r.mapping);
-  std::printf("map %s: %lld frames painted (%lld without a pose), %lld tiles (%lld at level 0)",
+  std::printf("map %s: %lld frames painted (%lld without a pose), %lld tiles (%lld at level 0), a place index of "
+              "%lld features",
               args.out.string().c_str(), static_cast<long long>(r.painted), static_cast<long long>(r.without_pose),
-              static_cast<long long>(r.tiles), static_cast<long long>(r.level0_tiles));
+              static_cast<long long>(r.tiles), static_cast<long long>(r.level0_tiles),
+              static_cast<long long>(r.place_features));
   if (r.resumed_after > 0) {
     std::printf("; resumed after %lld of %lld frames", static_cast<long long>(r.resumed_after),
                 static_cast<long long>(r.frames));
@@ -125,6 +129,14 @@ void Info(const MapArgs& args, const GlobalOptions& global) {
                              {"origin_y_mm", grid.origin_y_mm}, {"tile_size_px", grid.tile_size_px},
                              {"levels", levels}, {"tiles", info.tiles}, {"bytes_on_disk", info.bytes_on_disk}};
     if (!info.extent_mm.empty()) result["extent_mm"] = info.extent_mm;
+    if (info.places) {
+      result["place_index"] = {{"format_version", info.places->format_version}, {"method", info.places->method},
+                               {"level", info.places->level}, {"cells", info.places->cells},
+                               {"features", info.places->bytes / static_cast<std::int64_t>(tracking::kPlaceRecordBytes)},
+                               {"bytes", info.places->bytes}};
+    } else {
+      result["place_index"] = nullptr;
+    }
     PrintJson(result);
     return;
   }
@@ -139,6 +151,29 @@ void Info(const MapArgs& args, const GlobalOptions& global) {
     std::printf("  level %d: %.4g mm/px, %lld tiles\n", k, grid.LevelMmPerPx(k),
                 static_cast<long long>(info.tiles_per_level[k]));
   }
+  if (info.places) {
+    std::printf("  place index: %lld features (%s, level %d) in %lld cells, %.1f MiB\n",
+                static_cast<long long>(info.places->bytes / static_cast<std::int64_t>(tracking::kPlaceRecordBytes)),
+                info.places->method.c_str(), info.places->level, static_cast<long long>(info.places->cells),
+                static_cast<double>(info.places->bytes) / (1 << 20));
+  } else {
+    std::printf("  place index: none (global relocalization needs one: mosaicloc map index %s)\n",
+                args.map.string().c_str());
+  }
+}
+
+void Index(const MapArgs& args, const GlobalOptions& global) {
+  ProgressBar progress("map index", global.quiet);
+  const runtime::MapIndexSummary r = runtime::IndexMap(args.map, progress.Callback());
+  progress.Finish();
+  if (global.json) {
+    PrintJson({{"map", args.map.string()}, {"cells", r.cells}, {"features", r.features}, {"bytes", r.bytes},
+               {"seconds", r.seconds}});
+    return;
+  }
+  std::printf("%s: place index of %lld features in %lld cells, %.1f MiB, built in %.1f s\n", args.map.string().c_str(),
+              static_cast<long long>(r.features), static_cast<long long>(r.cells),
+              static_cast<double>(r.bytes) / (1 << 20), r.seconds);
 }
 
 void Check(const MapArgs& args, const GlobalOptions& global) {
@@ -214,15 +249,20 @@ Action AddMapCommand(CLI::App& app, const GlobalOptions& global) {
                     "Optimize this g2o pose graph of the drive's frames instead of registering them");
   CLI::App* info = command->add_subcommand("info", "Extent, resolution, levels, tiles and size of a map");
   info->add_option("MAP", args->map, "Map file")->required();
-  CLI::App* check = command->add_subcommand("check", "Verify every tile (CRC, PNG, size); exit 2 on damage");
+  CLI::App* check = command->add_subcommand(
+      "check", "Verify every tile (CRC, PNG, size) and the place index's cells (CRC); exit 2 on damage");
   check->add_option("MAP", args->map, "Map file")->required();
+  CLI::App* index = command->add_subcommand(
+      "index", "Build (or rebuild) the map's place index, which global relocalization looks frames up in");
+  index->add_option("MAP", args->map, "Map file")->required();
   CLI::App* export_command = command->add_subcommand("export", "Write a map level (or a region of it) as a PNG");
   export_command->add_option("MAP", args->export_.map, "Map file")->required();
   export_command->add_option("--out", args->export_.out, "PNG file to write")->required();
   export_command->add_option("--level", args->export_.level, "Pyramid level (default: the finest within 8192 px)")
       ->check(CLI::Range(0, 15));
   export_command->add_option("--region", args->export_.region, "x0,y0,x1,y1 in world mm");
-  return [args, &global, build, poses, info, check, export_command] {
+  return [args, &global, build, poses, info, check, index, export_command] {
+    if (index->parsed()) Index(*args, global);
     if (build->parsed()) Build(args->build, global);
     if (poses->parsed()) Poses(args->poses, global);
     if (info->parsed()) Info(*args, global);

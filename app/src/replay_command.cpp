@@ -23,6 +23,10 @@ struct ReplayArgs {
   std::vector<double> start_offset;  // dx_mm, dy_mm, dyaw_deg in the start's vehicle frame
   bool prefetch = false;             // load tiles ahead on the prefetcher's threads, as `run` does
   bool relocalize = false;           // the start is not to be trusted: relocalize without it
+  bool unknown_start = false;
+  double kidnap_at_s = -1.0;
+  std::vector<double> kidnap_offset;  // dx_mm, dy_mm, dyaw_deg in the vehicle's frame
+  bool kidnap_told = false;
 };
 
 void Run(const ReplayArgs& args, const GlobalOptions& global) {
@@ -46,6 +50,14 @@ void Run(const ReplayArgs& args, const GlobalOptions& global) {
         core::Pose2(args.start_offset[0], args.start_offset[1], args.start_offset[2] * std::numbers::pi / 180.0);
   }
   options.relocalize = args.relocalize;
+  options.unknown_start = args.unknown_start;
+  if (args.kidnap_at_s >= 0.0) {
+    if (args.kidnap_offset.size() != 3) core::ThrowInvalidInput("--kidnap-at-s needs --kidnap-offset DX,DY,DYAW");
+    options.kidnap_at_s = args.kidnap_at_s;
+    options.kidnap_offset = core::Pose2(args.kidnap_offset[0], args.kidnap_offset[1],
+                                        args.kidnap_offset[2] * std::numbers::pi / 180.0);
+    options.kidnap_told = args.kidnap_told;
+  }
   options.prefetch = args.prefetch;
 
   ProgressBar progress("replay", global.quiet);
@@ -83,6 +95,20 @@ Action AddReplayCommand(CLI::App& app, const GlobalOptions& global) {
                     "mosaic mode: the start pose is not to be trusted (the vehicle was moved while switched off, "
                     "or the start is a guess): search the map around it and take the one place found, whatever "
                     "the start's uncertainty says");
+  command->add_flag("--unknown-start", args->unknown_start,
+                    "mosaic mode: the start pose is not known at all: search the whole map through its place index "
+                    "until a frame is found (global relocalization)");
+  command->add_option("--kidnap-at-s", args->kidnap_at_s,
+                      "mosaic mode: this many seconds into the drive the vehicle is carried away unseen: the "
+                      "estimate is moved by --kidnap-offset and held there confidently")
+      ->check(CLI::NonNegativeNumber);
+  command->add_option("--kidnap-offset", args->kidnap_offset,
+                      "dx_mm,dy_mm,dyaw_deg of the kidnap in the vehicle's frame")
+      ->delimiter(',')
+      ->expected(3);
+  command->add_flag("--kidnap-told", args->kidnap_told,
+                    "with --kidnap-at-s: the localizer is told its pose is unknown, as the PLC's relocalize request "
+                    "tells it");
   command->add_flag("--prefetch", args->prefetch,
                     "mosaic mode: load the map's tiles ahead on threads of their own, as `run` does "
                     "(map.prefetch_horizon_s of the configuration); the estimates do not change");

@@ -34,6 +34,12 @@ void PrintMetrics(const std::filesystem::path& directory, const dataset::Metrics
   if (metrics.fix_rate) show("fix rate", std::optional<double>(100.0 * *metrics.fix_rate), "%");
   show("lock losses", metrics.lock_losses, "");
   show("wrong fixes (> 1 mm)", metrics.wrong_fixes, "");
+  if (metrics.frames_to_first_fix && *metrics.frames_to_first_fix > 0) {
+    show("frames to first fix", metrics.frames_to_first_fix, "");
+    show("first fix after", metrics.first_fix_s, "s");
+  }
+  if (metrics.relocalizations && *metrics.relocalizations > 0) show("relocalizations", metrics.relocalizations, "");
+  if (metrics.kidnap_frames_to_fix) show("kidnap: frames to fix", metrics.kidnap_frames_to_fix, "");
   if (metrics.wrong_fixes && *metrics.wrong_fixes > 0) show("worst wrong fix", metrics.max_wrong_fix_mm, "mm");
   if (metrics.off_map_frames && *metrics.off_map_frames > 0) {
     show("off-map frames", metrics.off_map_frames, "");

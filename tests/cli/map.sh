@@ -13,6 +13,46 @@ expect_in "$SCRATCH/out" '"tile_size_px": 128'
 expect_in "$SCRATCH/out" '"extent_mm"'
 expect_exit 0 "$MOSAICLOC" map check "$SCRATCH/a.mosaic"
 expect_in "$SCRATCH/out" "tiles intact"
+# The place index: built with the map, shown by info, used by locate and by a replay that does
+# not know where it starts; every frame found where the ground truth says, none wrong.
+expect_exit 0 "$MOSAICLOC" map info "$SCRATCH/a.mosaic"
+expect_in "$SCRATCH/out" "place index:"
+expect_exit 0 "$MOSAICLOC" --quiet locate --map "$SCRATCH/a.mosaic" --dataset "$SCRATCH/ds" --every 30
+expect_in "$SCRATCH/out" "3 frames: 3 found (100.0 %)"
+expect_in "$SCRATCH/out" "3 of 3 within 0.05 mm, 0 wrong"
+first=$(ls "$SCRATCH/ds/cam0/data" | sort -n | head -1)
+expect_exit 0 "$MOSAICLOC" --json locate --map "$SCRATCH/a.mosaic" "$SCRATCH/ds/cam0/data/$first"
+expect_in "$SCRATCH/out" '"outcome": "found"'
+expect_exit 0 "$MOSAICLOC" --quiet --json replay --dataset "$SCRATCH/ds" --map "$SCRATCH/a.mosaic" --out "$SCRATCH/unknown" --unknown-start
+expect_in "$SCRATCH/unknown/metrics.json" '"wrong_fixes": 0'
+expect_in "$SCRATCH/unknown/metrics.json" '"relocalizations": 1'
+expect_in "$SCRATCH/unknown/metrics.json" '"frames_to_first_fix": 0'
+# A map made before the index existed: it still opens; locate says how to index it, and map
+# index does.
+cp "$SCRATCH/a.mosaic" "$SCRATCH/old.mosaic"
+python3 - "$SCRATCH/old.mosaic" <<'PY'
+import sqlite3, sys
+db = sqlite3.connect(sys.argv[1])
+db.execute("DROP TABLE places")
+db.execute("DELETE FROM metadata WHERE name LIKE 'places_%'")
+db.commit()
+PY
+expect_exit 0 "$MOSAICLOC" map info "$SCRATCH/old.mosaic"
+expect_in "$SCRATCH/out" "place index: none (global relocalization needs one: mosaicloc map index"
+expect_exit 2 "$MOSAICLOC" --quiet locate --map "$SCRATCH/old.mosaic" "$SCRATCH/ds/cam0/data/$first"
+expect_in "$SCRATCH/err" "has no place index: build it with \`mosaicloc map index"
+expect_exit 0 "$MOSAICLOC" --quiet map index "$SCRATCH/old.mosaic"
+expect_in "$SCRATCH/out" "place index of"
+expect_exit 0 "$MOSAICLOC" --quiet locate --map "$SCRATCH/old.mosaic" "$SCRATCH/ds/cam0/data/$first"
+# A damaged cell of the index: map check names it.
+python3 - "$SCRATCH/old.mosaic" <<'PY'
+import sqlite3, sys
+db = sqlite3.connect(sys.argv[1])
+db.execute("UPDATE places SET data = substr(data, 1, 10) || X'0102' || substr(data, 13) WHERE rowid = (SELECT MIN(rowid) FROM places)")
+db.commit()
+PY
+expect_exit 2 "$MOSAICLOC" map check "$SCRATCH/old.mosaic"
+expect_in "$SCRATCH/err" "place index cell"
 expect_exit 0 "$MOSAICLOC" --quiet map export "$SCRATCH/a.mosaic" --out "$SCRATCH/a.png" --level 1
 [ -s "$SCRATCH/a.png" ] || fail "no export written"
 expect_exit 0 "$MOSAICLOC" map export "$SCRATCH/a.mosaic" --out "$SCRATCH/r.png" --region 0,-50,100,50

@@ -327,6 +327,9 @@ void WriteMetricsJson(const std::filesystem::path& file, const Metrics& metrics)
   json["reentry_frames_to_fix_max"] = ToJson(metrics.reentry_frames_to_fix_max);
   json["reentry_first_fix_error_max_mm"] = ToJson(metrics.reentry_first_fix_error_max_mm);
   json["relocalizations"] = ToJson(metrics.relocalizations);
+  json["frames_to_first_fix"] = ToJson(metrics.frames_to_first_fix);
+  json["first_fix_s"] = ToJson(metrics.first_fix_s);
+  json["kidnap_frames_to_fix"] = ToJson(metrics.kidnap_frames_to_fix);
   json["height_error_rms_mm"] = ToJson(metrics.height_error_rms_mm);
   json["height_error_max_mm"] = ToJson(metrics.height_error_max_mm);
   core::WriteFileAtomically(file, json.dump(2) + "\n");

@@ -10,6 +10,7 @@ const char* ToString(LockState state) {
     case LockState::kDegraded: return "degraded";
     case LockState::kLost: return "lost";
     case LockState::kOffMap: return "off-map";
+    case LockState::kSearching: return "searching";
   }
   return "unknown";
 }
@@ -35,7 +36,7 @@ LockState LockMonitor::Update(FrameVerdict verdict, double position_sigma_mm, co
   if (verdict == FrameVerdict::kFixed) {
     misses_ = 0;
     ++fixes_in_a_row_;
-    if (state_ == LockState::kOffMap) state_ = LockState::kDegraded;
+    if (state_ == LockState::kOffMap || state_ == LockState::kSearching) state_ = LockState::kDegraded;
     if (state_ != LockState::kTracking && fixes_in_a_row_ >= options_.regain_after_fixes) {
       state_ = LockState::kTracking;
     }
@@ -43,8 +44,9 @@ LockState LockMonitor::Update(FrameVerdict verdict, double position_sigma_mm, co
   }
   last_reason_ = reason;
   fixes_in_a_row_ = 0;
-  if (verdict == FrameVerdict::kOffMap) {
-    state_ = LockState::kOffMap;
+  if (verdict == FrameVerdict::kOffMap || verdict == FrameVerdict::kSearching) {
+    // Neither is a loss: off the map no fix was expected, and a search starts from no lock.
+    state_ = verdict == FrameVerdict::kOffMap ? LockState::kOffMap : LockState::kSearching;
     return state_;
   }
   ++misses_;
@@ -53,8 +55,8 @@ LockState LockMonitor::Update(FrameVerdict verdict, double position_sigma_mm, co
     next = LockState::kLost;
   } else if (misses_ >= options_.degraded_after_misses && state_ == LockState::kTracking) {
     next = LockState::kDegraded;
-  } else if (state_ == LockState::kOffMap) {
-    next = LockState::kDegraded;  // back on the map, not fixed yet
+  } else if (state_ == LockState::kOffMap || state_ == LockState::kSearching) {
+    next = LockState::kDegraded;  // back on the map (or the search ended), not fixed yet
   }
   if (next == LockState::kLost && (state_ == LockState::kTracking || state_ == LockState::kDegraded)) ++losses_;
   state_ = next;

@@ -74,6 +74,7 @@ bool LocalizerOptions::Check(std::string* why) const {
     return fail("reanchor_after_rejections must be 0 (never) or >= 2");
   }
   if (relocalize_after_misses < 0) return fail("relocalize_after_misses must be >= 0");
+  if (lost_global_every < 0) return fail("lost_global_every must be >= 0");
   if (edge_templates < 0 || edge_templates > 64) return fail("edge_templates must be in [0, 64]");
   if (!(on_map_coverage > 0.0 && on_map_coverage <= 1.0)) return fail("on_map_coverage must be in (0, 1]");
   if (on_map_coverage < relocalize.min_coverage) {
@@ -116,10 +117,11 @@ std::string FrameOutcome::ReasonWord() const {
 }
 
 Localizer::Localizer(const camera::IdealCamera& camera, const LocalizerOptions& options,
-                     const tracking::ReferenceRaster& reference)
+                     const tracking::ReferenceRaster& reference, const tracking::PlaceIndex* places)
     : camera_(camera),
       options_(options),
       reference_(reference),
+      places_(places),
       tracker_(camera, options.tracker),
       edge_tracker_(camera, EdgeTrackerOptions(options)),
       relocalizer_(tracker_, reference, options.relocalize),
@@ -136,6 +138,26 @@ void Localizer::Initialize(core::Timestamp time, const core::Pose2& world_from_v
   rejected_run_ = 0;
   unmatched_run_ = 0;
   kidnapped_ = false;
+  pose_unknown_ = false;
+}
+
+void Localizer::SetPose(core::Timestamp time, const core::Pose2& world_from_vehicle,
+                        const Eigen::Matrix3d& covariance) {
+  if (!filter_) core::ThrowRuntime("localizer: SetPose before Initialize");
+  filter_->RestartAt(time, world_from_vehicle, covariance);
+  rejected_run_ = 0;
+  unmatched_run_ = 0;
+}
+
+void Localizer::InitializeUnknown(core::Timestamp time) {
+  // A prior that says nothing: anywhere within a kilometre, any heading.
+  Initialize(time, core::Pose2::Identity(), Eigen::Vector3d(1e12, 1e12, 10.0).asDiagonal());
+  RequestGlobalRelocalization();
+}
+
+void Localizer::RequestGlobalRelocalization() {
+  kidnapped_ = true;
+  pose_unknown_ = places_ != nullptr;
 }
 
 bool Localizer::AddEncoders(core::Timestamp time, std::int32_t left_ticks, std::int32_t right_ticks) {
@@ -200,12 +222,34 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   if (options_.relocalize_after_misses > 0 && unmatched_run_ >= options_.relocalize_after_misses) kidnapped_ = true;
   const double prior_sigma_px =
       std::sqrt(std::max(prior_camera_covariance(0, 0), prior_camera_covariance(1, 1))) / camera_.mm_per_px();
-  const bool relocalize =
+  bool relocalize =
       kidnapped_ || options_.tracker.search_sigmas * prior_sigma_px > options_.tracker.max_search_px;
-  if (relocalize) {
+  if (pose_unknown_) {
+    outcome.track = relocalizer_.SearchEverywhere(frame, *places_, scale_);
+  } else if (relocalize) {
     outcome.track = Relocalize(frame, prior_camera, prior_camera_covariance, kidnapped_);
+    // A kidnap the radius around the prediction does not resolve: the vehicle may be farther.
+    if (kidnapped_ && outcome.track.failure == tracking::TrackFailure::kNoMatch && places_ != nullptr &&
+        places_->usable()) {
+      tracking::TrackResult everywhere = relocalizer_.SearchEverywhere(frame, *places_, scale_);
+      if (everywhere.ok() || everywhere.failure == tracking::TrackFailure::kAmbiguous) {
+        outcome.track = std::move(everywhere);
+      }
+    }
   } else {
     outcome.track = tracker_.Track(frame, prior_camera, prior_camera_covariance, reference_, scale_);
+  }
+  // Lost, and the search around the prediction does not recover it: the vehicle may be
+  // anywhere (moved unseen while the view kept matching a little where the estimate says, so
+  // no kidnap was seen). Every lost_global_every-th frame, the whole map is searched.
+  if (!outcome.track.ok() && !pose_unknown_ && lock_.state() == estimation::LockState::kLost &&
+      options_.lost_global_every > 0 && places_ != nullptr && places_->usable() &&
+      ++lost_frames_ % options_.lost_global_every == 0) {
+    tracking::TrackResult everywhere = relocalizer_.SearchEverywhere(frame, *places_, scale_);
+    if (everywhere.ok()) {
+      outcome.track = std::move(everywhere);
+      relocalize = true;
+    }
   }
   if (outcome.track.ok() && options_.edge_templates > 0 && PartlyOffTheMap(outcome.track)) {
     outcome.track = AtTheEdge(frame, std::move(outcome.track));
@@ -265,7 +309,11 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   estimation::FrameVerdict verdict = estimation::FrameVerdict::kFixed;
   if (outcome.fixed) {
     unmatched_run_ = 0;
+    lost_frames_ = 0;
     kidnapped_ = false;
+    pose_unknown_ = false;
+  } else if (pose_unknown_) {
+    verdict = estimation::FrameVerdict::kSearching;
   } else {
     verdict = ClassifyMiss(outcome, prior_camera, prior_camera_covariance, &outcome.reason);
   }

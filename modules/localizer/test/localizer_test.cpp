@@ -10,6 +10,7 @@
 #include "mosaicloc/mosaic/renderer.hpp"
 #include "mosaicloc/mosaic/tile_cache.hpp"
 #include "mosaicloc/mosaic/tile_store.hpp"
+#include "mosaicloc/tracking/place_index.hpp"
 #include "mosaicloc/sim/floor.hpp"
 #include "mosaicloc/sim/imaging.hpp"
 #include "mosaicloc/test/test_support.hpp"
@@ -28,6 +29,9 @@ using core::Timestamp;
 class Drive : public ::testing::Test {
  protected:
   virtual bool Repeating() const { return false; }
+  /// The simulator's procedural floor, which never repeats (the composite below repeats its
+  /// texture turned and mirrored, which a search over all headings sees as copies).
+  virtual bool Procedural() const { return false; }
   /// The map's extent in 256 px (64 mm) tiles, and a band of tile columns left unmapped.
   virtual int MapCols() const { return 14; }
   virtual int MapRows() const { return 6; }
@@ -39,7 +43,11 @@ class Drive : public ::testing::Test {
     sim::ImageFloorOptions floor_options;
     floor_options.image = *texture;
     floor_options.mm_per_texel = 0.125;
-    if (!Repeating()) {
+    if (Procedural()) {
+      sim::ProceduralFloorOptions procedural;
+      procedural.mm_per_texel = 0.125;
+      floor_ = sim::MakeProceduralFloor(procedural);
+    } else if (!Repeating()) {
       const cv::Mat t = cv::imread(texture->string(), cv::IMREAD_GRAYSCALE);
       ASSERT_FALSE(t.empty());
       cv::Mat composite(2 * t.rows, 4 * t.cols, CV_8UC1);
@@ -53,7 +61,7 @@ class Drive : public ::testing::Test {
       floor_options.image = scratch_ / "floor.pgm";
       ASSERT_TRUE(cv::imwrite(floor_options.image.string(), composite));
     }
-    floor_ = sim::MakeImageFloor(floor_options);
+    if (!floor_) floor_ = sim::MakeImageFloor(floor_options);
     mosaic::MapGrid grid;  // 0.25 mm/px, origin (0, 0), 256 px tiles
     store_ = mosaic::TileStore::Create(scratch_ / "floor.mosaic", grid);
     std::vector<mosaic::TileWrite> tiles;
@@ -108,7 +116,14 @@ class Drive : public ::testing::Test {
     LocalizerOptions options = options_;
     options.vehicle_from_camera = Pose2(200.0, 0.0, 0.0);
     options.reanchor_after_rejections = reanchor_after;
-    Localizer localizer(camera, options, *reference_);
+    // With a place index, the whole map can be searched (an unknown start).
+    std::unique_ptr<tracking::PlaceIndex> places;
+    if (unknown_start_) {
+      const tracking::PlaceIndexOptions index;
+      store_->WritePlaces(tracking::PlaceIndexInfoFor(index), tracking::BuildPlaceCells(*store_, index));
+      places = std::make_unique<tracking::PlaceIndex>(*store_);
+    }
+    Localizer localizer(camera, options, *reference_, places.get());
     const double b = options.odometry.wheels.track_width_mm;
     const double mm_per_tick = 2.0 * std::numbers::pi * options.odometry.wheels.left_wheel_radius_mm /
                                static_cast<double>(options.odometry.wheels.ticks_per_revolution);
@@ -117,6 +132,7 @@ class Drive : public ::testing::Test {
     localizer.Initialize(Timestamp(), Truth(0.0, speed_mps) * start_error,
                          Eigen::Vector3d(start_sigma_mm * start_sigma_mm, start_sigma_mm * start_sigma_mm, 1e-4)
                              .asDiagonal());
+    if (unknown_start_) localizer.InitializeUnknown(Timestamp());
     localizer.AddEncoders(Timestamp(), 0, 0);
     if (relocalize) localizer.RequestRelocalization();
     Run run;
@@ -169,6 +185,7 @@ class Drive : public ::testing::Test {
   }
 
   LocalizerOptions options_;  ///< what Localize starts from (tests may change it first)
+  bool unknown_start_ = false;  ///< Localize indexes the map and starts without a pose
   test::ScratchDir scratch_;
   std::unique_ptr<sim::Floor> floor_;
   std::unique_ptr<mosaic::TileStore> store_;
@@ -192,6 +209,23 @@ TEST_F(Drive, TracksToAFractionOfAMillimetreWithBiasedOdometry) {
       << (run.reasons.empty() ? std::string() : run.reasons.front());
   EXPECT_LT(rms, 0.05);
   EXPECT_LT(max, 0.2);
+}
+
+class ProceduralDrive : public Drive {
+ protected:
+  bool Procedural() const override { return true; }
+};
+
+// No start pose at all: the first frame is looked up on the whole map through its place index
+// and verified, and tracking goes on from there.
+TEST_F(ProceduralDrive, AnUnknownStartIsFoundOnTheWholeMap) {
+  unknown_start_ = true;
+  const Run run = Localize(1.0, 0.3, Pose2());
+  ASSERT_FALSE(run.errors_mm.empty());
+  EXPECT_EQ(run.first_fix_frame, 1) << (run.reasons.empty() ? std::string() : run.reasons.front());
+  EXPECT_EQ(run.fixes, static_cast<int>(run.errors_mm.size()));
+  EXPECT_EQ(run.lock_losses, 0);
+  for (const double e : run.fix_errors_mm) EXPECT_LT(e, 0.2);
 }
 
 TEST_F(Drive, OffTheMapIsOffMapNotLost) {
@@ -325,6 +359,20 @@ TEST_F(RepeatingDrive, StartNearOneCopyRelocalizesOntoIt) {
 }
 
 // The repeating floor with a 512 mm band across the lane left unmapped (x 448 to 960 mm): a
+// No start pose over a floor that repeats: every frame matches several places on the map, so
+// the search says "ambiguous" and gives no fix; never one on a copy.
+TEST_F(RepeatingDrive, AnUnknownStartIsAmbiguousNeverWrong) {
+  unknown_start_ = true;
+  const Run run = Localize(0.5, 0.3, Pose2());
+  ASSERT_FALSE(run.errors_mm.empty());
+  EXPECT_EQ(run.fixes, 0);
+  for (const double e : run.fix_errors_mm) EXPECT_LT(e, 1.0);
+  ASSERT_FALSE(run.words.empty());
+  EXPECT_EQ(run.words.front(), "ambiguous") << run.reasons.front();
+  EXPECT_EQ(run.last_state, estimation::LockState::kSearching);
+  EXPECT_EQ(run.lock_losses, 0);
+}
+
 // vehicle leaves the map and comes back onto it, as on a lane nobody mapped yet. In the band
 // the nearest mapped copies of its view lie one and two periods behind it.
 class RepeatingExcursion : public Drive {

@@ -256,6 +256,123 @@ void TileStore::Write(const std::vector<TileWrite>& tiles) {
   }
 }
 
+namespace {
+
+// Metadata keys of the place index; the table `places` holds its cells.
+constexpr const char* kPlacesKeys[] = {"places_format_version", "places_method", "places_level"};
+
+bool HasPlacesTable(sqlite3* db) {
+  sqlite3_stmt* raw = nullptr;
+  bool found = false;
+  if (sqlite3_prepare_v2(db, "SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'places'", -1, &raw,
+                         nullptr) == SQLITE_OK) {
+    found = sqlite3_step(raw) == SQLITE_ROW;
+  }
+  sqlite3_finalize(raw);
+  return found;
+}
+
+}  // namespace
+
+std::optional<PlaceIndexInfo> TileStore::Places() const {
+  const std::lock_guard lock(mutex_);
+  if (!HasPlacesTable(db_)) return std::nullopt;
+  std::map<std::string, std::string> values;
+  {
+    const Statement statement(db_, "SELECT name, value FROM metadata WHERE name LIKE 'places_%'", file_);
+    while (sqlite3_step(statement.get()) == SQLITE_ROW) {
+      const auto* name = reinterpret_cast<const char*>(sqlite3_column_text(statement.get(), 0));
+      const auto* value = reinterpret_cast<const char*>(sqlite3_column_text(statement.get(), 1));
+      if (name && value) values[name] = value;
+    }
+  }
+  PlaceIndexInfo info;
+  const auto integer = [&](const char* key) {
+    const auto it = values.find(key);
+    if (it == values.end()) core::ThrowInvalidInput(file_.string() + ": metadata key '" + key + "' is missing");
+    int value = 0;
+    const char* end = it->second.data() + it->second.size();
+    const auto result = std::from_chars(it->second.data(), end, value);
+    if (result.ec != std::errc() || result.ptr != end) {
+      core::ThrowInvalidInput(file_.string() + ": metadata key '" + key + "' is not an integer: '" + it->second + "'");
+    }
+    return value;
+  };
+  info.format_version = integer(kPlacesKeys[0]);
+  info.level = integer(kPlacesKeys[2]);
+  const auto method = values.find(kPlacesKeys[1]);
+  if (method == values.end()) core::ThrowInvalidInput(file_.string() + ": metadata key 'places_method' is missing");
+  info.method = method->second;
+  const Statement count(db_, "SELECT COUNT(*), COALESCE(SUM(LENGTH(data)), 0) FROM places", file_);
+  if (sqlite3_step(count.get()) == SQLITE_ROW) {
+    info.cells = sqlite3_column_int64(count.get(), 0);
+    info.bytes = sqlite3_column_int64(count.get(), 1);
+  }
+  return info;
+}
+
+std::vector<PlaceCell> TileStore::ReadPlaces() const {
+  const std::lock_guard lock(mutex_);
+  if (!HasPlacesTable(db_)) core::ThrowInvalidInput(file_.string() + ": the map has no place index");
+  const Statement statement(db_, "SELECT col, row, data, crc32 FROM places ORDER BY row, col", file_);
+  std::vector<PlaceCell> cells;
+  int step = SQLITE_ROW;
+  while ((step = sqlite3_step(statement.get())) == SQLITE_ROW) {
+    PlaceCell cell;
+    cell.col = sqlite3_column_int64(statement.get(), 0);
+    cell.row = sqlite3_column_int64(statement.get(), 1);
+    const auto* blob = static_cast<const unsigned char*>(sqlite3_column_blob(statement.get(), 2));
+    const auto bytes = static_cast<std::size_t>(sqlite3_column_bytes(statement.get(), 2));
+    if (blob != nullptr) cell.data.assign(blob, blob + bytes);
+    if (static_cast<std::int64_t>(Crc32(cell.data)) != sqlite3_column_int64(statement.get(), 3)) {
+      core::ThrowInvalidInput(file_.string() + ": place index cell col " + std::to_string(cell.col) + " row " +
+                              std::to_string(cell.row) + ": CRC32 mismatch (the index is damaged: rebuild it with "
+                              "`mosaicloc map index`)");
+    }
+    cells.push_back(std::move(cell));
+  }
+  if (step != SQLITE_DONE) core::ThrowRuntime(file_.string() + ": cannot read the place index: " + sqlite3_errmsg(db_));
+  return cells;
+}
+
+void TileStore::WritePlaces(const PlaceIndexInfo& info, const std::vector<PlaceCell>& cells) {
+  const std::lock_guard lock(mutex_);
+  Execute("BEGIN IMMEDIATE;");
+  try {
+    Execute(
+        "DROP TABLE IF EXISTS places;"
+        "CREATE TABLE places (col INTEGER, row INTEGER, data BLOB, crc32 INTEGER, PRIMARY KEY (col, row));");
+    {
+      const Statement meta(db_, "INSERT OR REPLACE INTO metadata VALUES (?, ?)", file_);
+      const std::string values[] = {std::to_string(info.format_version), info.method, std::to_string(info.level)};
+      for (int i = 0; i < 3; ++i) {
+        sqlite3_reset(meta.get());
+        sqlite3_bind_text(meta.get(), 1, kPlacesKeys[i], -1, SQLITE_STATIC);
+        sqlite3_bind_text(meta.get(), 2, values[i].c_str(), -1, SQLITE_TRANSIENT);
+        if (sqlite3_step(meta.get()) != SQLITE_DONE) {
+          core::ThrowRuntime(file_.string() + ": cannot write the place index's metadata: " + sqlite3_errmsg(db_));
+        }
+      }
+    }
+    const Statement statement(db_, "INSERT INTO places VALUES (?, ?, ?, ?)", file_);
+    for (const PlaceCell& cell : cells) {
+      sqlite3_reset(statement.get());
+      sqlite3_bind_int64(statement.get(), 1, cell.col);
+      sqlite3_bind_int64(statement.get(), 2, cell.row);
+      sqlite3_bind_blob(statement.get(), 3, cell.data.data(), static_cast<int>(cell.data.size()), SQLITE_STATIC);
+      sqlite3_bind_int64(statement.get(), 4, static_cast<std::int64_t>(Crc32(cell.data)));
+      if (sqlite3_step(statement.get()) != SQLITE_DONE) {
+        core::ThrowRuntime(file_.string() + ": cannot write place index cell col " + std::to_string(cell.col) +
+                           " row " + std::to_string(cell.row) + ": " + sqlite3_errmsg(db_));
+      }
+    }
+    Execute("COMMIT;");
+  } catch (...) {
+    sqlite3_exec(db_, "ROLLBACK;", nullptr, nullptr, nullptr);
+    throw;
+  }
+}
+
 void TileStore::Checkpoint() {
   {
     // This store's own idle readers hold no snapshot, but close them all the same: the

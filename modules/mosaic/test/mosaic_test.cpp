@@ -134,6 +134,50 @@ void SqlOn(const fs::path& file, const std::string& sql) {
   sqlite3_close(db);
 }
 
+// The place index's cells: none in a new map; written whole, replaced whole, read back with
+// their CRC checked; a damaged cell or metadata value is named.
+TEST(TileStore, PlaceIndexCells) {
+  test::ScratchDir dir;
+  {
+    auto store = TileStore::Create(dir / "p.mosaic", MapGrid{});
+    EXPECT_FALSE(store->Places().has_value());
+    EXPECT_THROW(store->ReadPlaces(), core::Error);
+    PlaceIndexInfo info;
+    info.format_version = 1;
+    info.method = "orb256";
+    info.level = 1;
+    store->WritePlaces(info, {{0, 0, {1, 2, 3}}, {-2, 5, std::vector<unsigned char>(44, 7)}});
+    store->WritePlaces(info, {{3, -1, {9, 8}}, {-2, 5, std::vector<unsigned char>(88, 5)}});
+  }
+  auto store = TileStore::Open(dir / "p.mosaic", false);
+  const auto info = store->Places();
+  ASSERT_TRUE(info.has_value());
+  EXPECT_EQ(info->method, "orb256");
+  EXPECT_EQ(info->level, 1);
+  EXPECT_EQ(info->cells, 2);
+  EXPECT_EQ(info->bytes, 90);
+  const std::vector<PlaceCell> cells = store->ReadPlaces();
+  ASSERT_EQ(cells.size(), 2u);
+  EXPECT_EQ(cells[0].row, -1);  // by row, then column
+  EXPECT_EQ(cells[0].data, (std::vector<unsigned char>{9, 8}));
+  EXPECT_EQ(cells[1].data.size(), 88u);
+  store.reset();
+  SqlOn(dir / "p.mosaic", "UPDATE places SET data = X'0908FF' WHERE col = 3");
+  try {
+    TileStore::Open(dir / "p.mosaic", false)->ReadPlaces();
+    ADD_FAILURE() << "a damaged cell was read";
+  } catch (const core::Error& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("place index cell col 3 row -1: CRC32 mismatch"));
+  }
+  SqlOn(dir / "p.mosaic", "UPDATE metadata SET value = 'one' WHERE name = 'places_level'");
+  try {
+    TileStore::Open(dir / "p.mosaic", false)->Places();
+    ADD_FAILURE() << "a bad metadata value was read";
+  } catch (const core::Error& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("metadata key 'places_level' is not an integer: 'one'"));
+  }
+}
+
 // The stored size of one tile's PNG.
 std::int64_t BlobBytes(const fs::path& file, const TileKey& key) {
   sqlite3* db = nullptr;

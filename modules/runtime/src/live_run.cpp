@@ -212,7 +212,10 @@ class LiveRun::Impl {
     localizer_ = std::make_unique<localizer::Localizer>(
         camera::IdealCamera(camera::IdealCameraOptions{camera.width_px, camera.height_px, camera.mm_per_px}),
         runtime::LocalizerOptionsFor(config.localizer.localizer, camera, vehicle, config.encoder_timing_sigma_ms),
-        map_->reference());
+        map_->reference(), &map_->places());
+    if (config.start_unknown && !map_->places().usable()) {
+      core::ThrowInvalidInput("run: start.unknown needs a map with a place index: " + map_->places().problem());
+    }
     link_ = io::OpenPlcLink(config.plc);
     if (!record.empty()) {
       dataset::DatasetInfo info;
@@ -232,8 +235,13 @@ class LiveRun::Impl {
   // summary as JSON.
   nlohmann::json Run(double duration_s, const StatusCallback& status, const StopCallback& stop_requested) {
     started_ = io::MonotonicNow();
-    localizer_->Initialize(started_, config_.start,
-                           runtime::StartCovariance(config_.start_sigma_mm, config_.start_sigma_deg));
+    if (config_.start_unknown) {
+      localizer_->InitializeUnknown(started_);
+      core::Log().info("run: the start is unknown: searching the whole map");
+    } else {
+      localizer_->Initialize(started_, config_.start,
+                             runtime::StartCovariance(config_.start_sigma_mm, config_.start_sigma_deg));
+    }
     Publish(false, 0.0);
     core::Log().info("run: camera {}; PLC {}; map {}", source_->Describe(), config_.plc.Describe(), config_.map.string());
 
@@ -314,7 +322,8 @@ class LiveRun::Impl {
   }
 
   // The fix the PLC receives now: the latest state moved on to this instant by the system
-  // model. Status 0 until the first visual fix; degraded while odometry is invalid.
+  // model. Status 0 until the first visual fix (5 while the pose is unknown and searched for);
+  // degraded while odometry is invalid.
   io::PlcOutputs Outputs(core::Timestamp now) {
     Published state;
     {
@@ -326,7 +335,8 @@ class LiveRun::Impl {
     outputs.x_mm = pose.x_mm();
     outputs.y_mm = pose.y_mm();
     outputs.yaw_rad = pose.yaw_rad();
-    int status = state.fixed_once ? static_cast<int>(state.lock) : 0;
+    // Searching the whole map says so from the start: the PLC sees the relocalization under way.
+    int status = state.fixed_once || state.lock == estimation::LockState::kSearching ? static_cast<int>(state.lock) : 0;
     if (status == 1 && !stats_.odometry_valid) status = 2;
     outputs.status = status;
     // Lost or off the map, the pose is dead reckoning: no visual quality to report.
@@ -504,6 +514,7 @@ class LiveRun::Impl {
         continue;
       }
       if (recorder_) recorder_->Frame(frame->time, frame->image);
+      // The PLC says the vehicle was moved: a known kidnap (design.md sections 7 and 7b).
       if (relocalize_pending_.exchange(false)) localizer_->RequestRelocalization();
       const localizer::FrameOutcome outcome = localizer_->ProcessFrame(frame->time, frame->image);
       ++stats_.processed;

@@ -19,6 +19,7 @@
 #include "mosaicloc/mosaic/build_checkpoint.hpp"
 #include "mosaicloc/mosaic/builder.hpp"
 #include "mosaicloc/mosaic/renderer.hpp"
+#include "mosaicloc/tracking/place_index.hpp"
 
 namespace mosaicloc::runtime {
 namespace {
@@ -166,12 +167,16 @@ MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(d
   save(done);  // every frame painted: a build killed while writing resumes with the writing
 
   const fs::path partial = args.out.string() + ".partial";
+  std::int64_t place_features = 0;
   for (const char* suffix : {"", "-wal", "-shm"}) fs::remove(partial.string() + suffix, ec);
   {
     auto store = mosaic::TileStore::Create(partial, grid);
     builder.Write(*store, [&](double fraction) {
-      if (progress) progress(0.8 + 0.2 * fraction);
+      if (progress) progress(0.8 + 0.15 * fraction);
     });
+    place_features = IndexStore(*store, [&](double fraction) {
+                       if (progress) progress(0.95 + 0.05 * fraction);
+                     }).features;
     // The renamed file must hold the whole map: its log stays behind under the old name.
     store->Checkpoint();
   }
@@ -186,7 +191,7 @@ MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(d
     for (std::size_t d = 0; d < datasets.size(); ++d) fs::remove(DrivePath(estimated_file, static_cast<int>(d) + 1), ec);
   }
   const auto store = mosaic::TileStore::Open(args.out, false);
-  return {total, painted, skipped, resumed_after, store->Count(), store->Count(0), std::move(mapping)};
+  return {total, painted, skipped, resumed_after, store->Count(), store->Count(0), place_features, std::move(mapping)};
 }
 
 MapExtent LevelExtent(const mosaic::TileStore& store, int level) {
@@ -221,7 +226,30 @@ MapInfo InspectMap(const std::filesystem::path& map) {
     const Eigen::Vector2d low = at(e.col0, e.row1, -0.5), high = at(e.col1, e.row0, 0.5);
     info.extent_mm = {low.x(), low.y(), high.x(), high.y()};
   }
+  info.places = store->Places();
   return info;
+}
+
+MapIndexSummary IndexStore(mosaic::TileStore& store, const std::function<void(double)>& progress) {
+  const auto start = std::chrono::steady_clock::now();
+  const tracking::PlaceIndexOptions options;
+  const std::vector<mosaic::PlaceCell> cells = tracking::BuildPlaceCells(store, options, progress);
+  store.WritePlaces(tracking::PlaceIndexInfoFor(options), cells);
+  MapIndexSummary summary;
+  summary.cells = static_cast<std::int64_t>(cells.size());
+  for (const auto& cell : cells) {
+    summary.bytes += static_cast<std::int64_t>(cell.data.size());
+    summary.features += static_cast<std::int64_t>(cell.data.size() / tracking::kPlaceRecordBytes);
+  }
+  summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return summary;
+}
+
+MapIndexSummary IndexMap(const std::filesystem::path& map, const std::function<void(double)>& progress) {
+  const auto store = mosaic::TileStore::Open(map, /*writable=*/true);
+  MapIndexSummary summary = IndexStore(*store, progress);
+  store->Checkpoint();
+  return summary;
 }
 
 std::vector<std::string> CheckMap(const std::filesystem::path& map, std::size_t* tiles,
@@ -235,6 +263,11 @@ std::vector<std::string> CheckMap(const std::filesystem::path& map, std::size_t*
     if (progress) progress(static_cast<double>(i + 1) / static_cast<double>(keys.size()));
   }
   *tiles = keys.size();
+  try {
+    if (store->Places()) store->ReadPlaces();
+  } catch (const core::Error& e) {
+    problems.push_back(e.what());
+  }
   return problems;
 }
 

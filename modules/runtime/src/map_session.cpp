@@ -17,6 +17,7 @@ MapSession::MapSession(const std::filesystem::path& map, const MapSessionOptions
   cache_ = std::make_unique<mosaic::TileCache>(*store_, options.cache_budget_bytes);
   renderer_ = std::make_unique<mosaic::MapRenderer>(*cache_);
   reference_ = std::make_unique<tracking::MapReference>(*renderer_, 0);
+  places_ = std::make_unique<tracking::PlaceIndex>(*store_);
   if (options.prefetch) prefetcher_ = std::make_unique<mosaic::TilePrefetcher>(*cache_, *options.prefetch);
 }
 

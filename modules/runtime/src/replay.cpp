@@ -68,6 +68,9 @@ class ReplayRecord {
     }
   }
 
+  /// Figures only the caller knows, written with the others.
+  dataset::Metrics& known() { return known_; }
+
   /// What the localizer reported for a frame (a row of fixes.csv); `view_mapped`: the share
   /// of the true view the map covers there (mosaic mode with ground truth), for the returns.
   void Report(const dataset::FrameReport& report, std::optional<double> view_mapped = std::nullopt) {
@@ -90,6 +93,9 @@ class ReplayRecord {
     metrics.fix_rate = static_cast<double>(fixes_) / static_cast<double>(frames_);
     metrics.lock_losses = lock_losses;
     metrics.relocalizations = relocalizations;
+    metrics.frames_to_first_fix = known_.frames_to_first_fix;
+    metrics.first_fix_s = known_.first_fix_s;
+    metrics.kidnap_frames_to_fix = known_.kidnap_frames_to_fix;
     if (groundtruth_) {
       // Every fix checked against the truth: a lock that never broke proves nothing if it held
       // onto the wrong place.
@@ -159,6 +165,7 @@ class ReplayRecord {
     dataset::WriteHeightPlot(options.out, series, title, *metrics->height_error_rms_mm);
   }
 
+  dataset::Metrics known_;
   std::optional<dataset::Trajectory> groundtruth_;
   const std::function<void(double)>& progress_;
   dataset::Trajectory estimate_;
@@ -245,7 +252,7 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
   const localizer::LocalizerOptions localizer_options =
       LocalizerOptionsFor(settings.localizer, info.camera, info.vehicle,
                           EncoderTimingSigmaOf(info, settings.localizer.odometry_timing_sigma_ms));
-  localizer::Localizer localizer(camera, localizer_options, map.reference());
+  localizer::Localizer localizer(camera, localizer_options, map.reference(), &map.places());
 
   auto encoders = reader.Encoders();
   std::optional<dataset::EncoderSample> pending = encoders.Next();
@@ -253,11 +260,21 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
   core::Pose2 start = StartPose(groundtruth, info, pending->time);
   // A wrong start (a kidnapped vehicle): the localizer must find where it really is.
   if (options.start_offset) start = start * *options.start_offset;
-  localizer.Initialize(pending->time, start, StartCovariance(settings.start_sigma_mm, settings.start_sigma_deg));
+  if (options.unknown_start) {
+    localizer.InitializeUnknown(pending->time);
+    if (!map.places().usable()) core::Log().warn("replay: the start is unknown, and {}", map.places().problem());
+  } else {
+    localizer.Initialize(pending->time, start, StartCovariance(settings.start_sigma_mm, settings.start_sigma_deg));
+  }
   if (options.relocalize) localizer.RequestRelocalization();
+  std::optional<core::Timestamp> first_frame;
+  std::int64_t frame_index = 0;
+  std::optional<std::int64_t> kidnapped_at;
   ReplaySummary summary;
   summary.report = options.out;
+  core::Timestamp last_fed = pending->time;
   const auto feed = [&] {
+    last_fed = pending->time;
     if (!localizer.AddEncoders(pending->time, pending->left_ticks, pending->right_ticks)) {
       ++summary.encoder_samples_rejected;
     }
@@ -269,10 +286,30 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
   while (const auto frame = stream.Next()) {
     while (pending && pending->time <= frame->time) feed();
     if (pending) feed();  // one sample past the frame: the fix arrives late
+    if (!first_frame) first_frame = frame->time;
+    if (options.kidnap_at_s && !kidnapped_at && core::ToSeconds(frame->time - *first_frame) >= *options.kidnap_at_s) {
+      // Carried away unseen: the estimate stays confident where the vehicle no longer is.
+      // The filter restarts at the newest odometry it has taken, so that none is lost.
+      kidnapped_at = frame_index;
+      localizer.SetPose(last_fed, localizer.PoseAt(last_fed) * options.kidnap_offset,
+                        StartCovariance(settings.start_sigma_mm, settings.start_sigma_deg));
+      if (options.kidnap_told) localizer.RequestRelocalization();
+      core::Log().info("replay: kidnap at frame {}", frame_index);
+    }
     const auto started = std::chrono::steady_clock::now();
     const localizer::FrameOutcome outcome = localizer.ProcessFrame(frame->time, frame->image);
-    record.Frame(frame->time, outcome.world_from_vehicle,
-                 std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count());
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count();
+    // While the pose is unknown there is no estimate to evaluate.
+    record.Frame(frame->time,
+                 localizer.pose_unknown() ? std::nullopt : std::optional<core::Pose2>(outcome.world_from_vehicle), ms);
+    if (outcome.fixed && !record.known().frames_to_first_fix) {
+      record.known().frames_to_first_fix = frame_index;
+      record.known().first_fix_s = core::ToSeconds(frame->time - *first_frame);
+    }
+    if (outcome.fixed && kidnapped_at && !record.known().kidnap_frames_to_fix) {
+      record.known().kidnap_frames_to_fix = frame_index - *kidnapped_at;
+    }
+    ++frame_index;
     if (map.prefetcher() && localizer.initialized()) {
       PredictTiles(*map.prefetcher(), localizer.Latest(), info.camera.vehicle_from_camera);
     }

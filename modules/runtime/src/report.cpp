@@ -36,6 +36,9 @@ dataset::Metrics WriteReport(const std::filesystem::path& directory, const datas
     keep(merged.reentry_frames_to_fix_max, metrics.reentry_frames_to_fix_max);
     keep(merged.reentry_first_fix_error_max_mm, metrics.reentry_first_fix_error_max_mm);
     keep(merged.relocalizations, metrics.relocalizations);
+    keep(merged.frames_to_first_fix, metrics.frames_to_first_fix);
+    keep(merged.first_fix_s, metrics.first_fix_s);
+    keep(merged.kidnap_frames_to_fix, metrics.kidnap_frames_to_fix);
     keep(merged.processing_fps, metrics.processing_fps);
     keep(merged.latency_p50_ms, metrics.latency_p50_ms);
     keep(merged.latency_p99_ms, metrics.latency_p99_ms);

@@ -198,7 +198,8 @@ RunConfig LoadRunConfig(const std::filesystem::path& file) {
   start.Optional("yaw_deg", &yaw_deg, InRange(-360.0, 360.0));
   start.Optional("sigma_mm", &config.start_sigma_mm);
   start.Optional("sigma_deg", &config.start_sigma_deg);
-  start.CheckOwnKeys(config, {{"start_sigma_mm", "sigma_mm"}, {"start_sigma_deg", "sigma_deg"}});
+  start.Optional("unknown", &config.start_unknown);
+  start.CheckOwnKeys(config, {{"start_sigma_mm", "sigma_mm"}, {"start_sigma_deg", "sigma_deg"}, {"start_unknown", "unknown"}});
   start.Finish();
   config.start = core::Pose2(x, y, yaw_deg * std::numbers::pi / 180.0);
 

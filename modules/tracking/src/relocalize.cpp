@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <utility>
 
 #include <Eigen/Cholesky>
@@ -127,6 +128,59 @@ TrackResult Relocalizer::Search(const cv::Mat& frame, const core::Pose2& prior,
     verified = std::move(allowed);
   }
   return ChooseRelocalization(std::move(verified), prior, options_.zncc_tie, options_.nearer_factor);
+}
+
+TrackResult Relocalizer::SearchEverywhere(const cv::Mat& frame, const PlaceIndex& places, double scale,
+                                          PlaceLookup* lookup) const {
+  const camera::IdealCamera camera = tracker_.camera().Scaled(scale);
+  PlaceLookup found = places.Lookup(frame, camera);
+  TrackResult none;
+  none.failure = TrackFailure::kNoMatch;
+  if (!found.problem.empty()) {
+    none.reason = "global relocalization: " + found.problem;
+  } else if (found.candidates.empty()) {
+    none.reason = "global relocalization: no place on the map matches the frame (" +
+                  std::to_string(found.frame_features) + " corners, " + std::to_string(found.matches) + " matches)";
+  } else {
+    none.reason = "global relocalization: none of " + std::to_string(found.candidates.size()) +
+                  " candidate places verified";
+  }
+  // A candidate's pose is good to a corner's position at the index's level, and its yaw to
+  // that over the corners' spread: a degree covers it.
+  const double sigma_mm = 1.0;
+  const double sigma_rad = 1.0 * std::numbers::pi / 180.0;
+  const Eigen::Matrix3d around = Eigen::Vector3d(sigma_mm * sigma_mm, sigma_mm * sigma_mm, sigma_rad * sigma_rad).asDiagonal();
+  std::vector<TrackResult> verified;
+  for (const PlaceCandidate& candidate : found.candidates) {
+    TrackResult r = tracker_.Track(frame, candidate.world_from_camera, around, reference_, scale);
+    if (!r.ok() || r.mean_zncc < options_.min_zncc) continue;
+    const auto same = std::find_if(verified.begin(), verified.end(), [&r](const TrackResult& v) {
+      return Distance(v.world_from_camera, r.world_from_camera) < 2.0;
+    });
+    if (same == verified.end()) {
+      verified.push_back(std::move(r));
+    } else if (r.mean_zncc > same->mean_zncc) {
+      *same = std::move(r);
+    }
+  }
+  if (lookup != nullptr) *lookup = std::move(found);
+  if (verified.empty()) return none;
+  // Without a prediction to choose by, a second place that verifies at all is a copy of the
+  // floor (on a floor that does not repeat, a wrong place never verifies): even one that
+  // matches less well may be the true place, seen partly off the map.
+  if (verified.size() > 1) {
+    std::sort(verified.begin(), verified.end(),
+              [](const TrackResult& a, const TrackResult& b) { return a.mean_zncc > b.mean_zncc; });
+    TrackResult ambiguous;
+    ambiguous.failure = TrackFailure::kAmbiguous;
+    ambiguous.reason = "global relocalization: " + std::to_string(verified.size()) +
+                       " places match the frame (the floor repeats; two of them " +
+                       std::to_string(static_cast<int>(std::lround(
+                           Distance(verified[0].world_from_camera, verified[1].world_from_camera)))) +
+                       " mm apart)";
+    return ambiguous;
+  }
+  return std::move(verified.front());
 }
 
 TrackResult ChooseRelocalization(std::vector<TrackResult> verified, const core::Pose2& prior_camera, double zncc_tie,

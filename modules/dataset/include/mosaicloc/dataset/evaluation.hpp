@@ -75,6 +75,11 @@ struct Metrics {
   std::optional<std::int64_t> reentry_frames_to_fix_max;
   std::optional<double> reentry_first_fix_error_max_mm;
   std::optional<std::int64_t> relocalizations;  ///< restarts of the filter from a fix (caller)
+  /// Frames from the first to the first fix, and the seconds between them (caller).
+  std::optional<std::int64_t> frames_to_first_fix;
+  std::optional<double> first_fix_s;
+  /// A kidnap (replay --kidnap-at): frames from it to the first fix after it (caller).
+  std::optional<std::int64_t> kidnap_frames_to_fix;
   /// The camera's height the localizer held at its fixes (image scale x calibrated height)
   /// against the simulator's truth (groundtruth/camera.csv), mm (caller).
   std::optional<double> height_error_rms_mm;

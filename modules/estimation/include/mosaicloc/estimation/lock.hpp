@@ -6,9 +6,11 @@
 namespace mosaicloc::estimation {
 
 /// Visual lock, as reported to the PLC (design.md section 6: 1 tracking, 2 degraded, 3 lost,
-/// 4 off-map). Off-map: the prediction puts the camera's view (partly) off the mapped floor,
-/// so no fix is expected and the estimate is dead reckoning; that is not a loss of the lock.
-enum class LockState { kTracking = 1, kDegraded = 2, kLost = 3, kOffMap = 4 };
+/// 4 off-map, 5 searching). Off-map: the prediction puts the camera's view (partly) off the
+/// mapped floor, so no fix is expected and the estimate is dead reckoning; that is not a loss
+/// of the lock. Searching: the pose is unknown (a start without one, a relocalization the PLC
+/// asked for) and every frame is looked for on the whole map; there is no estimate.
+enum class LockState { kTracking = 1, kDegraded = 2, kLost = 3, kOffMap = 4, kSearching = 5 };
 const char* ToString(LockState state);
 
 /// What one frame gave the lock.
@@ -16,6 +18,7 @@ enum class FrameVerdict {
   kFixed,   ///< a visual fix was accepted
   kMissed,  ///< no fix where the map says there should be one
   kOffMap,  ///< no fix, and the predicted view is (partly) off the map: none was expected
+  kSearching,  ///< no fix, and the pose is unknown: the whole map was searched
 };
 
 struct LockOptions {

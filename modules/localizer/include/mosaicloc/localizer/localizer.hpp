@@ -14,6 +14,7 @@
 #include "mosaicloc/estimation/lock.hpp"
 #include "mosaicloc/estimation/odometry.hpp"
 #include "mosaicloc/estimation/pose_filter.hpp"
+#include "mosaicloc/tracking/place_index.hpp"
 #include "mosaicloc/tracking/relocalize.hpp"
 #include "mosaicloc/tracking/tracker.hpp"
 
@@ -57,6 +58,10 @@ struct LocalizerOptions {
   /// aside while switched off, a confidently wrong start), and relocalize_radius_mm is searched
   /// without it. Misses at the map's edge or off it are no such evidence. 0: only on request.
   int relocalize_after_misses = 5;
+  /// While the lock is lost and the searches around the prediction find nothing, every this
+  /// many frames the whole map is searched through its place index (when the map has one), and
+  /// a place taken if it is the only one the frame matches (design.md section 7b). 0: never.
+  int lost_global_every = 5;
   /// A view partly off the map (a template's place was unmapped: at a lane's edge, coming back
   /// onto the map) is registered from templates that all lie on one side of it, where the yaw,
   /// and with it the vehicle's origin a lever arm away, is less well held; the first fix back
@@ -111,14 +116,24 @@ struct FrameOutcome {
 /// deterministic given the same inputs.
 class Localizer {
  public:
-  /// `reference` (the map, level 0) must outlive the localizer. Throws core::Error (invalid
-  /// input) on bad options.
+  /// `reference` (the map, level 0) and `places` (its place index, for global relocalization;
+  /// null: none) must outlive the localizer. Throws core::Error (invalid input) on bad options.
   Localizer(const camera::IdealCamera& camera, const LocalizerOptions& options,
-            const tracking::ReferenceRaster& reference);
+            const tracking::ReferenceRaster& reference, const tracking::PlaceIndex* places = nullptr);
 
   /// Starts (or restarts) at a known pose.
   void Initialize(core::Timestamp time, const core::Pose2& world_from_vehicle, const Eigen::Matrix3d& covariance);
+  /// Moves the estimate to a pose given from outside at `time` (an operator's or the PLC's),
+  /// keeping what the filter has learnt of the wheels; requires initialized().
+  void SetPose(core::Timestamp time, const core::Pose2& world_from_vehicle, const Eigen::Matrix3d& covariance);
+  /// Starts without a known pose (design.md section 7b): every frame is looked for on the whole
+  /// map through its place index until one is found (lock state "searching"). Without a usable
+  /// index the frames get no fix, and the reason says how to build one.
+  void InitializeUnknown(core::Timestamp time);
   bool initialized() const { return filter_.has_value(); }
+  /// The pose is unknown and the whole map is searched (InitializeUnknown,
+  /// RequestGlobalRelocalization), until a fix.
+  bool pose_unknown() const { return pose_unknown_; }
 
   /// One encoder sample (raw PLC counters). Returns false when the sample was rejected.
   bool AddEncoders(core::Timestamp time, std::int32_t left_ticks, std::int32_t right_ticks);
@@ -151,6 +166,11 @@ class Localizer {
   /// guess): from the next frame on, relocalize_radius_mm around the prediction is searched
   /// and the one place found taken, whatever the prior's covariance says, until a fix.
   void RequestRelocalization() { kidnapped_ = true; }
+  /// The vehicle may be anywhere on the map (moved while switched off, the PLC's relocalize
+  /// request): from the next frame on, the whole map is searched through its place index and
+  /// a place taken only if it is the only one the frame matches; the estimate is meaningless
+  /// until then. Without a usable index this is RequestRelocalization().
+  void RequestGlobalRelocalization();
   /// A kidnap is known (requested, or seen by the view) and not yet resolved by a fix.
   bool kidnapped() const { return kidnapped_; }
 
@@ -180,6 +200,7 @@ class Localizer {
   camera::IdealCamera camera_;
   LocalizerOptions options_;
   const tracking::ReferenceRaster& reference_;
+  const tracking::PlaceIndex* places_ = nullptr;
   tracking::Tracker tracker_;
   tracking::Tracker edge_tracker_;  ///< with edge_templates, for views partly off the map
   tracking::Relocalizer relocalizer_;
@@ -197,7 +218,9 @@ class Localizer {
   /// Consecutive frames without a fix whose prediction, with its uncertainty, lies on the map
   /// (frames without texture neither count nor break the run).
   int unmatched_run_ = 0;
+  std::int64_t lost_frames_ = 0;  ///< frames without a fix while lost
   bool kidnapped_ = false;
+  bool pose_unknown_ = false;
   // The image scale's estimate, its variance, and the time it was last brought to.
   double scale_ = 1.0;
   double scale_variance_ = 0.0;

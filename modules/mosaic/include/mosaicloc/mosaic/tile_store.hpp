@@ -38,6 +38,23 @@ struct TileRead {
   std::string problem;  ///< names the tile, when kCorrupt
 };
 
+/// One cell of the place index (design.md section 4): the index's records over one tile of
+/// its level, as the tracking module encodes them; the store keeps them with their CRC32.
+struct PlaceCell {
+  std::int64_t col = 0;
+  std::int64_t row = 0;
+  std::vector<unsigned char> data;
+};
+
+/// What the map's place index is, read from its metadata without loading its cells.
+struct PlaceIndexInfo {
+  int format_version = 0;
+  std::string method;  ///< how the records were made (e.g. "orb256"), for the reader to check
+  int level = 0;       ///< the map level the records describe
+  std::int64_t cells = 0;
+  std::int64_t bytes = 0;  ///< of the cells' data
+};
+
 /// A tile to write: CV_8UC1, tile_size square.
 struct TileWrite {
   TileKey key;
@@ -75,6 +92,16 @@ class TileStore {
   /// Every tile of a level (all levels when level < 0), ordered by level, row, col.
   std::vector<TileKey> List(int level = -1) const;
   std::int64_t Count(int level = -1) const;
+
+  /// The place index, when the map has one (an older map has none: nullopt). Throws
+  /// core::Error naming the file when its metadata is damaged.
+  std::optional<PlaceIndexInfo> Places() const;
+  /// Every cell of the place index, each checked against its CRC32. Throws core::Error naming
+  /// the file and cell when one is damaged, and when the map has no index.
+  std::vector<PlaceCell> ReadPlaces() const;
+  /// Replaces the whole place index (table and metadata) in one transaction: a crash leaves
+  /// the old index or the new one. Throws core::Error on failure.
+  void WritePlaces(const PlaceIndexInfo& info, const std::vector<PlaceCell>& cells);
 
   /// Copies every committed write from the write-ahead log into the map file itself, empties
   /// the log and leaves WAL mode, so that the file alone holds the map (before it is moved or

@@ -60,6 +60,9 @@ struct LiveRunOptions {
   double counter_period_ms = 10.0;
 
   core::Pose2 start;                         ///< where the vehicle is when the run starts
+  /// The start is not known (start.unknown): the whole map is searched through its place
+  /// index until a frame is found (design.md section 7b).
+  bool start_unknown = false;
   double start_sigma_mm = 5.0;
   double start_sigma_deg = 1.0;
   /// A frame waits at most this long for the encoder sample that follows it.

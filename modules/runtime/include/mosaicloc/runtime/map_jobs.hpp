@@ -39,9 +39,11 @@ struct MapBuildSummary {
   std::int64_t resumed_after = 0;  ///< frames a resumed build took from its checkpoint
   std::int64_t tiles = 0;
   std::int64_t level0_tiles = 0;
+  std::int64_t place_features = 0;  ///< in the place index built with the map
   std::optional<MapPosesSummary> mapping;  ///< with poses "estimate"
 };
 
+/// The map is written with its place index (IndexMap).
 /// With poses "estimate", the poses are estimated first and kept in OUT.poses.tum (and
 /// OUT.poses.K.tum for the joined drives) until the map is written (a resumed build takes them
 /// from there).
@@ -68,10 +70,24 @@ struct MapInfo {
   std::uintmax_t bytes_on_disk = 0;  ///< the database and its write-ahead log
   /// The tiled area of level 0 in world mm (x0, y0, x1, y1); empty for a map without tiles.
   std::vector<double> extent_mm;
+  /// The place index (design.md section 7b), when the map has one.
+  std::optional<mosaic::PlaceIndexInfo> places;
 };
 MapInfo InspectMap(const std::filesystem::path& map);
 
-/// Reads every tile; the problems of the damaged ones. *tiles gets the number read.
+/// `mosaicloc map index`: builds (or rebuilds) a map's place index, which global
+/// relocalization looks frames up in, and stores it in the map in one transaction.
+struct MapIndexSummary {
+  std::int64_t cells = 0;
+  std::int64_t features = 0;
+  std::int64_t bytes = 0;
+  double seconds = 0.0;
+};
+MapIndexSummary IndexMap(const std::filesystem::path& map, const std::function<void(double)>& progress = {});
+/// The same into an open, writable store.
+MapIndexSummary IndexStore(mosaic::TileStore& store, const std::function<void(double)>& progress = {});
+
+/// Reads every tile and the place index's cells; the problems of the damaged ones. *tiles gets the number read.
 std::vector<std::string> CheckMap(const std::filesystem::path& map, std::size_t* tiles,
                                   const std::function<void(double)>& progress = {});
 

@@ -9,6 +9,7 @@
 #include "mosaicloc/mosaic/renderer.hpp"
 #include "mosaicloc/mosaic/tile_cache.hpp"
 #include "mosaicloc/mosaic/tile_store.hpp"
+#include "mosaicloc/tracking/place_index.hpp"
 #include "mosaicloc/tracking/reference.hpp"
 
 namespace mosaicloc::runtime {
@@ -23,7 +24,8 @@ struct MapSessionOptions {
 };
 
 /// An open map, read-only: the tile store, the byte-bounded cache over it, the renderer, the
-/// tracker's reference raster (level 0) and, when asked for, the prefetcher; opened in this
+/// tracker's reference raster (level 0), the place index (loaded on first use) and, when
+/// asked for, the prefetcher; opened in this
 /// order and closed in the reverse one (the prefetcher stops before the cache goes).
 class MapSession {
  public:
@@ -34,6 +36,9 @@ class MapSession {
   MapSession& operator=(const MapSession&) = delete;
 
   const tracking::MapReference& reference() const { return *reference_; }
+  /// The map's place index for global relocalization; places().problem() says why it cannot
+  /// be used (an older map without one).
+  const tracking::PlaceIndex& places() const { return *places_; }
   const mosaic::TileCache& cache() const { return *cache_; }
   mosaic::TileCache& cache() { return *cache_; }
   /// Null without prefetching.
@@ -44,6 +49,7 @@ class MapSession {
   std::unique_ptr<mosaic::TileCache> cache_;
   std::unique_ptr<mosaic::MapRenderer> renderer_;
   std::unique_ptr<tracking::MapReference> reference_;
+  std::unique_ptr<tracking::PlaceIndex> places_;
   std::unique_ptr<mosaic::TilePrefetcher> prefetcher_;  // last: stops first
 };
 

@@ -37,6 +37,16 @@ struct ReplayOptions {
   std::optional<core::Pose2> start_offset;
   /// kMosaic: the start is not to be trusted; relocalize without it.
   bool relocalize = false;
+  /// kMosaic: the start is not known at all: search the whole map (Localizer::InitializeUnknown).
+  bool unknown_start = false;
+  /// kMosaic: a kidnapped vehicle. At the first frame `kidnap_at_s` seconds or more into the
+  /// drive, the estimate is moved by `kidnap_offset` (in the vehicle's frame) and held there
+  /// confidently (the start's uncertainty), as if the vehicle had been carried away from it
+  /// unseen; with `kidnap_told` the localizer is also told (RequestRelocalization), as the
+  /// PLC's relocalize request tells it.
+  std::optional<double> kidnap_at_s;
+  core::Pose2 kidnap_offset;
+  bool kidnap_told = false;
   /// kMosaic: load the map's tiles ahead on the prefetcher's threads, as a live run does;
   /// the estimates do not change, the processing times are the tracking thread's.
   bool prefetch = false;

@@ -8,6 +8,7 @@
 #include <opencv2/core/mat.hpp>
 
 #include "mosaicloc/core/pose2.hpp"
+#include "mosaicloc/tracking/place_index.hpp"
 #include "mosaicloc/tracking/reference.hpp"
 #include "mosaicloc/tracking/tracker.hpp"
 
@@ -42,7 +43,7 @@ struct RelocalizeGate {
 };
 
 /// Relocalization: finds where on the map a frame was taken, within a radius of a predicted
-/// camera pose. Const, like the tracker it verifies with.
+/// camera pose, or anywhere on it through its place index. Const, like the tracker it verifies with.
 class Relocalizer {
  public:
   /// `tracker` and `reference` (the map, level 0) must outlive the relocalizer. Throws
@@ -58,6 +59,15 @@ class Relocalizer {
   /// frame is expected at (TrackResult::scale).
   TrackResult Search(const cv::Mat& frame, const core::Pose2& prior, const Eigen::Matrix3d& prior_covariance,
                      double radius_mm, const std::optional<RelocalizeGate>& gate, double scale = 1.0) const;
+
+  /// Searches the whole map, without a prior (design.md section 7b): the place index's
+  /// candidates are verified with the tracker, and a verified place is taken only if it is the
+  /// only one: with no prediction to choose by, two verified places (a floor that repeats; the
+  /// true place seen partly off the map and a copy whole) make the frame kAmbiguous. kNoMatch when no
+  /// candidate verifies or the index cannot be used (the reason says which). `lookup`, when
+  /// given, gets what the index found.
+  TrackResult SearchEverywhere(const cv::Mat& frame, const PlaceIndex& places, double scale = 1.0,
+                               PlaceLookup* lookup = nullptr) const;
 
  private:
   const Tracker& tracker_;

@@ -1,0 +1,64 @@
+#!/usr/bin/env bash
+# Global relocalization on the 85 m network route (design.md section 7b): for each floor, a map
+# painted at the true poses of one lap at 0.5 m/s (wheels 2 % / 2.5 % off) and indexed, then
+#   - `locate` on every EVERY-th frame of a later drive at 1.5 m/s (other noise): found,
+#     ambiguous, no match, within 0.05 mm of the truth, wrong (over 1 mm), ms p50/p99;
+#   - replays of that drive starting without a pose, and kidnapped 20 s in (the estimate moved
+#     10 m aside unseen, told as by the PLC's request, and 3 m back along the lane, not told).
+# Usage: relocalization_table.sh [MOSAICLOC] [WORK] [FLOORS] [EVERY]
+#   FLOORS: any of "procedural asphalt brick" (asphalt and brick need ../shared/data).
+set -euo pipefail
+HERE="$(cd "$(dirname "$0")" && pwd)"
+MOSAICLOC="${1:-$HERE/../build/dev/app/mosaicloc}"
+WORK="${2:-/tmp/mosaicloc-relocalization}"
+FLOORS="${3:-procedural asphalt brick}"
+EVERY="${4:-2}"
+SHARED="${MOSAICLOC_SHARED_DATA:-$HERE/../../shared/data}"
+mkdir -p "$WORK"
+printf 'route: {name: network, network_scale: 1.0, speed_mps: 0.5, max_accel_mps2: 1.0}\nrun: {laps: 1, seed: 81}\nencoders: {left_radius_error: 0.02, right_radius_error: 0.025}\n' >"$WORK/map.yaml"
+printf 'route: {name: network, network_scale: 1.0, speed_mps: 1.5, max_accel_mps2: 1.0}\nrun: {laps: 1, seed: 82}\nencoders: {left_radius_error: 0.02, right_radius_error: 0.025}\n' >"$WORK/drive.yaml"
+floor_args() {
+  case "$1" in
+    procedural) echo "--floor procedural" ;;
+    asphalt) echo "--floor $SHARED/textures/asphalt_02_2048.jpg" ;;
+    brick) echo "--floor $SHARED/textures/brick_floor_1024.png" ;;
+  esac
+}
+echo "| floor | frames | found | ambiguous | no match | within 0.05 mm | wrong | ms p50 | ms p99 | index features | index MiB |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|"
+for floor in $FLOORS; do
+  dir="$WORK/$floor"
+  mkdir -p "$dir"
+  # shellcheck disable=SC2046
+  [ -d "$dir/map" ] || "$MOSAICLOC" --quiet simulate --out "$dir/map" $(floor_args "$floor") --config "$WORK/map.yaml" >/dev/null
+  # shellcheck disable=SC2046
+  [ -d "$dir/drive" ] || "$MOSAICLOC" --quiet simulate --out "$dir/drive" $(floor_args "$floor") --config "$WORK/drive.yaml" >/dev/null
+  [ -f "$dir/truth.mosaic" ] || "$MOSAICLOC" --quiet map build --dataset "$dir/map" --out "$dir/truth.mosaic" --poses groundtruth >/dev/null
+  "$MOSAICLOC" --quiet --json locate --map "$dir/truth.mosaic" --dataset "$dir/drive" --every "$EVERY" >"$dir/locate.json"
+  /usr/bin/python3 - "$dir/locate.json" "$floor" <<'PY'
+import json, sys
+d = json.load(open(sys.argv[1]))
+print(f"| {sys.argv[2]} | {d['frames']} | {d['found']} | {d['ambiguous']} | {d['no_match']} | {d.get('within_0_05_mm', '-')} | "
+      f"{d.get('wrong', '-')} | {d['ms_p50']:.1f} | {d['ms_p99']:.1f} | {d['index_features']} | {d['index_memory_bytes'] / 2**20:.1f} |")
+PY
+done
+echo
+echo "| floor | replay | fix rate | lock losses | wrong | relocalizations | frames to first fix | kidnap: frames to fix |"
+echo "|---|---|---|---|---|---|---|---|"
+for floor in $FLOORS; do
+  dir="$WORK/$floor"
+  run() {
+    local name=$1; shift
+    "$MOSAICLOC" --quiet --json replay --dataset "$dir/drive" --map "$dir/truth.mosaic" --out "$dir/replay-$name" "$@" >/dev/null
+    /usr/bin/python3 - "$dir/replay-$name/metrics.json" "$floor" "$name" <<'PY'
+import json, sys
+m = json.load(open(sys.argv[1]))
+f = lambda k: "-" if m.get(k) is None else m[k]
+print(f"| {sys.argv[2]} | {sys.argv[3]} | {100 * m['fix_rate']:.2f} % | {f('lock_losses')} | {f('wrong_fixes')} | "
+      f"{f('relocalizations')} | {f('frames_to_first_fix')} | {f('kidnap_frames_to_fix')} |")
+PY
+  }
+  run unknown-start --unknown-start
+  run kidnap-10m-told --kidnap-at-s 20 --kidnap-offset 10000,3000,30 --kidnap-told
+  run kidnap-3m-back --kidnap-at-s 20 --kidnap-offset -3000,0,0
+done

@@ -1,0 +1,55 @@
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "mosaicloc/core/pose2.hpp"
+#include "mosaicloc/runtime/settings.hpp"
+
+namespace mosaicloc::runtime {
+
+/// `mosaicloc locate`: where on a map single frames were taken, without any prior (global
+/// relocalization, design.md section 7b). The frames are ideal images at the map's resolution:
+/// PNG files, or every `every`-th frame of a dataset, whose ground truth (when it has one) each
+/// answer is compared with.
+struct LocateOptions {
+  std::filesystem::path map;
+  std::vector<std::filesystem::path> images;
+  std::filesystem::path dataset;  ///< instead of images
+  int every = 1;                  ///< with a dataset: every k-th frame
+  std::int64_t max_frames = 0;    ///< with a dataset: at most this many (0: all)
+  LocalizationSettings settings;  ///< the tracker that verifies the candidates, and relocalize.*
+  double scale = 1.0;             ///< image scale the frames were taken at (1: the calibrated height)
+};
+
+struct LocatedFrame {
+  std::string frame;    ///< the image's path, or the dataset frame's
+  std::string outcome;  ///< "found", "ambiguous" or "no-match"
+  std::string reason;   ///< why not, when not found
+  core::Pose2 world_from_camera;  ///< when found
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+  double mean_zncc = 0.0;
+  int inliers = 0;              ///< templates of the verifying registration
+  int candidates = 0;           ///< places the index proposed
+  double milliseconds = 0.0;    ///< frame in, verified answer out
+  std::optional<double> error_mm;  ///< against the ground truth's camera pose, when there is one
+};
+
+struct LocateSummary {
+  std::vector<LocatedFrame> frames;
+  std::int64_t index_features = 0;
+  std::int64_t index_memory_bytes = 0;
+  double index_load_s = 0.0;
+};
+
+/// Throws core::Error (invalid input) for an unreadable map or image, or a map without a place
+/// index (naming `mosaicloc map index`).
+LocateSummary Locate(const LocateOptions& options, const std::function<void(double)>& progress = {});
+
+}  // namespace mosaicloc::runtime
