@@ -62,13 +62,20 @@ int main(int argc, char** argv) {
   app.add_option("--map", map, "Map file (written when absent)")->required();
   app.add_option("--lane-m", lane_m, "Metres of lanes (10 m each)");
   app.add_option("--frames", frames, "Frames looked up");
+  tracking::PlaceIndexOptions index;
+  bool reindex = false;
+  app.add_option("--features-per-tile", index.features_per_tile, "Place index: corners per tile");
+  app.add_option("--lsh-tables", index.lsh_tables, "Place index: hash tables");
+  app.add_option("--lsh-key-bits", index.lsh_key_bits, "Place index: bits per key");
+  app.add_flag("--reindex", reindex, "Rebuild the index of an existing map");
   CLI11_PARSE(app, argc, argv);
   const int lanes = std::max(1, static_cast<int>(std::lround(lane_m / (kLaneTiles * 0.064))));
 
   sim::ProceduralFloorOptions floor_options;
   floor_options.mm_per_texel = 0.25;
   const auto floor = sim::MakeProceduralFloor(floor_options);
-  if (!std::filesystem::exists(map)) {
+  const bool exists = std::filesystem::exists(map);
+  if (!exists) {
     const auto start = Clock::now();
     auto store = mosaic::TileStore::Create(map, mosaic::MapGrid{});
     for (int lane = 0; lane < lanes; ++lane) {
@@ -83,14 +90,16 @@ int main(int argc, char** argv) {
       }
       mosaic::WriteWithPyramid(*store, tiles);
     }
-    const double paint_s = Seconds(start);
+    std::printf("built %s: %d lanes of 10 m (%.0f m), painted in %.0f s\n", map.c_str(), lanes,
+                lanes * kLaneTiles * 0.064, Seconds(start));
+  }
+  if (!exists || reindex) {
+    auto store = mosaic::TileStore::Open(map, true);
     const auto index_start = Clock::now();
-    const tracking::PlaceIndexOptions index;
     const auto cells = tracking::BuildPlaceCells(*store, index);
     store->WritePlaces(tracking::PlaceIndexInfoFor(index), cells);
     store->Checkpoint();
-    std::printf("built %s: %d lanes of 10 m (%.0f m), painted in %.0f s, indexed in %.1f s\n", map.c_str(), lanes,
-                lanes * kLaneTiles * 0.064, paint_s, Seconds(index_start));
+    std::printf("indexed in %.1f s (%d corners a tile)\n", Seconds(index_start), index.features_per_tile);
   }
 
   const auto store = mosaic::TileStore::Open(map, false);
@@ -98,7 +107,7 @@ int main(int argc, char** argv) {
   mosaic::TileCache cache(*store, std::size_t{256} << 20);
   const mosaic::MapRenderer renderer(cache);
   const tracking::MapReference reference(renderer, 0);
-  const tracking::PlaceIndex places(*store);
+  const tracking::PlaceIndex places(*store, index);
   const camera::IdealCamera camera{camera::IdealCameraOptions{}};
   const tracking::Tracker tracker(camera, tracking::TrackerOptions{});
   const tracking::Relocalizer relocalizer(tracker, reference, tracking::RelocalizeOptions{});

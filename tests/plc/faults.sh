@@ -5,7 +5,9 @@
 # localized as precisely as ever.
 source "$(dirname "$0")/lib.sh"
 require_peers
-make_site site 0.5
+# The procedural floor: the relocalization the PLC asks for must find the one place the
+# vehicle is at (over a floor that repeats it would rightly answer "ambiguous").
+make_site site 0.5 procedural
 
 PORT=$(free_port)
 # Retries at most 200 ms apart: the restarted PLC (a Python process) may take a second to

@@ -17,11 +17,14 @@ free_port() { $PYTHON -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",
 # Seconds since the epoch, $1 seconds from now: the common start of a PLC and a run.
 start_in() { $PYTHON -c "import time; print(f'{time.time() + $1:.6f}')"; }
 
-# make_site NAME SPEED_MPS: a 2 m straight on the asphalt texture, mapped at 0.5 m/s, and a
-# run over it at SPEED_MPS, in $SCRATCH/NAME.mosaic and $SCRATCH/NAME-run.
+# make_site NAME SPEED_MPS [procedural]: a 2 m straight on the asphalt texture (or the
+# procedural floor, which never repeats), mapped at 0.5 m/s, and a run over it at SPEED_MPS, in
+# $SCRATCH/NAME.mosaic and $SCRATCH/NAME-run.
 make_site() {
   local texture="${MOSAICLOC_SHARED_DATA:-}/textures/asphalt_02_2048.jpg"
-  if [ ! -f "$texture" ]; then
+  if [ "${3:-}" = procedural ]; then
+    texture=procedural
+  elif [ ! -f "$texture" ]; then
     echo "shared data folder with real textures not found (MOSAICLOC_SHARED_DATA=${MOSAICLOC_SHARED_DATA:-unset}): skipped"
     exit 77
   fi

@@ -428,8 +428,17 @@ tracking::TrackResult Localizer::Relocalize(const cv::Mat& frame, const core::Po
                                            const Eigen::Matrix3d& prior_camera_covariance, bool kidnapped) const {
   if (kidnapped) {
     // The covariance no longer says where to look: the whole radius is searched, any place taken.
-    return relocalizer_.Search(frame, prior_camera, prior_camera_covariance, options_.relocalize_radius_mm,
-                               std::nullopt, scale_);
+    tracking::TrackResult found = relocalizer_.Search(frame, prior_camera, prior_camera_covariance,
+                                                      options_.relocalize_radius_mm, std::nullopt, scale_);
+    // On a floor that repeats, the place nearest a prior that is not to be trusted may be a
+    // copy. Where the map has a place index, it says whether the frame matches anywhere else:
+    // if so, no place is taken.
+    if (found.ok() && places_ != nullptr && places_->usable()) {
+      tracking::TrackResult everywhere = relocalizer_.SearchEverywhere(frame, *places_, scale_);
+      if (everywhere.failure == tracking::TrackFailure::kAmbiguous) return everywhere;
+      if (everywhere.ok()) return everywhere;
+    }
+    return found;
   }
   // The prediction's gate, and a little more for the candidates' own uncertainty.
   const double sigma_mm = std::sqrt(std::max(prior_camera_covariance(0, 0), prior_camera_covariance(1, 1)));

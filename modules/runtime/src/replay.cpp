@@ -84,7 +84,7 @@ class ReplayRecord {
   dataset::Metrics Finish(const ReplayOptions& options, const dataset::DatasetInfo& info, double required_overlap,
                           std::optional<std::int64_t> lock_losses, const std::string& title,
                           std::optional<std::int64_t> relocalizations = std::nullopt) {
-    if (estimate_.empty()) {
+    if (estimate_.empty() && reports_.empty()) {
       core::ThrowInvalidInput(options.dataset.string() + ": no frame falls within the encoder samples");
     }
     dataset::Metrics metrics;

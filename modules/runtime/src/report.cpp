@@ -16,7 +16,9 @@ dataset::Metrics WriteReport(const std::filesystem::path& directory, const datas
   std::filesystem::create_directories(directory, ec);
   if (ec) core::ThrowRuntime(directory.string() + ": cannot create the report directory (" + ec.message() + ")");
   dataset::WriteTum(directory / "estimate.tum", estimate);
-  if (groundtruth) {
+  // No estimate at all (a start without a pose on a floor that repeats: never found): the
+  // caller's counts are the report.
+  if (groundtruth && !estimate.empty()) {
     const dataset::Evaluation evaluation = dataset::Evaluate(estimate, *groundtruth, dataset::EvaluationOptions{});
     // Keep what the caller measured; take the accuracy figures from the evaluation.
     dataset::Metrics merged = evaluation.metrics;

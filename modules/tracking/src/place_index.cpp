@@ -11,7 +11,6 @@
 #include <unordered_set>
 
 #include <opencv2/features2d.hpp>
-#include <opencv2/flann.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "mosaicloc/core/error.hpp"
@@ -99,6 +98,81 @@ Rigid Fit(const std::vector<Eigen::Vector2d>& from, const std::vector<Eigen::Vec
   return r;
 }
 
+// Locality-sensitive hashing of 256-bit descriptors by bit sampling: each table keys a feature
+// by some of its descriptor's bits, drawn once from a seeded generator (the same map gives the
+// same index and the same answers). A table is one sorted array of (key, feature) pairs, eight
+// bytes a feature: FLANN's LSH kept a hash map node per feature and table, 1 GiB for a 90 m
+// map where this takes 70 MiB.
+class BitSamplingLsh {
+ public:
+  BitSamplingLsh(const cv::Mat& descriptors, int tables, int bits) : descriptors_(descriptors) {
+    std::mt19937 random(0x5eed);
+    std::vector<int> all(kDescriptorBytes * 8);
+    for (int i = 0; i < static_cast<int>(all.size()); ++i) all[static_cast<std::size_t>(i)] = i;
+    for (int t = 0; t < tables; ++t) {
+      std::shuffle(all.begin(), all.end(), random);
+      positions_.emplace_back(all.begin(), all.begin() + bits);
+      std::vector<std::uint64_t> entries(static_cast<std::size_t>(descriptors.rows));
+      for (int f = 0; f < descriptors.rows; ++f) {
+        entries[static_cast<std::size_t>(f)] =
+            (static_cast<std::uint64_t>(Key(descriptors.ptr(f), positions_.back())) << 32) | static_cast<std::uint32_t>(f);
+      }
+      std::sort(entries.begin(), entries.end());
+      entries_.push_back(std::move(entries));
+    }
+  }
+
+  // The k nearest features (Hamming distance, then index) among those sharing a key with the
+  // query in some table, as (distance, feature).
+  std::vector<std::pair<int, int>> Nearest(const std::uint8_t* query, int k) const {
+    std::vector<int> candidates;
+    for (std::size_t t = 0; t < entries_.size(); ++t) {
+      const std::uint64_t key = static_cast<std::uint64_t>(Key(query, positions_[t])) << 32;
+      const auto& entries = entries_[t];
+      for (auto it = std::lower_bound(entries.begin(), entries.end(), key);
+           it != entries.end() && (*it >> 32) == (key >> 32); ++it) {
+        candidates.push_back(static_cast<int>(*it & 0xFFFFFFFFU));
+      }
+    }
+    std::sort(candidates.begin(), candidates.end());
+    candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+    std::vector<std::pair<int, int>> nearest;
+    nearest.reserve(candidates.size());
+    for (const int f : candidates) nearest.emplace_back(Hamming(query, descriptors_.ptr(f)), f);
+    const auto n = std::min<std::size_t>(nearest.size(), static_cast<std::size_t>(k));
+    std::partial_sort(nearest.begin(), nearest.begin() + static_cast<std::ptrdiff_t>(n), nearest.end());
+    nearest.resize(n);
+    return nearest;
+  }
+
+  std::size_t bytes() const {
+    std::size_t total = 0;
+    for (const auto& entries : entries_) total += entries.size() * sizeof(std::uint64_t);
+    return total;
+  }
+
+ private:
+  static std::uint32_t Key(const std::uint8_t* descriptor, const std::vector<int>& positions) {
+    std::uint32_t key = 0;
+    for (const int bit : positions) key = (key << 1) | ((descriptor[bit >> 3] >> (bit & 7)) & 1U);
+    return key;
+  }
+  static int Hamming(const std::uint8_t* a, const std::uint8_t* b) {
+    int distance = 0;
+    for (int i = 0; i < kDescriptorBytes; i += 8) {
+      std::uint64_t x = 0, y = 0;
+      std::memcpy(&x, a + i, 8);
+      std::memcpy(&y, b + i, 8);
+      distance += __builtin_popcountll(x ^ y);
+    }
+    return distance;
+  }
+
+  const cv::Mat& descriptors_;
+  std::vector<std::vector<int>> positions_;
+  std::vector<std::vector<std::uint64_t>> entries_;
+};
+
 }  // namespace
 
 bool PlaceIndexOptions::Check(std::string* why) const {
@@ -113,7 +187,6 @@ bool PlaceIndexOptions::Check(std::string* why) const {
   if (neighbours < 1 || neighbours > 16) return fail("place index neighbours must be in [1, 16]");
   if (lsh_tables < 1 || lsh_tables > 32) return fail("place index lsh_tables must be in [1, 32]");
   if (lsh_key_bits < 8 || lsh_key_bits > 32) return fail("place index lsh_key_bits must be in [8, 32]");
-  if (lsh_probe_level < 0 || lsh_probe_level > 2) return fail("place index lsh_probe_level must be in [0, 2]");
   if (max_hamming < 1 || max_hamming > 256) return fail("place index max_hamming must be in [1, 256]");
   if (!(bin_mm > 0.0) || !(bin_deg > 0.0 && bin_deg <= 180.0)) return fail("place index bins must be positive");
   if (!(inlier_mm > 0.0)) return fail("place index inlier_mm must be > 0");
@@ -181,10 +254,10 @@ std::vector<mosaic::PlaceCell> BuildPlaceCells(const mosaic::TileStore& store, c
 }
 
 struct PlaceIndex::Loaded {
-  std::vector<Eigen::Vector2d> world_mm;
-  std::vector<double> angle;
+  std::vector<Eigen::Vector2f> world_mm;
+  std::vector<float> angle;
   cv::Mat descriptors;  // CV_8U, one row of 32 bytes per feature
-  std::unique_ptr<cv::flann::Index> search;
+  std::unique_ptr<BitSamplingLsh> search;
   double seconds = 0.0;
 };
 
@@ -246,16 +319,7 @@ bool PlaceIndex::Load() const {
       }
     }
     if (total == 0) core::ThrowInvalidInput(store_.file().string() + ": the place index is empty (no texture?)");
-    // LSH over the descriptors' bits; its hash functions are drawn from OpenCV's generator,
-    // seeded here so that the same map gives the same index and the same answers.
-    // The thread's generator is put back afterwards: others draw from it too.
-    const cv::RNG saved = cv::theRNG();
-    cv::theRNG() = cv::RNG(0x5eed);
-    loaded->search = std::make_unique<cv::flann::Index>(
-        loaded->descriptors,
-        cv::flann::LshIndexParams(options_.lsh_tables, options_.lsh_key_bits, options_.lsh_probe_level),
-        cvflann::FLANN_DIST_HAMMING);
-    cv::theRNG() = saved;
+    loaded->search = std::make_unique<BitSamplingLsh>(loaded->descriptors, options_.lsh_tables, options_.lsh_key_bits);
     loaded->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     loaded_ = std::move(loaded);
   } catch (const cv::Exception& e) {
@@ -276,12 +340,17 @@ std::int64_t PlaceIndex::memory_bytes() const {
   if (!loaded_) return 0;
   const auto n = static_cast<std::int64_t>(loaded_->world_mm.size());
   // Records, and LSH's tables: one 4-byte index per feature per table.
-  return n * static_cast<std::int64_t>(sizeof(Eigen::Vector2d) + sizeof(double) + kDescriptorBytes) + n * options_.lsh_tables * 4;
+  return n * static_cast<std::int64_t>(sizeof(Eigen::Vector2f) + sizeof(float) + kDescriptorBytes) +
+         static_cast<std::int64_t>(loaded_->search->bytes());
 }
 
 double PlaceIndex::load_seconds() const {
   const std::lock_guard lock(mutex_);
   return loaded_ ? loaded_->seconds : 0.0;
+}
+
+Eigen::Vector2d PlaceIndex::World(const Loaded& index, int feature) {
+  return index.world_mm[static_cast<std::size_t>(feature)].cast<double>();
 }
 
 PlaceLookup PlaceIndex::Lookup(const cv::Mat& frame, const camera::IdealCamera& camera) const {
@@ -305,8 +374,6 @@ PlaceLookup PlaceIndex::Lookup(const cv::Mat& frame, const camera::IdealCamera& 
   result.frame_features = static_cast<int>(corners.size());
   if (corners.size() < static_cast<std::size_t>(options_.min_inliers)) return result;
 
-  cv::Mat indices, distances;
-  index.search->knnSearch(descriptors, indices, distances, options_.neighbours, cv::flann::SearchParams(32));
   // Every match votes for the camera pose it implies by itself: the yaw turning the frame
   // corner's orientation into the map corner's, the position putting the one on the other.
   struct Match {
@@ -330,13 +397,11 @@ PlaceLookup PlaceIndex::Lookup(const cv::Mat& frame, const camera::IdealCamera& 
     const Eigen::Vector2d pixel((corner.pt.x + 0.5) / f - 0.5, (corner.pt.y + 0.5) / f - 0.5);
     const Eigen::Vector2d camera_mm = camera.PixelToCamera(pixel);
     const double frame_angle = UpAngle(corner);
-    for (int k = 0; k < indices.cols; ++k) {
-      const int feature = indices.at<int>(q, k);
-      const double distance =
-          distances.type() == CV_32S ? distances.at<int>(q, k) : static_cast<double>(distances.at<float>(q, k));
-      if (feature < 0 || distance > options_.max_hamming) continue;
+    for (const auto& [distance, feature] : index.search->Nearest(descriptors.ptr(q), options_.neighbours)) {
+      if (distance > options_.max_hamming) continue;
       const double yaw = Wrap(index.angle[static_cast<std::size_t>(feature)] - frame_angle);
-      const Eigen::Vector2d t = index.world_mm[static_cast<std::size_t>(feature)] - Rigid{yaw, Eigen::Vector2d::Zero()}.Apply(camera_mm);
+      const Eigen::Vector2d t =
+          World(index, feature) - Rigid{yaw, Eigen::Vector2d::Zero()}.Apply(camera_mm);
       const std::array<std::int64_t, 3> address = {
           static_cast<std::int64_t>(std::floor(t.x() / options_.bin_mm)),
           static_cast<std::int64_t>(std::floor(t.y() / options_.bin_mm)),
@@ -363,7 +428,7 @@ PlaceLookup PlaceIndex::Lookup(const cv::Mat& frame, const camera::IdealCamera& 
     std::vector<int> agreeing;
     for (const int m : set) {
       const Match& match = matches[static_cast<std::size_t>(m)];
-      if ((motion.Apply(match.camera_mm) - index.world_mm[static_cast<std::size_t>(match.feature)]).squaredNorm() <=
+      if ((motion.Apply(match.camera_mm) - World(index, match.feature)).squaredNorm() <=
           inlier2) {
         agreeing.push_back(m);
       }
@@ -393,8 +458,8 @@ PlaceLookup PlaceIndex::Lookup(const cv::Mat& frame, const camera::IdealCamera& 
     for (int iteration = 0; iteration < 64; ++iteration) {
       const Match& a = matches[static_cast<std::size_t>(set[pick(random)])];
       const Match& b = matches[static_cast<std::size_t>(set[pick(random)])];
-      const Eigen::Vector2d wa = index.world_mm[static_cast<std::size_t>(a.feature)];
-      const Eigen::Vector2d wb = index.world_mm[static_cast<std::size_t>(b.feature)];
+      const Eigen::Vector2d wa = World(index, a.feature);
+      const Eigen::Vector2d wb = World(index, b.feature);
       const double span = (a.camera_mm - b.camera_mm).norm();
       if (span < 8.0 || std::abs(span - (wa - wb).norm()) > 2.0 * options_.inlier_mm) continue;
       std::vector<int> agreeing = inliers_of(Fit({a.camera_mm, b.camera_mm}, {wa, wb}), set);
@@ -406,7 +471,7 @@ PlaceLookup PlaceIndex::Lookup(const cv::Mat& frame, const camera::IdealCamera& 
       std::vector<Eigen::Vector2d> from, to;
       for (const int m : best) {
         from.push_back(matches[static_cast<std::size_t>(m)].camera_mm);
-        to.push_back(index.world_mm[static_cast<std::size_t>(matches[static_cast<std::size_t>(m)].feature)]);
+        to.push_back(World(index, matches[static_cast<std::size_t>(m)].feature));
       }
       motion = Fit(from, to);
       best = inliers_of(motion, set);
@@ -416,7 +481,7 @@ PlaceLookup PlaceIndex::Lookup(const cv::Mat& frame, const camera::IdealCamera& 
     double sum2 = 0.0;
     for (const int m : best) {
       const Match& match = matches[static_cast<std::size_t>(m)];
-      sum2 += (motion.Apply(match.camera_mm) - index.world_mm[static_cast<std::size_t>(match.feature)]).squaredNorm();
+      sum2 += (motion.Apply(match.camera_mm) - World(index, match.feature)).squaredNorm();
     }
     std::unordered_set<int> corners_agreeing;
     for (const int m : best) corners_agreeing.insert(matches[static_cast<std::size_t>(m)].corner);

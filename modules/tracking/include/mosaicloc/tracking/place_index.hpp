@@ -28,20 +28,18 @@ inline constexpr std::size_t kPlaceRecordBytes = 3 * sizeof(float) + 32;
 /// section 7b). Oriented FAST corners with rotated BRIEF descriptors (OpenCV's ORB) at one
 /// scale, the map's level `level`; the frame is brought to that resolution first. A frame's
 /// corners are matched to the map's (approximate nearest neighbours in Hamming distance,
-/// FLANN's LSH), each match votes for a camera pose (x, y, yaw), and the best-voted poses are
+/// locality-sensitive hashing by bit sampling), each match votes for a camera pose (x, y, yaw), and the best-voted poses are
 /// fitted to their matches (RANSAC, then least squares) to give the candidates.
 struct PlaceIndexOptions {
   int level = 1;                 ///< map level of the features (1: 2x the camera's mm/px)
-  int features_per_tile = 600;   ///< at most, spread over the tile's 4 x 4 blocks
+  int features_per_tile = 300;   ///< at most, spread over the tile's 4 x 4 blocks
   int frame_features = 600;      ///< at most, in a frame
   int fast_threshold = 8;        ///< FAST's intensity threshold (grey levels)
   int neighbours = 3;            ///< map features per frame feature: a repeating floor has copies
-  /// FLANN's LSH: hash tables, bits per key, bits flipped in the probes. 16 tables of 24-bit
-  /// keys without probing: 13 ms a frame on an 85 m map, where 8 tables with one-bit probes
-  /// took 48 ms and 10 tables of 16-bit keys 290 ms for the same answers.
-  int lsh_tables = 16;
+  /// Locality-sensitive hashing by bit sampling: tables, and descriptor bits per key. Keys of
+  /// 16 bits made buckets of hundreds on an 85 m map (290 ms a frame), 24 bits a few (13 ms).
+  int lsh_tables = 12;
   int lsh_key_bits = 24;
-  int lsh_probe_level = 0;
   int max_hamming = 64;          ///< of 256 bits, for a match
   double bin_mm = 16.0;          ///< vote bins: position
   double bin_deg = 12.0;         ///< and yaw
@@ -101,6 +99,7 @@ class PlaceIndex {
 
  private:
   struct Loaded;
+  static Eigen::Vector2d World(const Loaded& index, int feature);
   const mosaic::TileStore& store_;
   PlaceIndexOptions options_;
   mutable std::mutex mutex_;
