@@ -433,20 +433,27 @@ tracking::TrackResult Localizer::Relocalize(const cv::Mat& frame, const core::Po
     // On a floor that repeats, the place nearest a prior that is not to be trusted may be a
     // copy. Where the map has a place index, it says whether the frame matches anywhere else:
     // if so, no place is taken.
-    if (found.ok() && places_ != nullptr && places_->usable()) {
-      tracking::TrackResult everywhere = relocalizer_.SearchEverywhere(frame, *places_, scale_);
-      if (everywhere.failure == tracking::TrackFailure::kAmbiguous) return everywhere;
-      if (everywhere.ok()) return everywhere;
-    }
-    return found;
+    return found.ok() ? CheckedAgainstTheMap(frame, std::move(found)) : found;
   }
   // The prediction's gate, and a little more for the candidates' own uncertainty.
   const double sigma_mm = std::sqrt(std::max(prior_camera_covariance(0, 0), prior_camera_covariance(1, 1)));
-  const double radius_mm =
-      std::min(options_.relocalize_radius_mm, std::sqrt(options_.filter.gate_chi2) * sigma_mm + 20.0);
-  return relocalizer_.Search(frame, prior_camera, prior_camera_covariance, radius_mm,
-                             tracking::RelocalizeGate{options_.filter.gate_chi2, options_.fix_covariance_scale},
-                             scale_);
+  const double gate_mm = std::sqrt(options_.filter.gate_chi2) * sigma_mm + 20.0;
+  const double radius_mm = std::min(options_.relocalize_radius_mm, gate_mm);
+  tracking::TrackResult found =
+      relocalizer_.Search(frame, prior_camera, prior_camera_covariance, radius_mm,
+                          tracking::RelocalizeGate{options_.filter.gate_chi2, options_.fix_covariance_scale}, scale_);
+  // A gate wider than the search (a long dead reckoning) holds places the search did not see:
+  // the nearest of those it saw may be a copy of the floor. Checked against the whole map, as
+  // for a kidnap.
+  if (found.ok() && gate_mm > radius_mm) return CheckedAgainstTheMap(frame, std::move(found));
+  return found;
+}
+
+tracking::TrackResult Localizer::CheckedAgainstTheMap(const cv::Mat& frame, tracking::TrackResult found) const {
+  if (places_ == nullptr || !places_->usable()) return found;
+  tracking::TrackResult everywhere = relocalizer_.SearchEverywhere(frame, *places_, scale_);
+  if (everywhere.ok() || everywhere.failure == tracking::TrackFailure::kAmbiguous) return everywhere;
+  return found;  // the index did not see the frame at all: it has no say
 }
 
 double MapCoverage(const tracking::ReferenceRaster& reference, const camera::IdealCamera& camera,

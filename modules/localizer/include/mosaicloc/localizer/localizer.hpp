@@ -180,6 +180,10 @@ class Localizer {
   // searched and any place may be taken; else the prediction's gate, and only places in it.
   tracking::TrackResult Relocalize(const cv::Mat& frame, const core::Pose2& prior_camera,
                                    const Eigen::Matrix3d& prior_camera_covariance, bool kidnapped) const;
+  // A place a relocalization found with a prior that cannot rule out copies of the floor,
+  // checked against the whole map through the place index (when there is a usable one): the
+  // place the index verifies, or kAmbiguous when the frame matches elsewhere too.
+  tracking::TrackResult CheckedAgainstTheMap(const cv::Mat& frame, tracking::TrackResult found) const;
   // What a frame without a fix says: off the map (none expected), a miss inside the map
   // that is evidence against the prior, or a miss that is neither.
   estimation::FrameVerdict ClassifyMiss(const FrameOutcome& outcome, const core::Pose2& prior_camera,
