@@ -152,12 +152,14 @@ void Localizer::SetPose(core::Timestamp time, const core::Pose2& world_from_vehi
 void Localizer::InitializeUnknown(core::Timestamp time) {
   // A prior that says nothing: anywhere within a kilometre, any heading.
   Initialize(time, core::Pose2::Identity(), Eigen::Vector3d(1e12, 1e12, 10.0).asDiagonal());
-  RequestGlobalRelocalization();
+  kidnapped_ = true;
+  // Searching even without a usable index: every frame then says why nothing is found.
+  pose_unknown_ = places_ != nullptr;
 }
 
 void Localizer::RequestGlobalRelocalization() {
   kidnapped_ = true;
-  pose_unknown_ = places_ != nullptr;
+  pose_unknown_ = places_ != nullptr && places_->usable();
 }
 
 bool Localizer::AddEncoders(core::Timestamp time, std::int32_t left_ticks, std::int32_t right_ticks) {

@@ -98,6 +98,10 @@ Rigid Fit(const std::vector<Eigen::Vector2d>& from, const std::vector<Eigen::Vec
   return r;
 }
 
+}  // namespace
+
+namespace internal {
+
 // Locality-sensitive hashing of 256-bit descriptors by bit sampling: each table keys a feature
 // by some of its descriptor's bits, drawn once from a seeded generator (the same map gives the
 // same index and the same answers). A table is one sorted array of (key, feature) pairs, eight
@@ -173,7 +177,7 @@ class BitSamplingLsh {
   std::vector<std::vector<std::uint64_t>> entries_;
 };
 
-}  // namespace
+}  // namespace internal
 
 bool PlaceIndexOptions::Check(std::string* why) const {
   auto fail = [why](const char* message) {
@@ -257,7 +261,7 @@ struct PlaceIndex::Loaded {
   std::vector<Eigen::Vector2f> world_mm;
   std::vector<float> angle;
   cv::Mat descriptors;  // CV_8U, one row of 32 bytes per feature
-  std::unique_ptr<BitSamplingLsh> search;
+  std::unique_ptr<internal::BitSamplingLsh> search;
   double seconds = 0.0;
 };
 
@@ -319,7 +323,7 @@ bool PlaceIndex::Load() const {
       }
     }
     if (total == 0) core::ThrowInvalidInput(store_.file().string() + ": the place index is empty (no texture?)");
-    loaded->search = std::make_unique<BitSamplingLsh>(loaded->descriptors, options_.lsh_tables, options_.lsh_key_bits);
+    loaded->search = std::make_unique<internal::BitSamplingLsh>(loaded->descriptors, options_.lsh_tables, options_.lsh_key_bits);
     loaded->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     loaded_ = std::move(loaded);
   } catch (const cv::Exception& e) {
