@@ -19,6 +19,8 @@
 #include <vector>
 
 #include <CLI/CLI.hpp>
+
+#include "resident_memory.hpp"
 #include <opencv2/core.hpp>
 
 #include "mosaicloc/camera/ideal_camera.hpp"
@@ -41,14 +43,7 @@ using Clock = std::chrono::steady_clock;
 constexpr int kLaneTiles = 156;
 constexpr int kLaneRows = 3;
 
-double PeakResidentMib() {
-  std::ifstream status("/proc/self/status");
-  std::string line;
-  while (std::getline(status, line)) {
-    if (line.rfind("VmHWM:", 0) == 0) return std::stod(line.substr(6)) / 1024.0;
-  }
-  return 0.0;
-}
+using bench::PeakResidentMib;
 
 double Seconds(Clock::time_point since) { return std::chrono::duration<double>(Clock::now() - since).count(); }
 

@@ -16,20 +16,15 @@
 
 #include <CLI/CLI.hpp>
 
+#include "resident_memory.hpp"
+
 #include "mosaicloc/mapping/pose_graph.hpp"
 
 namespace {
 
 using namespace mosaicloc;
 
-double PeakResidentMib() {
-  std::ifstream status("/proc/self/status");
-  std::string line;
-  while (std::getline(status, line)) {
-    if (line.rfind("VmHWM:", 0) == 0) return std::stod(line.substr(6)) / 1024.0;
-  }
-  return 0.0;
-}
+using bench::PeakResidentMib;
 
 Eigen::Matrix3d Information(double sigma_mm, double sigma_rad) {
   return Eigen::Vector3d(1.0 / (sigma_mm * sigma_mm), 1.0 / (sigma_mm * sigma_mm), 1.0 / (sigma_rad * sigma_rad))

@@ -14,22 +14,10 @@
 #include "report.hpp"
 
 namespace mosaicloc::app {
-namespace {
-
-double Percentile(std::vector<double> values, double p) {
-  if (values.empty()) return 0.0;
-  std::sort(values.begin(), values.end());
-  const auto at = static_cast<std::size_t>(std::min<double>(p * static_cast<double>(values.size()), values.size() - 1.0));
-  return values[at];
-}
-
-}  // namespace
-
 Action AddLocateCommand(CLI::App& app, const GlobalOptions& global) {
   struct Args {
     runtime::LocateOptions options;
     std::filesystem::path config;
-    double wrong_mm = 1.0;
   };
   auto args = std::make_shared<Args>();
   CLI::App* command = app.add_subcommand(
@@ -44,25 +32,14 @@ Action AddLocateCommand(CLI::App& app, const GlobalOptions& global) {
   command->add_option("--config", args->config, "Localizer configuration (tracker and relocalize.* keys)");
   command->add_option("--scale", args->options.scale,
                       "Image scale the frames were taken at (the camera's height over the calibrated one; default 1)");
-  command->add_option("--wrong-mm", args->wrong_mm, "With ground truth: an answer this far off is wrong (default 1)");
+  command->add_option("--wrong-mm", args->options.wrong_mm, "With ground truth: an answer this far off is wrong (default 1)");
   return [args, &global] {
     if (!args->config.empty()) args->options.settings = runtime::LoadLocalizerConfig(args->config);
     ProgressBar progress("locate", global.quiet || args->options.dataset.empty());
     const runtime::LocateSummary r = runtime::Locate(args->options, progress.Callback());
     progress.Finish();
-    int found = 0, ambiguous = 0, none = 0, checked = 0, wrong = 0, within = 0;
-    std::vector<double> times;
     nlohmann::json frames = nlohmann::json::array();
     for (const runtime::LocatedFrame& f : r.frames) {
-      times.push_back(f.milliseconds);
-      found += f.outcome == "found" ? 1 : 0;
-      ambiguous += f.outcome == "ambiguous" ? 1 : 0;
-      none += f.outcome == "no-match" ? 1 : 0;
-      if (f.error_mm) {
-        ++checked;
-        wrong += *f.error_mm > args->wrong_mm ? 1 : 0;
-        within += *f.error_mm <= 0.05 ? 1 : 0;
-      }
       nlohmann::json j = {{"frame", f.frame}, {"outcome", f.outcome}, {"candidates", f.candidates},
                           {"milliseconds", f.milliseconds}};
       if (f.outcome == "found") {
@@ -82,20 +59,20 @@ Action AddLocateCommand(CLI::App& app, const GlobalOptions& global) {
     if (global.json) {
       nlohmann::json result = {{"map", args->options.map.string()},
                                {"frames", r.frames.size()},
-                               {"found", found},
-                               {"ambiguous", ambiguous},
-                               {"no_match", none},
-                               {"ms_p50", Percentile(times, 0.5)},
-                               {"ms_p99", Percentile(times, 0.99)},
-                               {"ms_max", Percentile(times, 1.0)},
+                               {"found", r.found},
+                               {"ambiguous", r.ambiguous},
+                               {"no_match", r.no_match},
+                               {"ms_p50", r.ms_p50},
+                               {"ms_p99", r.ms_p99},
+                               {"ms_max", r.ms_max},
                                {"index_features", r.index_features},
                                {"index_memory_bytes", r.index_memory_bytes},
                                {"index_load_s", r.index_load_s},
                                {"located", frames}};
-      if (checked > 0) {
-        result["checked"] = checked;
-        result["within_0_05_mm"] = within;
-        result["wrong"] = wrong;
+      if (r.checked > 0) {
+        result["checked"] = r.checked;
+        result["within_0_05_mm"] = r.within_0_05_mm;
+        result["wrong"] = r.wrong;
       }
       PrintJson(result);
       return;
@@ -115,12 +92,12 @@ Action AddLocateCommand(CLI::App& app, const GlobalOptions& global) {
     }
     std::printf("%zu frames: %d found (%.1f %%), %d ambiguous, %d without a place; %.1f ms p50, %.1f ms p99 per frame; "
                 "index of %lld features, %.1f MiB in memory, loaded in %.2f s\n",
-                r.frames.size(), found, 100.0 * found / n, ambiguous, none, Percentile(times, 0.5),
-                Percentile(times, 0.99), static_cast<long long>(r.index_features),
+                r.frames.size(), r.found, 100.0 * r.found / n, r.ambiguous, r.no_match, r.ms_p50, r.ms_p99,
+                static_cast<long long>(r.index_features),
                 static_cast<double>(r.index_memory_bytes) / (1 << 20), r.index_load_s);
-    if (checked > 0) {
-      std::printf("against the ground truth: %d of %d within 0.05 mm, %d wrong (over %.3g mm)\n", within, checked,
-                  wrong, args->wrong_mm);
+    if (r.checked > 0) {
+      std::printf("against the ground truth: %d of %d within 0.05 mm, %d wrong (over %.3g mm)\n", r.within_0_05_mm,
+                  r.checked, r.wrong, args->options.wrong_mm);
     }
   };
 }

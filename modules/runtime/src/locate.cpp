@@ -1,5 +1,6 @@
 #include "mosaicloc/runtime/locate.hpp"
 
+#include <algorithm>
 #include <chrono>
 
 #include <opencv2/imgcodecs.hpp>
@@ -36,6 +37,30 @@ LocatedFrame LocateOne(const tracking::Relocalizer& relocalizer, const tracking:
     located.reason = r.reason;
   }
   return located;
+}
+
+// The counts and times over every frame located.
+void Tally(double wrong_mm, LocateSummary* summary) {
+  std::vector<double> times;
+  for (const LocatedFrame& f : summary->frames) {
+    times.push_back(f.milliseconds);
+    summary->found += f.outcome == "found" ? 1 : 0;
+    summary->ambiguous += f.outcome == "ambiguous" ? 1 : 0;
+    summary->no_match += f.outcome == "no-match" ? 1 : 0;
+    if (f.error_mm) {
+      ++summary->checked;
+      summary->within_0_05_mm += *f.error_mm <= 0.05 ? 1 : 0;
+      summary->wrong += *f.error_mm > wrong_mm ? 1 : 0;
+    }
+  }
+  if (times.empty()) return;
+  std::sort(times.begin(), times.end());
+  const auto at = [&times](double p) {
+    return times[std::min(times.size() - 1, static_cast<std::size_t>(p * static_cast<double>(times.size())))];
+  };
+  summary->ms_p50 = at(0.5);
+  summary->ms_p99 = at(0.99);
+  summary->ms_max = times.back();
 }
 
 }  // namespace
@@ -92,6 +117,7 @@ LocateSummary Locate(const LocateOptions& options, const std::function<void(doub
       summary.frames.push_back(LocateOne(relocalizer, map.places(), images[i], options.scale, options.images[i].string()));
       if (progress) progress(static_cast<double>(i + 1) / static_cast<double>(images.size()));
     }
+    Tally(options.wrong_mm, &summary);
     return summary;
   }
   std::optional<dataset::Trajectory> truth;
@@ -123,6 +149,7 @@ LocateSummary Locate(const LocateOptions& options, const std::function<void(doub
     if (progress) progress(static_cast<double>(index) / static_cast<double>(std::max<std::int64_t>(total, 1)));
     if (options.max_frames > 0 && done >= options.max_frames) break;
   }
+  Tally(options.wrong_mm, &summary);
   return summary;
 }
 

@@ -14,6 +14,22 @@
 #include "mosaicloc/tracking/render_window.hpp"
 
 namespace mosaicloc::tracking {
+namespace {
+
+// Adds a verified place to `verified`. Two candidates of one place verify to the same pose:
+// it is kept once, with its better match.
+void KeepVerified(std::vector<TrackResult>* verified, TrackResult r) {
+  const auto same = std::find_if(verified->begin(), verified->end(), [&r](const TrackResult& v) {
+    return Distance(v.world_from_camera, r.world_from_camera) < 2.0;
+  });
+  if (same == verified->end()) {
+    verified->push_back(std::move(r));
+  } else if (r.mean_zncc > same->mean_zncc) {
+    *same = std::move(r);
+  }
+}
+
+}  // namespace
 
 bool RelocalizeOptions::Check(std::string* why) const {
   auto fail = [why](const char* message) {
@@ -95,15 +111,7 @@ TrackResult Relocalizer::Search(const cv::Mat& frame, const core::Pose2& prior,
     const core::Pose2 candidate = prior * core::Pose2(shift_camera_mm, 0.0);
     TrackResult r = tracker_.Track(frame, candidate, candidate_covariance, reference_, scale_prior);
     if (!r.ok() || r.mean_zncc < options_.min_zncc) continue;
-    // Two peaks of one place verify to the same pose: keep it once, with its better match.
-    const auto same = std::find_if(verified.begin(), verified.end(), [&r](const TrackResult& v) {
-      return Distance(v.world_from_camera, r.world_from_camera) < 2.0;
-    });
-    if (same == verified.end()) {
-      verified.push_back(std::move(r));
-    } else if (r.mean_zncc > same->mean_zncc) {
-      *same = std::move(r);
-    }
+    KeepVerified(&verified, std::move(r));
   }
   if (verified.empty()) return none;
   if (gate) {
@@ -154,14 +162,7 @@ TrackResult Relocalizer::SearchEverywhere(const cv::Mat& frame, const PlaceIndex
   for (const PlaceCandidate& candidate : found.candidates) {
     TrackResult r = tracker_.Track(frame, candidate.world_from_camera, around, reference_, scale);
     if (!r.ok() || r.mean_zncc < options_.min_zncc) continue;
-    const auto same = std::find_if(verified.begin(), verified.end(), [&r](const TrackResult& v) {
-      return Distance(v.world_from_camera, r.world_from_camera) < 2.0;
-    });
-    if (same == verified.end()) {
-      verified.push_back(std::move(r));
-    } else if (r.mean_zncc > same->mean_zncc) {
-      *same = std::move(r);
-    }
+    KeepVerified(&verified, std::move(r));
   }
   if (lookup != nullptr) *lookup = std::move(found);
   if (verified.empty()) return none;
