@@ -45,7 +45,7 @@ worst, off_map = 0.0, 0
 for line in open(report + "/fixes.csv"):
     if line.startswith("#"):
         continue
-    ns, x, y, _, status, quality, fixed, _, _, reason = line.rstrip("\n").split(",")
+    ns, x, y, _, status, quality, fixed, _, _, _, reason = line.rstrip("\n").split(",")
     if status == "4":
         off_map += 1
         assert fixed == "0" and quality == "0" and reason == "off-map", line

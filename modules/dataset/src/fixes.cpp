@@ -14,21 +14,24 @@
 namespace mosaicloc::dataset {
 namespace {
 
-constexpr std::size_t kFields = 10;
+constexpr std::size_t kFields = 11;
 
 }  // namespace
 
-std::string FixesCsvHeader() { return "#timestamp_ns,x_mm,y_mm,yaw_rad,status,quality,fix,sigma_mm,scale,reason\n"; }
+std::string FixesCsvHeader() {
+  return "#timestamp_ns,x_mm,y_mm,yaw_rad,status,quality,fix,sigma_mm,scale,nis,reason\n";
+}
 
 std::string FixesCsvRow(const FrameReport& report) {
   if (report.reason.find_first_of(",\"\r\n") != std::string::npos) {
     core::ThrowInvalidInput("fixes.csv: reason '" + report.reason + "' holds a comma, quote or line break");
   }
-  return fmt::format("{},{:.4f},{:.4f},{:.7f},{},{},{},{:.4f},{:.6f},{}\n", report.time.nanoseconds(),
+  const std::string nis = report.nis && std::isfinite(*report.nis) ? fmt::format("{:.4g}", *report.nis) : "";
+  return fmt::format("{},{:.4f},{:.4f},{:.7f},{},{},{},{:.4f},{:.6f},{},{}\n", report.time.nanoseconds(),
                      report.world_from_vehicle.x_mm(), report.world_from_vehicle.y_mm(),
                      report.world_from_vehicle.yaw_rad(), report.status,
                      static_cast<int>(std::lround(1000.0 * std::clamp(report.quality, 0.0, 1.0))),
-                     report.fixed ? 1 : 0, report.sigma_mm, report.scale, report.reason);
+                     report.fixed ? 1 : 0, report.sigma_mm, report.scale, nis, report.reason);
 }
 
 std::vector<FrameReport> ReadFixesCsv(const std::filesystem::path& file) {
@@ -58,24 +61,28 @@ std::vector<FrameReport> ReadFixesCsv(const std::filesystem::path& file) {
     if (!line.empty() && line.back() == '\r') line.pop_back();
     if (line.empty() || line.front() == '#') continue;
     const std::vector<std::string> f = detail::SplitCsv(line);
-    if (f.size() != kFields && f.size() != kFields - 1) {
+    if (f.size() > kFields || f.size() < kFields - 2) {
       detail::LineError(file, number,
                         std::to_string(f.size()) + " fields, " + std::to_string(kFields) +
-                            " expected (timestamp_ns,x_mm,y_mm,yaw_rad,status,quality,fix,sigma_mm,scale,reason)");
+                            " expected (timestamp_ns,x_mm,y_mm,yaw_rad,status,quality,fix,sigma_mm,scale,nis,reason)");
     }
     FrameReport r;
     r.time = core::Timestamp::FromNanoseconds(integer_of(f[0], "timestamp_ns", std::numeric_limits<std::int64_t>::min(),
                                                           std::numeric_limits<std::int64_t>::max()));
     if (!reports.empty() && r.time <= reports.back().time) detail::LineError(file, number, "timestamp_ns does not increase");
     r.world_from_vehicle = core::Pose2(number_of(f[1], "x_mm"), number_of(f[2], "y_mm"), number_of(f[3], "yaw_rad"));
-    r.status = static_cast<int>(integer_of(f[4], "status", 0, 4));
+    r.status = static_cast<int>(integer_of(f[4], "status", 0, kMaxStatus));
     r.quality = static_cast<double>(integer_of(f[5], "quality", 0, 1000)) / 1000.0;
     r.fixed = integer_of(f[6], "fix", 0, 1) == 1;
     r.sigma_mm = number_of(f[7], "sigma_mm");
     if (r.sigma_mm < 0.0) detail::LineError(file, number, "sigma_mm is negative");
-    if (f.size() == kFields) {
+    if (f.size() >= kFields - 1) {
       r.scale = number_of(f[8], "scale");
       if (!(r.scale > 0.0 && r.scale < 2.0)) detail::LineError(file, number, "scale " + f[8] + " is outside (0, 2)");
+    }
+    if (f.size() == kFields && !f[9].empty()) {
+      r.nis = number_of(f[9], "nis");
+      if (*r.nis < 0.0) detail::LineError(file, number, "nis is negative");
     }
     r.reason = f.back();
     reports.push_back(std::move(r));

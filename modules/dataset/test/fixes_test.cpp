@@ -25,6 +25,7 @@ FrameReport Report(double t_s, const Pose2& pose, int status, bool fixed, const 
   r.fixed = fixed;
   r.sigma_mm = fixed ? 0.004 : 2.5;
   r.scale = 1.0 + 0.001 * t_s;
+  if (fixed) r.nis = 1.5 + t_s;
   r.reason = reason;
   return r;
 }
@@ -47,6 +48,10 @@ TEST(FixesCsv, RowsReadBackAsWritten) {
     EXPECT_EQ(read[i].fixed, written[i].fixed);
     EXPECT_NEAR(read[i].sigma_mm, written[i].sigma_mm, 1e-4);
     EXPECT_NEAR(read[i].scale, written[i].scale, 1e-6);
+    ASSERT_EQ(read[i].nis.has_value(), written[i].nis.has_value());
+    if (read[i].nis) {
+      EXPECT_NEAR(*read[i].nis, *written[i].nis, 1e-3);
+    }
     EXPECT_EQ(read[i].reason, written[i].reason);
   }
   EXPECT_THROW(FixesCsvRow(Report(0.4, Pose2(), 3, false, "a, b")), core::Error);
@@ -64,8 +69,9 @@ TEST(FixesCsv, BadLinesNameTheFileAndLine) {
     }
     return std::string("no error");
   };
-  EXPECT_NE(message("200,1,2,0.1,5,990,1,0.004,\n").find("bad.csv:3: status 5 is outside [0, 4]"), std::string::npos);
-  EXPECT_NE(message("200,1,2,0.1,1,990,1,0.004\n").find("bad.csv:3: 8 fields, 10 expected"), std::string::npos);
+  EXPECT_NE(message("200,1,2,0.1,6,990,1,0.004,\n").find("bad.csv:3: status 6 is outside [0, 5]"), std::string::npos);
+  EXPECT_NE(message("200,1,2,0.1,1,990,1,0.004\n").find("bad.csv:3: 8 fields, 11 expected"), std::string::npos);
+  EXPECT_NE(message("200,1,2,0.1,1,990,1,0.004,1,-2,\n").find("bad.csv:3: nis is negative"), std::string::npos);
   EXPECT_NE(message("200,1,2,0.1,1,990,1,0.004,2.5,\n").find("bad.csv:3: scale 2.5 is outside (0, 2)"),
             std::string::npos);
   EXPECT_NE(message("200,1,2,0.1,1,990,1,0.004,high,\n").find("bad.csv:3: scale 'high' is not a number"),

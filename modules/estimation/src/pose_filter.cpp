@@ -258,6 +258,8 @@ FixOutcome PoseFilter::Correct(core::Timestamp time, const core::Pose2& world_fr
   const Eigen::Matrix3d s = at.covariance.topLeftCorner<3, 3>() + covariance;
   const Eigen::Matrix3d s_inverse = s.inverse();
   outcome.mahalanobis2 = residual.dot(s_inverse * residual);
+  outcome.innovation = residual;
+  outcome.innovation_covariance = s;
   if (!std::isfinite(outcome.mahalanobis2) || outcome.mahalanobis2 > options_.gate_chi2) {
     outcome.reason = "fix is " + std::to_string(std::sqrt(std::max(outcome.mahalanobis2, 0.0))) +
                      " sigma from the prediction (residual " + std::to_string(residual.x()) + " mm, " +

@@ -281,6 +281,11 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
     } else {
       const estimation::FixOutcome applied = filter_->Correct(time, fix, fix_covariance, timing);
       outcome.fixed = applied.accepted;
+      if (applied.innovation_covariance(0, 0) > 0.0) {
+        outcome.nis = applied.mahalanobis2;
+        outcome.normalized_innovation = applied.innovation.cwiseQuotient(
+            applied.innovation_covariance.diagonal().cwiseSqrt());
+      }
       if (applied.accepted) {
         fix_speed_mm_per_s_ = filter_->Latest().forward_speed_mm_per_s;
         rejected_run_ = 0;

@@ -16,15 +16,21 @@ namespace mosaicloc::dataset {
 struct FrameReport {
   core::Timestamp time;
   core::Pose2 world_from_vehicle;  ///< the visual fix when `fixed`, else the filter's estimate
-  int status = 0;                  ///< design.md section 6: 1 tracking, 2 degraded, 3 lost, 4 off-map
+  int status = 0;                  ///< design.md section 6: 1 tracking, 2 degraded, 3 lost, 4 off-map, 5 searching
   double quality = 0.0;            ///< 0..1 (written as 0..1000); 0 without a fix
   bool fixed = false;              ///< a visual fix was accepted for this frame
   double sigma_mm = 0.0;           ///< the estimate's position standard deviation after the frame
   /// The image scale the localizer holds after the frame: the camera's height over the floor
   /// against the calibrated one (1.0025: 0.5 mm higher at 200 mm); 1 where it is not estimated.
   double scale = 1.0;
+  /// The normalized innovation squared of a fix the filter judged (accepted or rejected at its
+  /// gate); empty otherwise.
+  std::optional<double> nis;
   std::string reason;              ///< why no fix, one word ("off-map", "no-match", ...); empty with one
 };
+
+/// The highest lock state fixes.csv holds (5, searching).
+inline constexpr int kMaxStatus = 5;
 
 /// The header line of fixes.csv, newline included.
 std::string FixesCsvHeader();
@@ -32,9 +38,10 @@ std::string FixesCsvHeader();
 /// invalid input (reasons are single words).
 std::string FixesCsvRow(const FrameReport& report);
 
-/// Reads fixes.csv; every line is validated (field count, numbers, status 0-4, quality
-/// 0-1000, fix 0 or 1, scale in (0, 2), times increasing). Rows of nine fields (written before
-/// the scale column) read with scale 1. Throws core::Error (invalid input) "file:line:
+/// Reads fixes.csv; every line is validated (field count, numbers, status 0-5, quality
+/// 0-1000, fix 0 or 1, scale in (0, 2), nis empty or not negative, times increasing). Rows of
+/// nine fields (written before the scale column) read with scale 1, rows of ten (before the
+/// nis column) without a NIS. Throws core::Error (invalid input) "file:line:
 /// reason" on the first bad line.
 std::vector<FrameReport> ReadFixesCsv(const std::filesystem::path& file);
 

@@ -49,6 +49,11 @@ struct MotionState {
 struct FixOutcome {
   bool accepted = false;
   double mahalanobis2 = 0.0;  ///< squared Mahalanobis distance of the fix to the prediction
+  /// The fix minus the prediction at its time (x mm, y mm, yaw rad) and that difference's
+  /// predicted covariance S (prediction plus fix): the innovation whose consistency with S a
+  /// report checks. Zero when the fix was refused for its time.
+  Eigen::Vector3d innovation = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d innovation_covariance = Eigen::Matrix3d::Zero();
   std::string reason;         ///< why it was rejected; empty when accepted
 };
 

@@ -107,6 +107,13 @@ struct FrameOutcome {
   /// scale_sigma): 1.004 is a camera 0.4 % higher over the floor than calibrated.
   double scale = 1.0;
   double scale_sigma = 0.0;
+  /// Where the filter judged a fix (accepted, or rejected at its gate): the normalized
+  /// innovation squared, the fix's squared Mahalanobis distance to the prediction (chi-square
+  /// with 3 degrees of freedom when the filter's covariances are true), and each component of
+  /// the innovation over its predicted standard deviation (x, y, yaw). Empty otherwise (no
+  /// fix, or a fix that restarted the filter).
+  std::optional<double> nis;
+  Eigen::Vector3d normalized_innovation = Eigen::Vector3d::Zero();
   tracking::TrackResult track;       ///< the tracker's full diagnostics
 };
 
