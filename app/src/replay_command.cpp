@@ -27,6 +27,7 @@ struct ReplayArgs {
   double kidnap_at_s = -1.0;
   std::vector<double> kidnap_offset;  // dx_mm, dy_mm, dyaw_deg in the vehicle's frame
   bool kidnap_told = false;
+  std::int64_t revisit_places = 200;
 };
 
 void Run(const ReplayArgs& args, const GlobalOptions& global) {
@@ -43,6 +44,7 @@ void Run(const ReplayArgs& args, const GlobalOptions& global) {
   // Dead reckoning has nothing to configure but the overlap the speed limit is quoted for.
   if (!args.config.empty() && options.mode != runtime::ReplayMode::kDeadReckoning) {
     options.settings = runtime::LoadLocalizerConfig(args.config);
+    options.config_file = args.config;
   }
   if (args.required_overlap) options.settings.required_overlap = *args.required_overlap;
   if (!args.start_offset.empty()) {
@@ -59,6 +61,7 @@ void Run(const ReplayArgs& args, const GlobalOptions& global) {
     options.kidnap_told = args.kidnap_told;
   }
   options.prefetch = args.prefetch;
+  options.revisit_places = args.revisit_places;
 
   ProgressBar progress("replay", global.quiet);
   const runtime::ReplaySummary summary = runtime::Replay(options, progress.Callback());
@@ -106,6 +109,10 @@ Action AddReplayCommand(CLI::App& app, const GlobalOptions& global) {
                       "dx_mm,dy_mm,dyaw_deg of the kidnap in the vehicle's frame")
       ->delimiter(',')
       ->expected(3);
+  command->add_option("--revisit-places", args->revisit_places,
+                      "mosaic mode: at most this many places the drive passes again are registered frame to frame "
+                      "for the repeatability without ground truth (0: none)")
+      ->check(CLI::NonNegativeNumber);
   command->add_flag("--kidnap-told", args->kidnap_told,
                     "with --kidnap-at-s: the localizer is told its pose is unknown, as the PLC's relocalize request "
                     "tells it");

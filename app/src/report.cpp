@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <fstream>
 #include <optional>
+#include <string>
 #include <type_traits>
 
 #include <nlohmann/json.hpp>
@@ -28,7 +29,7 @@ void PrintMetrics(const std::filesystem::path& directory, const dataset::Metrics
       std::printf("  %-24s %12s\n", name, "n/a");
     }
   };
-  std::printf("report: %s\n", std::filesystem::absolute(directory).string().c_str());
+  std::printf("report: %s (open index.html)\n", std::filesystem::absolute(directory).string().c_str());
   show("frames", metrics.frames, "");
   show("fixes", metrics.fixes, "");
   if (metrics.fix_rate) show("fix rate", std::optional<double>(100.0 * *metrics.fix_rate), "%");
@@ -50,6 +51,24 @@ void PrintMetrics(const std::filesystem::path& directory, const dataset::Metrics
     show("  frames to first fix", metrics.reentry_frames_to_fix_max, "max");
     show("  first fix error", metrics.reentry_first_fix_error_max_mm, "mm max");
   }
+  std::printf(" without ground truth:\n");
+  show("path length (estimate)", metrics.estimate_path_length_m, "m");
+  show("mean speed", metrics.estimate_speed_mean_mps, "m/s");
+  show("speed p99", metrics.estimate_speed_p99_mps, "m/s");
+  if (!metrics.no_fix_reasons.empty()) {
+    std::string reasons;
+    for (const auto& [reason, count] : metrics.no_fix_reasons) {
+      reasons += (reasons.empty() ? "" : ", ") + reason + " " + std::to_string(count);
+    }
+    std::printf("  %-24s %s\n", "frames without a fix", reasons.c_str());
+  }
+  if (metrics.nis_inside_95_share) {
+    show("NIS inside 95 % bound", std::optional<double>(100.0 * *metrics.nis_inside_95_share), "% of fixes");
+  }
+  show("NIS mean (3: consistent)", metrics.nis_mean, "");
+  show("revisit repeatability", metrics.revisit_repeatability_mm, "mm");
+  if (metrics.revisit_places) show("  revisited places", metrics.revisit_places, "");
+  std::printf(" against ground truth:\n");
   show("position RMS", metrics.position_rms_mm, "mm");
   show("position p99", metrics.position_p99_mm, "mm");
   show("position max", metrics.position_max_mm, "mm");

@@ -128,6 +128,10 @@ DatasetReader::FrameStream::FrameStream(fs::path directory, const CameraInfo& ca
 }
 
 std::optional<Frame> DatasetReader::FrameStream::Next(bool decode) {
+  return Next([decode](core::Timestamp) { return decode; });
+}
+
+std::optional<Frame> DatasetReader::FrameStream::Next(const std::function<bool(core::Timestamp)>& decode_if) {
   std::string line;
   if (!NextLine(in_, &line_number_, &line)) return std::nullopt;
   const auto fields = SplitCsv(line);
@@ -144,7 +148,7 @@ std::optional<Frame> DatasetReader::FrameStream::Next(bool decode) {
   frame.path = directory_ / kFramesDir / name;
   std::error_code ec;
   if (!fs::is_regular_file(frame.path, ec)) LineError(csv_, line_number_, "image " + frame.path.string() + " is missing");
-  if (decode) {
+  if (decode_if(frame.time)) {
     frame.image = cv::imread(frame.path.string(), cv::IMREAD_UNCHANGED);
     if (frame.image.empty()) LineError(csv_, line_number_, "image " + frame.path.string() + " cannot be decoded");
     if (frame.image.type() != CV_8UC1) {

@@ -78,15 +78,10 @@ class HashGrid {
   std::unordered_map<std::uint64_t, std::vector<std::size_t>> cells_;
 };
 
-struct Repeatability {
-  double rms_mm = 0.0;
-  std::int64_t places = 0;
-};
+}  // namespace
 
-// The definition is in evaluation.hpp (Evaluate).
-std::optional<Repeatability> ComputeRepeatability(const std::vector<ErrorSample>& samples,
-                                                  const EvaluationOptions& options) {
-  if (samples.size() < 2) return std::nullopt;
+std::vector<std::vector<std::size_t>> RevisitedPlaces(const std::vector<Eigen::Vector2d>& positions,
+                                                      const EvaluationOptions& options) {
   const double radius = options.repeatability_radius_mm;
   const double spacing = options.repeatability_spacing_mm;
   HashGrid grid(std::max(radius, spacing / 2.0));
@@ -94,9 +89,9 @@ std::optional<Repeatability> ComputeRepeatability(const std::vector<ErrorSample>
   std::vector<Eigen::Vector2d> places;
   double travelled_mm = 0.0;
   double next_candidate_mm = 0.0;
-  for (std::size_t i = 0; i < samples.size(); ++i) {
-    const Eigen::Vector2d& position = samples[i].groundtruth.translation_mm();
-    if (i > 0) travelled_mm += (position - samples[i - 1].groundtruth.translation_mm()).norm();
+  for (std::size_t i = 0; i < positions.size(); ++i) {
+    const Eigen::Vector2d& position = positions[i];
+    if (i > 0) travelled_mm += (position - positions[i - 1]).norm();
     if (travelled_mm < next_candidate_mm) continue;
     next_candidate_mm = travelled_mm + spacing;
     bool near_existing = false;
@@ -116,8 +111,8 @@ std::optional<Repeatability> ComputeRepeatability(const std::vector<ErrorSample>
   };
   std::vector<Run> runs(places.size());
   std::vector<std::vector<std::size_t>> visits(places.size());
-  for (std::size_t i = 0; i < samples.size(); ++i) {
-    const Eigen::Vector2d& position = samples[i].groundtruth.translation_mm();
+  for (std::size_t i = 0; i < positions.size(); ++i) {
+    const Eigen::Vector2d& position = positions[i];
     grid.ForEachNear(position, [&](std::size_t id) {
       const double distance_mm = (places[id] - position).norm();
       if (distance_mm > radius) return;
@@ -139,28 +134,46 @@ std::optional<Repeatability> ComputeRepeatability(const std::vector<ErrorSample>
   for (std::size_t id = 0; id < places.size(); ++id) {
     if (runs[id].open) visits[id].push_back(runs[id].best);
   }
+  return visits;
+}
 
+std::optional<PlaceSpread> SpreadAtPlaces(const std::vector<std::vector<Eigen::Vector2d>>& errors) {
+  PlaceSpread spread;
   double sum_squared_mm2 = 0.0;
-  std::int64_t deviation_count = 0;
-  std::int64_t revisited_places = 0;
-  for (const std::vector<std::size_t>& place_visits : visits) {
-    if (place_visits.size() < 2) continue;
-    ++revisited_places;
+  for (const std::vector<Eigen::Vector2d>& place : errors) {
+    if (place.size() < 2) continue;
+    ++spread.places;
     Eigen::Vector2d mean = Eigen::Vector2d::Zero();
-    for (std::size_t i : place_visits) {
-      mean += samples[i].estimate.translation_mm() - samples[i].groundtruth.translation_mm();
-    }
-    mean /= static_cast<double>(place_visits.size());
-    for (std::size_t i : place_visits) {
-      const Eigen::Vector2d error =
-          samples[i].estimate.translation_mm() - samples[i].groundtruth.translation_mm();
+    for (const Eigen::Vector2d& error : place) mean += error;
+    mean /= static_cast<double>(place.size());
+    for (const Eigen::Vector2d& error : place) {
       sum_squared_mm2 += (error - mean).squaredNorm();
-      ++deviation_count;
+      ++spread.visits;
     }
   }
-  if (revisited_places == 0) return std::nullopt;
-  return Repeatability{std::sqrt(sum_squared_mm2 / static_cast<double>(deviation_count)),
-                       revisited_places};
+  if (spread.places == 0) return std::nullopt;
+  spread.rms_mm = std::sqrt(sum_squared_mm2 / static_cast<double>(spread.visits));
+  return spread;
+}
+
+namespace {
+
+// The definition is in evaluation.hpp (Evaluate).
+std::optional<PlaceSpread> ComputeRepeatability(const std::vector<ErrorSample>& samples,
+                                                const EvaluationOptions& options) {
+  if (samples.size() < 2) return std::nullopt;
+  std::vector<Eigen::Vector2d> truth;
+  truth.reserve(samples.size());
+  for (const ErrorSample& sample : samples) truth.push_back(sample.groundtruth.translation_mm());
+  std::vector<std::vector<Eigen::Vector2d>> errors;
+  for (const std::vector<std::size_t>& visits : RevisitedPlaces(truth, options)) {
+    if (visits.size() < 2) continue;
+    errors.emplace_back();
+    for (std::size_t i : visits) {
+      errors.back().push_back(samples[i].estimate.translation_mm() - samples[i].groundtruth.translation_mm());
+    }
+  }
+  return SpreadAtPlaces(errors);
 }
 
 // Ground-truth path length [mm] from time `from` to time `to` (both inside the trajectory):
@@ -195,6 +208,14 @@ std::optional<double> MaxSpeedMps(const Trajectory& groundtruth, core::Timestamp
     fastest = std::max(fastest.value_or(0.0), speed_mps);
   }
   return fastest;
+}
+
+// A count per name; null when there is none.
+nlohmann::ordered_json ToJson(const std::map<std::string, std::int64_t>& counts) {
+  if (counts.empty()) return nullptr;
+  nlohmann::ordered_json json = nlohmann::ordered_json::object();
+  for (const auto& [name, count] : counts) json[name] = count;
+  return json;
 }
 
 template <typename T>
@@ -332,6 +353,26 @@ void WriteMetricsJson(const std::filesystem::path& file, const Metrics& metrics)
   json["kidnap_frames_to_fix"] = ToJson(metrics.kidnap_frames_to_fix);
   json["height_error_rms_mm"] = ToJson(metrics.height_error_rms_mm);
   json["height_error_max_mm"] = ToJson(metrics.height_error_max_mm);
+  json["estimate_path_length_m"] = ToJson(metrics.estimate_path_length_m);
+  json["estimate_speed_mean_mps"] = ToJson(metrics.estimate_speed_mean_mps);
+  json["estimate_speed_p99_mps"] = ToJson(metrics.estimate_speed_p99_mps);
+  json["frames_by_state"] = ToJson(metrics.frames_by_state);
+  json["fixes_by_state"] = ToJson(metrics.fixes_by_state);
+  json["no_fix_reasons"] = ToJson(metrics.no_fix_reasons);
+  json["nis_fixes"] = ToJson(metrics.nis_fixes);
+  json["nis_inside_95_share"] = ToJson(metrics.nis_inside_95_share);
+  json["nis_mean"] = ToJson(metrics.nis_mean);
+  json["innovation_sigma_ratio"] =
+      metrics.innovation_sigma_ratio
+          ? nlohmann::ordered_json::array({metrics.innovation_sigma_ratio->x(), metrics.innovation_sigma_ratio->y(),
+                                           metrics.innovation_sigma_ratio->z()})
+          : nlohmann::ordered_json();
+  json["repeatability_camera_mm"] = ToJson(metrics.repeatability_camera_mm);
+  json["repeatability_camera_places"] = ToJson(metrics.repeatability_camera_places);
+  json["revisit_repeatability_mm"] = ToJson(metrics.revisit_repeatability_mm);
+  json["revisit_places"] = ToJson(metrics.revisit_places);
+  json["revisit_visits"] = ToJson(metrics.revisit_visits);
+  json["revisit_failures"] = ToJson(metrics.revisit_failures);
   core::WriteFileAtomically(file, json.dump(2) + "\n");
 }
 

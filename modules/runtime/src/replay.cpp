@@ -5,6 +5,9 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
+#include <iterator>
+#include <limits>
 #include <numbers>
 #include <optional>
 #include <string>
@@ -19,14 +22,18 @@
 #include "mosaicloc/dataset/camera_truth.hpp"
 #include "mosaicloc/dataset/dataset.hpp"
 #include "mosaicloc/dataset/fixes.hpp"
+#include "mosaicloc/dataset/html_report.hpp"
 #include "mosaicloc/dataset/plots.hpp"
+#include "mosaicloc/dataset/report_plots.hpp"
 #include "mosaicloc/dataset/trajectory.hpp"
+#include "mosaicloc/dataset/validation.hpp"
 #include "mosaicloc/estimation/odometry.hpp"
 #include "mosaicloc/localizer/localizer.hpp"
 #include "mosaicloc/localizer/speed_limits.hpp"
 #include "mosaicloc/runtime/drive.hpp"
 #include "mosaicloc/runtime/map_session.hpp"
 #include "mosaicloc/runtime/report.hpp"
+#include "mosaicloc/runtime/revisits.hpp"
 #include "mosaicloc/tracking/tracker.hpp"
 
 namespace mosaicloc::runtime {
@@ -48,6 +55,15 @@ std::optional<double> OverlapSpeedLimit(const dataset::DatasetInfo& info, const 
   return localizer::AnalyseSpeedLimits(setup).overlap_limit_mps;
 }
 
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// What the localizer knew after a frame beyond its row of fixes.csv, for the consistency
+// figures and the timelines.
+struct FrameExtras {
+  std::optional<Eigen::Vector3d> normalized_innovation;
+  Eigen::Vector2d wheel_scale_percent{kNaN, kNaN};
+};
+
 // What a replay mode records frame by frame, and the report made of it.
 class ReplayRecord {
  public:
@@ -57,8 +73,13 @@ class ReplayRecord {
   /// One frame: the estimate at its time (if any) and the processing time, ms.
   void Frame(core::Timestamp time, const std::optional<core::Pose2>& world_from_vehicle, double ms) {
     ++frames_;
-    if (world_from_vehicle) estimate_.push_back({time, *world_from_vehicle});
+    last_estimate_.reset();
+    if (world_from_vehicle) {
+      estimate_.push_back({time, *world_from_vehicle});
+      last_estimate_ = estimate_.back();
+    }
     latency_ms_.push_back(ms);
+    last_latency_ms_ = ms;
     processing_s_ += ms * 1e-3;
     if (frames_ % 16 == 0 && groundtruth_ && progress_) {
       const auto span = groundtruth_->back().time - groundtruth_->front().time;
@@ -70,15 +91,41 @@ class ReplayRecord {
 
   /// Figures only the caller knows, written with the others.
   dataset::Metrics& known() { return known_; }
+  const std::vector<dataset::FrameReport>& reports() const { return reports_; }
+  /// The estimate at the frames with a fix.
+  const dataset::Trajectory& fixed_estimates() const { return fixed_estimates_; }
 
   /// What the localizer reported for a frame (a row of fixes.csv); `view_mapped`: the share
   /// of the true view the map covers there (mosaic mode with ground truth), for the returns.
-  void Report(const dataset::FrameReport& report, std::optional<double> view_mapped = std::nullopt) {
+  void Report(const dataset::FrameReport& report, std::optional<double> view_mapped = std::nullopt,
+              const FrameExtras& extras = {}) {
     if (report.fixed) ++fixes_;
+    if (report.fixed && last_estimate_ && last_estimate_->time == report.time) fixed_estimates_.push_back(*last_estimate_);
     fixes_csv_ += dataset::FixesCsvRow(report);
+    if (extras.normalized_innovation) innovations_.push_back(*extras.normalized_innovation);
+    dataset::TimelineSample sample;
+    sample.seconds = reports_.empty() ? 0.0 : core::ToSeconds(report.time - reports_.front().time);
+    sample.quality = report.fixed ? report.quality : kNaN;
+    sample.sigma_mm = report.sigma_mm;
+    sample.nis = report.nis.value_or(kNaN);
+    sample.speed_mps = kNaN;
+    if (!reports_.empty()) {
+      const double dt_s = core::ToSeconds(report.time - reports_.back().time);
+      if (dt_s > 0.0) {
+        sample.speed_mps = core::Distance(report.world_from_vehicle, reports_.back().world_from_vehicle) / dt_s / 1000.0;
+      }
+    }
+    sample.latency_ms = last_latency_ms_;
+    sample.wheel_scale_left_percent = extras.wheel_scale_percent.x();
+    sample.wheel_scale_right_percent = extras.wheel_scale_percent.y();
+    sample.height_mm = report.scale;  // times the calibrated height in Finish, where it is known
+    timeline_.push_back(sample);
     reports_.push_back(report);
     if (view_mapped) view_mapped_.push_back(*view_mapped);
   }
+
+  /// The map's picture under the drive, for the plots over the map.
+  void SetFloor(dataset::FloorPicture floor) { floor_ = std::move(floor); }
 
   /// Writes fixes.csv, metrics.json, estimate.tum and the plots; the metrics written.
   dataset::Metrics Finish(const ReplayOptions& options, const dataset::DatasetInfo& info, double required_overlap,
@@ -96,9 +143,15 @@ class ReplayRecord {
     metrics.frames_to_first_fix = known_.frames_to_first_fix;
     metrics.first_fix_s = known_.first_fix_s;
     metrics.kidnap_frames_to_fix = known_.kidnap_frames_to_fix;
+    metrics.revisit_repeatability_mm = known_.revisit_repeatability_mm;
+    metrics.revisit_places = known_.revisit_places;
+    metrics.revisit_visits = known_.revisit_visits;
+    metrics.revisit_failures = known_.revisit_failures;
+    dataset::AddTruthFreeFigures(reports_, estimate_, innovations_, &metrics);
     if (groundtruth_) {
       // Every fix checked against the truth: a lock that never broke proves nothing if it held
       // onto the wrong place.
+      CameraRepeatability(info.camera.vehicle_from_camera, &metrics);
       const dataset::FixCheck check = dataset::CheckFixes(reports_, *groundtruth_);
       metrics.wrong_fixes = check.wrong_fixes;
       metrics.max_wrong_fix_mm = check.max_wrong_fix_mm.value_or(0.0);
@@ -119,9 +172,24 @@ class ReplayRecord {
     metrics.overlap_speed_limit_mps = OverlapSpeedLimit(info, estimate_, required_overlap);
     std::error_code ec;
     std::filesystem::create_directories(options.out, ec);
-    CheckHeight(options, info, title + ": " + options.dataset.filename().string(), &metrics);
+    const std::string heading = title + ": " + options.dataset.filename().string();
+    CheckHeight(options, info, heading, &metrics);
     core::WriteFileAtomically(options.out / "fixes.csv", fixes_csv_);
-    return WriteReport(options.out, estimate_, groundtruth_, metrics, title + ": " + options.dataset.filename().string());
+    metrics = WriteReport(options.out, estimate_, groundtruth_, metrics, heading);
+    WriteTruthFreePlots(info, heading, options.out);
+    dataset::HtmlReportInputs page;
+    page.title = heading;
+    page.about = {{"dataset", options.dataset.string()},
+                  {"map", options.map.empty() ? std::string("none") : options.map.string()},
+                  {"mode", ToString(options.mode)},
+                  {"ground truth", groundtruth_ ? "yes: the truth-based figures are filled" : "none"}};
+    if (!options.config_file.empty()) {
+      std::ifstream in(options.config_file);
+      page.configuration = "# " + options.config_file.string() + "\n" +
+                           std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    }
+    dataset::WriteHtmlReport(options.out, page);
+    return metrics;
   }
 
  private:
@@ -165,6 +233,44 @@ class ReplayRecord {
     dataset::WriteHeightPlot(options.out, series, title, *metrics->height_error_rms_mm);
   }
 
+  // The camera's repeatability at the frames with a fix, against the truth (the truth-free
+  // figure's counterpart).
+  void CameraRepeatability(const core::Pose2& vehicle_from_camera, dataset::Metrics* metrics) const {
+    std::vector<Eigen::Vector2d> truth, error;
+    for (const dataset::StampedPose& fixed : fixed_estimates_) {
+      const auto at = dataset::PoseAt(*groundtruth_, fixed.time, std::chrono::milliseconds(100));
+      if (!at) continue;
+      truth.push_back((*at * vehicle_from_camera).translation_mm());
+      error.push_back((fixed.world_from_vehicle * vehicle_from_camera).translation_mm() - truth.back());
+    }
+    std::vector<std::vector<Eigen::Vector2d>> errors;
+    for (const std::vector<std::size_t>& visits : dataset::RevisitedPlaces(truth, dataset::EvaluationOptions{})) {
+      errors.emplace_back();
+      for (std::size_t i : visits) errors.back().push_back(error[i]);
+    }
+    if (const auto spread = dataset::SpreadAtPlaces(errors)) {
+      metrics->repeatability_camera_mm = spread->rms_mm;
+      metrics->repeatability_camera_places = spread->places;
+    }
+  }
+
+  // map_state.png, map_quality.png and timelines.png: what needs no ground truth.
+  void WriteTruthFreePlots(const dataset::DatasetInfo& info, const std::string& heading,
+                           const std::filesystem::path& out) {
+    const auto calibrated = info.provenance.find("camera_height_mm");
+    const bool scale_held = std::any_of(reports_.begin(), reports_.end(),
+                                        [](const dataset::FrameReport& r) { return r.scale != 1.0; });
+    double height_mm = kNaN;
+    if (calibrated != info.provenance.end() && scale_held) {
+      char* end = nullptr;
+      height_mm = std::strtod(calibrated->second.c_str(), &end);
+      if (end == calibrated->second.c_str() || *end != '\0') height_mm = kNaN;
+    }
+    for (dataset::TimelineSample& sample : timeline_) sample.height_mm *= height_mm;
+    dataset::WriteMapPlots(out, reports_, floor_, heading);
+    dataset::WriteTimelines(out, timeline_, heading);
+  }
+
   dataset::Metrics known_;
   std::optional<dataset::Trajectory> groundtruth_;
   const std::function<void(double)>& progress_;
@@ -176,6 +282,12 @@ class ReplayRecord {
   std::string fixes_csv_ = dataset::FixesCsvHeader();
   std::vector<dataset::FrameReport> reports_;
   std::vector<double> view_mapped_;
+  std::vector<Eigen::Vector3d> innovations_;
+  std::vector<dataset::TimelineSample> timeline_;
+  double last_latency_ms_ = kNaN;
+  std::optional<dataset::StampedPose> last_estimate_;
+  dataset::Trajectory fixed_estimates_;
+  dataset::FloorPicture floor_;
 };
 
 // The encoder time stamps' uncertainty a live recording noted (its PLC's timing error), else
@@ -320,7 +432,10 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
                                                    *truth * info.camera.vehicle_from_camera, 0.0, 2)
                           : 0.0;
     }
-    record.Report(FrameReportOf(frame->time, outcome), view_mapped);
+    FrameExtras extras;
+    if (outcome.nis) extras.normalized_innovation = outcome.normalized_innovation;
+    if (localizer.initialized()) extras.wheel_scale_percent = 100.0 * localizer.wheel_scale_error();
+    record.Report(FrameReportOf(frame->time, outcome), view_mapped, extras);
     if (!outcome.fixed) {
       const core::Pose2& f = outcome.fix_world_from_vehicle;
       core::Log().debug("frame {}: no fix: {} (tracker: {:.4f}, {:.4f}, {:.6f}; estimate {:.4f}, {:.4f}, {:.6f})",
@@ -340,6 +455,19 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
   const Eigen::Vector2d scale = 100.0 * summary.wheel_scale_error, sigma = 100.0 * summary.wheel_scale_sigma;
   core::Log().info("wheel scale errors learnt: left {:+.3f} % (sigma {:.3f}), right {:+.3f} % (sigma {:.3f})",
                    scale.x(), sigma.x(), scale.y(), sigma.y());
+  if (options.revisit_places > 0) {
+    // Repeatability from the recording alone: revisited places registered frame to frame.
+    RevisitOptions revisit_options;
+    revisit_options.max_places = options.revisit_places;
+    const RevisitFigures revisits = MeasureRevisits(options.dataset, record.fixed_estimates(), camera,
+                                                    localizer_options.tracker, info.camera.vehicle_from_camera,
+                                                    revisit_options);
+    record.known().revisit_repeatability_mm = revisits.repeatability_mm;
+    record.known().revisit_places = revisits.places;
+    record.known().revisit_visits = revisits.visits;
+    record.known().revisit_failures = revisits.failures;
+  }
+  record.SetFloor(FloorPictureOf(map, record.reports()));
   summary.metrics = record.Finish(options, info, settings.required_overlap, localizer.lock().losses(),
                                   "mosaic localization", localizer.relocalizations());
   return summary;

@@ -47,11 +47,62 @@ dataset::Metrics WriteReport(const std::filesystem::path& directory, const datas
     keep(merged.overlap_speed_limit_mps, metrics.overlap_speed_limit_mps);
     keep(merged.height_error_rms_mm, metrics.height_error_rms_mm);
     keep(merged.height_error_max_mm, metrics.height_error_max_mm);
+    // The figures that need no truth are the caller's.
+    merged.estimate_path_length_m = metrics.estimate_path_length_m;
+    merged.estimate_speed_mean_mps = metrics.estimate_speed_mean_mps;
+    merged.estimate_speed_p99_mps = metrics.estimate_speed_p99_mps;
+    merged.frames_by_state = metrics.frames_by_state;
+    merged.fixes_by_state = metrics.fixes_by_state;
+    merged.no_fix_reasons = metrics.no_fix_reasons;
+    merged.nis_fixes = metrics.nis_fixes;
+    merged.nis_inside_95_share = metrics.nis_inside_95_share;
+    merged.nis_mean = metrics.nis_mean;
+    merged.innovation_sigma_ratio = metrics.innovation_sigma_ratio;
+    merged.repeatability_camera_mm = metrics.repeatability_camera_mm;
+    merged.repeatability_camera_places = metrics.repeatability_camera_places;
+    merged.revisit_repeatability_mm = metrics.revisit_repeatability_mm;
+    merged.revisit_places = metrics.revisit_places;
+    merged.revisit_visits = metrics.revisit_visits;
+    merged.revisit_failures = metrics.revisit_failures;
     metrics = merged;
     dataset::WritePlots(directory, evaluation, title);
   }
   dataset::WriteMetricsJson(directory / "metrics.json", metrics);
   return metrics;
+}
+
+dataset::FloorPicture FloorPictureOf(const MapSession& map, const std::vector<dataset::FrameReport>& reports) {
+  dataset::FloorPicture picture;
+  if (reports.empty()) return picture;
+  Eigen::Vector2d lo = reports.front().world_from_vehicle.translation_mm(), hi = lo;
+  for (const dataset::FrameReport& r : reports) {
+    lo = lo.cwiseMin(r.world_from_vehicle.translation_mm());
+    hi = hi.cwiseMax(r.world_from_vehicle.translation_mm());
+  }
+  const double margin_mm = std::max(500.0, 0.25 * (hi - lo).maxCoeff());
+  lo.array() -= margin_mm;
+  hi.array() += margin_mm;
+  constexpr double kLargestPx = 1600.0, kTooLargePx = 6000.0;
+  const mosaic::MapGrid& grid = map.grid();
+  int level = 0;
+  while (level + 1 < grid.levels && (hi - lo).maxCoeff() / grid.LevelMmPerPx(level) > kLargestPx) ++level;
+  const double mm_per_px = grid.LevelMmPerPx(level);
+  if ((hi - lo).maxCoeff() / mm_per_px > kTooLargePx) return picture;
+  const Eigen::Vector2d top_left = grid.WorldToRaster({lo.x(), hi.y()}, level);
+  const auto col0 = static_cast<std::int64_t>(std::floor(top_left.x()));
+  const auto row0 = static_cast<std::int64_t>(std::floor(top_left.y()));
+  const int cols = static_cast<int>(std::ceil((hi.x() - lo.x()) / mm_per_px)) + 2;
+  const int rows = static_cast<int>(std::ceil((hi.y() - lo.y()) / mm_per_px)) + 2;
+  const mosaic::RasterPatch patch = map.renderer().Region(level, col0, row0, cols, rows);
+  picture.image = patch.image.clone();
+  if (!patch.all_mapped) picture.image.setTo(255, patch.mask == 0);
+  // Pixel (col, row)'s centre is raster (col, row): its outer edges are half a pixel out.
+  const Eigen::Vector2d corner = grid.RasterToWorld({static_cast<double>(col0) - 0.5, static_cast<double>(row0) - 0.5}, level);
+  picture.x0_mm = corner.x();
+  picture.x1_mm = corner.x() + cols * mm_per_px;
+  picture.y1_mm = corner.y();
+  picture.y0_mm = corner.y() - rows * mm_per_px;
+  return picture;
 }
 
 dataset::FrameReport FrameReportOf(core::Timestamp time, const localizer::FrameOutcome& outcome) {
@@ -63,6 +114,7 @@ dataset::FrameReport FrameReportOf(core::Timestamp time, const localizer::FrameO
   report.quality = outcome.fixed ? outcome.fix_quality : 0.0;
   report.sigma_mm = std::sqrt(std::max(outcome.covariance(0, 0), outcome.covariance(1, 1)));
   report.scale = outcome.scale;
+  report.nis = outcome.nis;
   report.reason = outcome.ReasonWord();
   return report;
 }

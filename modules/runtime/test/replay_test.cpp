@@ -27,9 +27,17 @@ TEST_F(ReplayTest, MosaicLocalizesEveryFrameWithoutAWrongFix) {
   EXPECT_EQ(static_cast<std::int64_t>(rows.size()), *m.frames) << "a row per frame";
   ASSERT_FALSE(progress.empty());
   EXPECT_LE(progress.back(), 1.0);
-  for (const char* file : {"estimate.tum", "metrics.json", "trajectory.png"}) {
+  for (const char* file : {"estimate.tum", "metrics.json", "trajectory.png", "map_state.png", "map_quality.png",
+                           "timelines.png", "index.html"}) {
     EXPECT_TRUE(std::filesystem::exists(summary.report / file)) << file;
   }
+  // The figures that need no truth: the states, and a filter whose covariance does not
+  // understate its errors.
+  EXPECT_EQ(m.frames_by_state.at("tracking") + (m.frames_by_state.count("degraded") ? m.frames_by_state.at("degraded") : 0),
+            *m.frames);
+  ASSERT_TRUE(m.nis_inside_95_share && m.estimate_path_length_m);
+  EXPECT_GE(*m.nis_inside_95_share, 0.9);
+  EXPECT_NEAR(*m.estimate_path_length_m, *m.path_length_m, 0.01 * *m.path_length_m);
 }
 
 // The camera 3 mm higher than when the map was made: the localizer finds the scale at the

@@ -2,6 +2,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <fstream>
 #include <map>
 #include <memory>
@@ -69,6 +70,8 @@ class DatasetReader {
     /// The next frame with its decoded image, or nothing at the end.
     /// With decode = false only the file's existence is checked (image left empty).
     std::optional<Frame> Next(bool decode = true);
+    /// The next frame, its image decoded only when `decode_if(its time)` says so.
+    std::optional<Frame> Next(const std::function<bool(core::Timestamp)>& decode_if);
 
    private:
     friend class DatasetReader;

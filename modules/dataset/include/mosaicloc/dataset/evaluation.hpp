@@ -3,9 +3,12 @@
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
+
+#include <Eigen/Core>
 
 #include "mosaicloc/core/pose2.hpp"
 #include "mosaicloc/core/timestamp.hpp"
@@ -84,6 +87,37 @@ struct Metrics {
   /// against the simulator's truth (groundtruth/camera.csv), mm (caller).
   std::optional<double> height_error_rms_mm;
   std::optional<double> height_error_max_mm;
+  // --- figures without ground truth (dataset/validation.hpp; runtime/revisits.hpp) ---
+  /// The estimate's own path length, its mean speed over the drive and the 99th percentile
+  /// of its frame-to-frame speeds.
+  std::optional<double> estimate_path_length_m;
+  std::optional<double> estimate_speed_mean_mps;
+  std::optional<double> estimate_speed_p99_mps;
+  /// Frames and fixes per lock state ("tracking", "degraded", "lost", "off-map",
+  /// "searching"; "none" in the baseline modes), and frames without a fix per reason.
+  std::map<std::string, std::int64_t> frames_by_state;
+  std::map<std::string, std::int64_t> fixes_by_state;
+  std::map<std::string, std::int64_t> no_fix_reasons;
+  /// The filter's consistency: fixes it judged, the share of their normalized innovation
+  /// squared (NIS) inside the chi-square 95 % bound for 3 degrees of freedom (7.81), the mean
+  /// NIS (3 for a filter whose covariances are true), and the standard deviation of each
+  /// innovation component (x, y, yaw) over its predicted one (1 when true).
+  std::optional<std::int64_t> nis_fixes;
+  std::optional<double> nis_inside_95_share;
+  std::optional<double> nis_mean;
+  std::optional<Eigen::Vector3d> innovation_sigma_ratio;
+  /// The repeatability of the camera's centre at the frames with a fix (the point the fixes
+  /// measure), as repeatability_mm defines it, against the truth; and the places it rests on.
+  std::optional<double> repeatability_camera_mm;
+  std::optional<std::int64_t> repeatability_camera_places;
+  /// The same from the recording alone: at places the camera passes more than once, each
+  /// later visit's frame registered to the first visit's, against where the two estimates put
+  /// it (runtime/revisits.hpp); with the places and visits it rests on and the visits whose
+  /// registration failed.
+  std::optional<double> revisit_repeatability_mm;
+  std::optional<std::int64_t> revisit_places;
+  std::optional<std::int64_t> revisit_visits;
+  std::optional<std::int64_t> revisit_failures;
 };
 
 struct Evaluation {
@@ -130,6 +164,21 @@ double Percentile(const std::vector<double>& sorted, double percent);
 /// not sorted, or no estimate can be associated (the message gives both time ranges).
 Evaluation Evaluate(const Trajectory& estimate, const Trajectory& groundtruth,
                     const EvaluationOptions& options);
+
+/// Places passed more than once along `positions` (time order), found as Evaluate's
+/// repeatability finds them (steps 1 and 2): for every place, the indices of the positions that
+/// stand for its visits.
+std::vector<std::vector<std::size_t>> RevisitedPlaces(const std::vector<Eigen::Vector2d>& positions,
+                                                      const EvaluationOptions& options);
+
+/// Evaluate's repeatability (step 3) of error vectors grouped by place: places with fewer than
+/// two are skipped; empty when no place has two.
+struct PlaceSpread {
+  double rms_mm = 0.0;
+  std::int64_t places = 0;
+  std::int64_t visits = 0;
+};
+std::optional<PlaceSpread> SpreadAtPlaces(const std::vector<std::vector<Eigen::Vector2d>>& errors);
 
 /// Writes metrics.json: an object with every design.md section 4 key in that order, null where
 /// unknown, then the extras; pretty-printed, written atomically (temporary file, then rename).

@@ -41,6 +41,8 @@ class MapSession {
   const tracking::PlaceIndex& places() const { return *places_; }
   const mosaic::TileCache& cache() const { return *cache_; }
   mosaic::TileCache& cache() { return *cache_; }
+  const mosaic::MapGrid& grid() const { return store_->grid(); }
+  const mosaic::MapRenderer& renderer() const { return *renderer_; }
   /// Null without prefetching.
   mosaic::TilePrefetcher* prefetcher() { return prefetcher_.get(); }
 

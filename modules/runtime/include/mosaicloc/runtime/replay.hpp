@@ -50,6 +50,12 @@ struct ReplayOptions {
   /// kMosaic: load the map's tiles ahead on the prefetcher's threads, as a live run does;
   /// the estimates do not change, the processing times are the tracking thread's.
   bool prefetch = false;
+  /// kMosaic: at most this many revisited places are registered frame to frame for the
+  /// repeatability without ground truth (revisit_* in metrics.json); 0: none.
+  std::int64_t revisit_places = 200;
+  /// The configuration file `settings` came from, shown in index.html (empty: the built-in
+  /// defaults).
+  std::filesystem::path config_file;
 };
 
 /// What a replay did; the report directory holds the rest.

@@ -7,8 +7,10 @@
 #include "mosaicloc/core/timestamp.hpp"
 #include "mosaicloc/dataset/evaluation.hpp"
 #include "mosaicloc/dataset/fixes.hpp"
+#include "mosaicloc/dataset/report_plots.hpp"
 #include "mosaicloc/dataset/trajectory.hpp"
 #include "mosaicloc/localizer/localizer.hpp"
+#include "mosaicloc/runtime/map_session.hpp"
 
 namespace mosaicloc::runtime {
 
@@ -19,6 +21,11 @@ namespace mosaicloc::runtime {
 dataset::Metrics WriteReport(const std::filesystem::path& directory, const dataset::Trajectory& estimate,
                              const std::optional<dataset::Trajectory>& groundtruth, dataset::Metrics metrics,
                              const std::string& title);
+
+/// The map's mosaic under a drive (the reports' positions, with a margin), at the finest
+/// pyramid level that keeps it within about 1600 pixels; unmapped floor white. Empty when
+/// even the coarsest level would be too large, or there are no reports.
+dataset::FloorPicture FloorPictureOf(const MapSession& map, const std::vector<dataset::FrameReport>& reports);
 
 /// The row of fixes.csv for a localized frame: the visual fix when one was accepted, else
 /// the filter's estimate, with the lock state as the PLC receives it.
