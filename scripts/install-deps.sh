@@ -15,6 +15,8 @@ PACKAGES=(
   visp-images-data
   # independent Modbus peers for the PLC tests, and linked pseudo-terminals for Modbus RTU
   python3-pymodbus python3-serial python3-serial-asyncio mbpoll socat
+  # a real browser for the report page and the console
+  chromium
 )
 
 missing=()

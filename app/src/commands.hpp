@@ -27,5 +27,6 @@ Action AddPlcSimCommand(CLI::App& app, const GlobalOptions& global);
 Action AddLimitsCommand(CLI::App& app, const GlobalOptions& global);
 Action AddCalibrateCommand(CLI::App& app, const GlobalOptions& global);
 Action AddLocateCommand(CLI::App& app, const GlobalOptions& global);
+Action AddReportCommand(CLI::App& app, const GlobalOptions& global);
 
 }  // namespace mosaicloc::app

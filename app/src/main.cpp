@@ -39,6 +39,7 @@ int main(int argc, char** argv) {
   add(app::AddReplayCommand);
   add(app::AddMapCommand);
   add(app::AddLocateCommand);
+  add(app::AddReportCommand);
   add(app::AddBenchCommand);
   add(app::AddRunCommand);
   add(app::AddPlcSimCommand);
