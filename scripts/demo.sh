@@ -43,10 +43,14 @@ print(f"map built from the mapping drive's frames and encoders: {c['loops_accept
       f"{c['seams']['after_rms_px']:.4f} px RMS, poses {e['rms_mm']:.3f} mm RMS from the truth (best rigid alignment)")
 print(f"localized on it:  {100 * m['fix_rate']:.1f} % of {m['frames']} frames fixed, {m['wrong_fixes']} wrong, "
       f"{m['lock_losses']} lock losses, {m['position_rms_mm']:.3f} mm RMS, repeatability {m['repeatability_mm']:.4f} mm")
+print(f"from the drive alone (no truth): repeatability {m['revisit_repeatability_mm']:.4f} mm at the camera from "
+      f"{m['revisit_places']} revisited places (the truth says {m['repeatability_camera_mm']:.4f} mm), "
+      f"{100 * m['nis_inside_95_share']:.1f} % of fixes inside the filter's 95 % bound")
 print(f"dead reckoning:   {d['position_rms_mm']:.1f} mm RMS, {d['final_position_error_mm']:.1f} mm off after "
       f"{d['path_length_m']:.0f} m ({d['drift_percent']:.2f} % of the path)")
 PY
 echo
-echo "Report: $(pwd)/$OUT/report (metrics.json, estimate.tum, fixes.csv, trajectory.png,"
-echo "        position_error.png, heading_error.png, map.png); dead reckoning: $(pwd)/$OUT/dead-reckoning;"
+echo "Report: $(pwd)/$OUT/report/index.html (the page to share; beside it metrics.json, estimate.tum,"
+echo "        fixes.csv, map_state.png, map_quality.png, timelines.png, trajectory.png, position_error.png,"
+echo "        heading_error.png, map.png); dead reckoning: $(pwd)/$OUT/dead-reckoning;"
 echo "        the map's consistency: $(pwd)/$OUT/consistency (consistency.json, loops.csv, seams.csv, residuals.png)"

@@ -66,6 +66,11 @@ void PrintMetrics(const std::filesystem::path& directory, const dataset::Metrics
     show("NIS inside 95 % bound", std::optional<double>(100.0 * *metrics.nis_inside_95_share), "% of fixes");
   }
   show("NIS mean (3: consistent)", metrics.nis_mean, "");
+  if (metrics.nis_inside_95_share && *metrics.nis_inside_95_share < 0.9) {
+    std::printf("  %-24s %s\n", "", "the filter's covariance understates its errors: fixes will be rejected");
+  } else if (metrics.nis_mean && *metrics.nis_mean < 1.0) {
+    std::printf("  %-24s %s\n", "", "the filter's covariance is pessimistic (safe, but the gate admits more)");
+  }
   show("revisit repeatability", metrics.revisit_repeatability_mm, "mm");
   if (metrics.revisit_places) show("  revisited places", metrics.revisit_places, "");
   std::printf(" against ground truth:\n");

@@ -117,6 +117,17 @@ void WriteHtmlReport(const std::filesystem::path& directory, const HtmlReportInp
     html << "<tr><td>" << Escape(meaning) << "</td><td class=\"v" << (bad ? " bad" : "") << "\">"
          << Escape(Shown(value)) << "</td><td>" << Escape(key) << "</td></tr>\n";
   }
+  // The filter's consistency in words: a covariance that understates the errors rejects good
+  // fixes; one that overstates them is safe but gates loosely.
+  if (metrics.contains("nis_inside_95_share") && metrics["nis_inside_95_share"].is_number()) {
+    const double inside = metrics["nis_inside_95_share"].get<double>();
+    const double mean = metrics.value("nis_mean", nlohmann::json(3.0)).is_number() ? metrics["nis_mean"].get<double>() : 3.0;
+    const char* verdict = inside < 0.9    ? "understates the errors: good fixes will be rejected"
+                          : mean < 1.0    ? "pessimistic: safe, but the gate admits more than it needs to"
+                                          : "consistent with the innovations";
+    html << "<tr><td>the filter's covariance</td><td class=\"v" << (inside < 0.9 ? " bad" : "") << "\">" << verdict
+         << "</td><td>nis_*</td></tr>\n";
+  }
   html << "</table>\n<h2>Plots</h2>\n";
   std::error_code ec;
   for (const auto& [file, caption] : ReportPlots()) {
