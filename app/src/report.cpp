@@ -73,6 +73,9 @@ void PrintMetrics(const std::filesystem::path& directory, const dataset::Metrics
   }
   show("revisit repeatability", metrics.revisit_repeatability_mm, "mm");
   if (metrics.revisit_places) show("  revisited places", metrics.revisit_places, "");
+  if (metrics.revisit_failures && *metrics.revisit_failures > 0) {
+    show("  visits not registered", metrics.revisit_failures, "(frames that disagree with their estimates)");
+  }
   std::printf(" against ground truth:\n");
   show("position RMS", metrics.position_rms_mm, "mm");
   show("position p99", metrics.position_p99_mm, "mm");

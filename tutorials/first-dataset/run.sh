@@ -9,3 +9,9 @@ ls loop-report
 mosaicloc map build --dataset loop-dataset --out loop.mosaic
 mosaicloc map info loop.mosaic
 mosaicloc map export loop.mosaic --out loop-map.png --level 2
+# Localize against the map; then the same drive without its ground truth, as a real recording.
+mosaicloc replay --dataset loop-dataset --map loop.mosaic --out map-report
+mkdir -p recording
+cp -r loop-dataset/cam0 loop-dataset/encoders loop-dataset/dataset.yaml recording/
+mosaicloc replay --dataset recording --map loop.mosaic --out recording-report
+mosaicloc report compare map-report recording-report --top 3

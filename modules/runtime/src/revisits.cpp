@@ -84,8 +84,9 @@ RevisitFigures MeasureRevisits(const std::filesystem::path& dataset_dir, const d
       }
       const core::Pose2 registered = first * vehicle_from_camera * r.world_from_camera;
       differences[role.place].push_back((later * vehicle_from_camera).translation_mm() - registered.translation_mm());
-      core::Log().debug("revisit at {}: {:.5f}, {:.5f} mm from where the first visit puts it", frame->time.nanoseconds(),
-                        differences[role.place].back().x(), differences[role.place].back().y());
+      core::Log().debug("revisit at {}: {:.5f}, {:.5f} mm from where the first visit (at {}) puts it",
+                        frame->time.nanoseconds(), differences[role.place].back().x(),
+                        differences[role.place].back().y(), fixed[revisited[role.place].front()].time.nanoseconds());
     }
     // A place whose visits are all in can let its first frame go.
     for (const Role& role : roles->second) {
