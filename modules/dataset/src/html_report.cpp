@@ -53,9 +53,10 @@ const std::vector<std::pair<std::string, std::string>>& SummaryKeys() {
       {"wrong_fixes", "fixes more than 1 mm from the truth (n/a without one)"},
       {"lock_losses", "times the lock was lost"},
       {"no_fix_reasons", "frames without a fix, by reason"},
-      {"revisit_repeatability_mm", "repeatability from revisits, without truth [mm]"},
+      {"revisit_repeatability_mm", "repeatability of the camera from revisits, without truth [mm]"},
       {"revisit_places", "revisited places it rests on"},
-      {"repeatability_mm", "repeatability against the truth [mm]"},
+      {"repeatability_camera_mm", "the same against the truth [mm]"},
+      {"repeatability_mm", "repeatability of the vehicle's origin against the truth [mm]"},
       {"position_rms_mm", "position error RMS against the truth [mm]"},
       {"nis_inside_95_share", "fixes inside the filter's 95 % bound (0.95 when consistent)"},
       {"nis_mean", "mean NIS (3 when the covariances are true)"},
@@ -113,6 +114,10 @@ void WriteHtmlReport(const std::filesystem::path& directory, const HtmlReportInp
   for (const auto& [key, meaning] : SummaryKeys()) {
     if (!metrics.contains(key)) continue;
     const nlohmann::json& value = metrics[key];
+    if (key == "no_fix_reasons" && value.is_null()) {
+      html << "<tr><td>" << Escape(meaning) << "</td><td class=\"v\">none</td><td>" << Escape(key) << "</td></tr>\n";
+      continue;
+    }
     const bool bad = key == "wrong_fixes" && value.is_number() && value.get<double>() > 0.0;
     html << "<tr><td>" << Escape(meaning) << "</td><td class=\"v" << (bad ? " bad" : "") << "\">"
          << Escape(Shown(value)) << "</td><td>" << Escape(key) << "</td></tr>\n";

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <system_error>
 #include <utility>
 
 #include "mosaicloc/dataset/validation.hpp"
@@ -235,16 +236,24 @@ void Panel(cv::Mat& canvas, const cv::Rect& area, const std::vector<double>& t, 
   }
 }
 
+void CreateDirectory(const std::filesystem::path& directory) {
+  std::error_code ec;
+  std::filesystem::create_directories(directory, ec);
+  if (ec) core::ThrowRuntime(directory.string() + ": cannot create the report directory (" + ec.message() + ")");
+}
+
 }  // namespace
 
 void WriteMapPlots(const std::filesystem::path& directory, const std::vector<FrameReport>& reports,
                    const FloorPicture& floor, const std::string& title) {
+  CreateDirectory(directory);
   plot::SavePng(directory / "map_state.png", MapPlot(reports, floor, title, false));
   plot::SavePng(directory / "map_quality.png", MapPlot(reports, floor, title, true));
 }
 
 void WriteTimelines(const std::filesystem::path& directory, const std::vector<TimelineSample>& samples,
                     const std::string& title) {
+  CreateDirectory(directory);
   const bool height = std::any_of(samples.begin(), samples.end(),
                                   [](const TimelineSample& s) { return std::isfinite(s.height_mm); });
   const int panels = height ? 7 : 6;

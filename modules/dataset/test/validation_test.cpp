@@ -1,6 +1,8 @@
 #include "mosaicloc/dataset/validation.hpp"
 
+#include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -109,6 +111,26 @@ TEST(HtmlReport, ShowsTheSummaryThePlotsAndTheConfigurationEscaped) {
   EXPECT_EQ(page.find("http"), std::string::npos) << "nothing from the network";
   std::filesystem::remove(scratch.path() / "metrics.json");
   EXPECT_THROW(WriteHtmlReport(scratch.path(), inputs), core::Error);
+}
+
+// Timelines of a drive with unknowns (no fix, no NIS, no wheel scales) and of no frame at all
+// are drawn, not refused; the map plots take a drive without a picture of the floor.
+TEST(ReportPlots, DrawWhatIsKnownAndSayWhatIsNot) {
+  test::ScratchDir scratch;
+  std::vector<TimelineSample> samples(3);
+  for (int i = 0; i < 3; ++i) {
+    samples[i].seconds = 0.1 * i;
+    samples[i].quality = i == 1 ? std::numeric_limits<double>::quiet_NaN() : 0.95;
+    samples[i].nis = std::numeric_limits<double>::quiet_NaN();
+    samples[i].wheel_scale_left_percent = samples[i].wheel_scale_right_percent = std::numeric_limits<double>::quiet_NaN();
+    samples[i].height_mm = std::numeric_limits<double>::quiet_NaN();
+  }
+  WriteTimelines(scratch.path(), samples, "unknowns");
+  EXPECT_GT(std::filesystem::file_size(scratch.path() / "timelines.png"), 1000U);
+  WriteTimelines(scratch.path() / "empty", {}, "empty");
+  EXPECT_TRUE(std::filesystem::exists(scratch.path() / "empty" / "timelines.png"));
+  WriteMapPlots(scratch.path() / "empty", {}, FloorPicture{}, "empty");
+  EXPECT_TRUE(std::filesystem::exists(scratch.path() / "empty" / "map_quality.png"));
 }
 
 }  // namespace

@@ -17,7 +17,8 @@ struct FloorPicture {
   double x0_mm = 0.0, x1_mm = 1.0, y0_mm = 0.0, y1_mm = 1.0;
 };
 
-/// Writes the drive drawn over the floor, two 1000 x 900 PNGs (atomic), with the world frame's
+/// Writes the drive drawn over the floor into `directory` (created if missing), two 1000 x 900
+/// PNGs (atomic), with the world frame's
 /// axes at the origin (when in view), a scale bar and a legend with counts:
 ///  - map_state.png: every frame's position, coloured by its lock state; frames without a fix
 ///    marked by reason (crosses);
@@ -39,7 +40,7 @@ struct TimelineSample {
   double height_mm = 0.0;   ///< the camera's height over the floor held, NaN when not estimated
 };
 
-/// Writes timelines.png (1000 x 1500, atomic): fix quality, position standard deviation (log),
+/// Writes timelines.png into `directory` (created if missing; about 1000 x 1450, atomic): fix quality, position standard deviation (log),
 /// NIS with its 95 % bound (log), speed, latency, the learnt wheel scale errors and, when any
 /// sample has one, the camera's height, against time.
 void WriteTimelines(const std::filesystem::path& directory, const std::vector<TimelineSample>& samples,
