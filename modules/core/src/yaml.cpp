@@ -322,7 +322,12 @@ YamlMap YamlMap::OptionalMap(std::string_view key) {
 void YamlMap::Finish() {
   if (absent_ || !node_.IsMap()) return;
   for (const auto& entry : node_) {
-    const std::string key = entry.first.as<std::string>();
+    // A key that is itself a mapping or a list (YAML's "? " form) names nothing here.
+    if (!entry.first.IsScalar()) {
+      problems_->Add(Location(entry.first, "?") + "a key must be a plain name, not a mapping or a list");
+      continue;
+    }
+    const std::string key = entry.first.Scalar();
     if (read_keys_.count(key) != 0) continue;
     std::string message = "unknown key";
     std::size_t best_distance = 3;

@@ -74,6 +74,19 @@ TEST(YamlMap, ReportsEveryProblemAtOnceWithLines) {
   }
 }
 
+// YAML allows a mapping or a list as a key ("? {a: 1}"): a problem named with its line, like
+// any unknown key, never an exception of the YAML library.
+TEST(YamlMap, AKeyThatIsAMappingIsAProblemNotACrash) {
+  const YAML::Node node = YAML::Load("camera:\n  width_px: 800\n  ? {a: 1}\n  : 2\n? [x]\n: 3\n");
+  YamlProblems problems;
+  CameraOptions options;
+  ReadCamera(node, "site.yaml", &options, &problems);
+  ASSERT_EQ(problems.messages().size(), 2u);
+  EXPECT_THAT(problems.messages()[0], HasSubstr("site.yaml:3: "));
+  EXPECT_THAT(problems.messages()[0], HasSubstr("a key must be a plain name"));
+  EXPECT_THAT(problems.messages()[1], HasSubstr("site.yaml:5: "));
+}
+
 TEST(YamlMap, RejectsWrongTypesAndRanges) {
   const YAML::Node node = YAML::Load("camera:\n  width_px: 12.5\n  mm_per_px: -1\n");
   YamlProblems problems;
