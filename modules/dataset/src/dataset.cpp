@@ -99,12 +99,17 @@ DatasetInfo ReadDatasetInfo(const fs::path& yaml_file) {
     root.OptionalMap("provenance");  // marks the key as known
     if (provenance.IsMap()) {
       for (const auto& entry : provenance) {
-        if (!entry.second.IsScalar()) {
-          problems.Add(yaml_file.string() + ":" + std::to_string(entry.second.Mark().line + 1) +
-                       ": provenance." + entry.first.as<std::string>() + ": expected a text value");
+        if (!entry.first.IsScalar()) {
+          problems.Add(yaml_file.string() + ":" + std::to_string(entry.first.Mark().line + 1) +
+                       ": provenance: a key must be a plain name, not a mapping or a list");
           continue;
         }
-        info.provenance[entry.first.as<std::string>()] = entry.second.Scalar();
+        if (!entry.second.IsScalar()) {
+          problems.Add(yaml_file.string() + ":" + std::to_string(entry.second.Mark().line + 1) +
+                       ": provenance." + entry.first.Scalar() + ": expected a text value");
+          continue;
+        }
+        info.provenance[entry.first.Scalar()] = entry.second.Scalar();
       }
     }
   }

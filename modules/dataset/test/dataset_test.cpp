@@ -204,6 +204,21 @@ TEST(Dataset, YamlTypoIsRejected) {
   EXPECT_THAT(error, HasSubstr("dataset.yaml:"));
 }
 
+// Provenance is free text, but its keys are names: a mapping or a list as a key is reported
+// with its line, never an exception of the YAML library.
+TEST(Dataset, ProvenanceKeysMustBeNames) {
+  test::ScratchDir scratch;
+  const fs::path dir = scratch / "ds";
+  WriteSmall(dir);
+  std::string yaml = test::ReadFile(dir / "dataset.yaml");
+  const auto at = yaml.find("provenance:");
+  ASSERT_NE(at, std::string::npos);
+  yaml.insert(yaml.find('\n', at) + 1, "  ? [a, b]\n  : 1\n");
+  test::WriteFile(dir / "dataset.yaml", yaml);
+  const std::string error = ReadError(dir);
+  EXPECT_THAT(error, HasSubstr("provenance: a key must be a plain name"));
+}
+
 TEST(Dataset, MissingDirectoryAndFiles) {
   test::ScratchDir scratch;
   EXPECT_THAT(ReadError(scratch / "nope"), HasSubstr("no such dataset directory"));
