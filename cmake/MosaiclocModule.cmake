@@ -24,6 +24,10 @@ function(mosaicloc_target_options target)
       -fno-sanitize-recover=undefined -fno-omit-frame-pointer)
     target_link_options(${target} PUBLIC -fsanitize=address,undefined)
   endif()
+  if(MOSAICLOC_FUZZ)
+    # Coverage for the fuzzers' guidance in every library they reach.
+    target_compile_options(${target} PUBLIC -fsanitize=fuzzer-no-link)
+  endif()
 endfunction()
 
 function(mosaicloc_add_module name)
