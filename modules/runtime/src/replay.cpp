@@ -103,23 +103,7 @@ class ReplayRecord {
     if (report.fixed && last_estimate_ && last_estimate_->time == report.time) fixed_estimates_.push_back(*last_estimate_);
     fixes_csv_ += dataset::FixesCsvRow(report);
     if (extras.normalized_innovation) innovations_.push_back(*extras.normalized_innovation);
-    dataset::TimelineSample sample;
-    sample.seconds = reports_.empty() ? 0.0 : core::ToSeconds(report.time - reports_.front().time);
-    sample.quality = report.fixed ? report.quality : kNaN;
-    sample.sigma_mm = report.sigma_mm;
-    sample.nis = report.nis.value_or(kNaN);
-    sample.speed_mps = kNaN;
-    if (!reports_.empty()) {
-      const double dt_s = core::ToSeconds(report.time - reports_.back().time);
-      if (dt_s > 0.0) {
-        sample.speed_mps = core::Distance(report.world_from_vehicle, reports_.back().world_from_vehicle) / dt_s / 1000.0;
-      }
-    }
-    sample.latency_ms = last_latency_ms_;
-    sample.wheel_scale_left_percent = extras.wheel_scale_percent.x();
-    sample.wheel_scale_right_percent = extras.wheel_scale_percent.y();
-    sample.height_mm = report.scale;  // times the calibrated height in Finish, where it is known
-    timeline_.push_back(sample);
+    timeline_extras_.push_back({last_latency_ms_, extras.wheel_scale_percent});
     reports_.push_back(report);
     if (view_mapped) view_mapped_.push_back(*view_mapped);
   }
@@ -176,7 +160,7 @@ class ReplayRecord {
     CheckHeight(options, info, heading, &metrics);
     core::WriteFileAtomically(options.out / "fixes.csv", fixes_csv_);
     metrics = WriteReport(options.out, estimate_, groundtruth_, metrics, heading);
-    WriteTruthFreePlots(info, heading, options.out);
+    WriteTruthFreePlots(options, info, heading);
     dataset::HtmlReportInputs page;
     page.title = heading;
     page.about = {{"dataset", options.dataset.string()},
@@ -195,18 +179,27 @@ class ReplayRecord {
  private:
   // The camera's height the localizer held (its image scale times the calibrated height)
   // against the simulator's truth, when the dataset records both: metrics and height.png.
-  void CheckHeight(const ReplayOptions& options, const dataset::DatasetInfo& info, const std::string& title,
-                   dataset::Metrics* metrics) const {
-    const std::filesystem::path file = options.dataset / dataset::kCameraTruthFile;
+  // The camera's calibrated height over the floor the dataset notes (provenance
+  // camera_height_mm), if it does; a note that is not a positive number is invalid input.
+  static std::optional<double> CalibratedHeightMm(const ReplayOptions& options, const dataset::DatasetInfo& info) {
     const auto calibrated = info.provenance.find("camera_height_mm");
-    std::error_code ec;
-    if (calibrated == info.provenance.end() || !std::filesystem::exists(file, ec) || reports_.empty()) return;
+    if (calibrated == info.provenance.end()) return std::nullopt;
     char* end = nullptr;
     const double height_mm = std::strtod(calibrated->second.c_str(), &end);
     if (end == calibrated->second.c_str() || *end != '\0' || !(height_mm > 0.0)) {
       core::ThrowInvalidInput(options.dataset.string() + ": provenance camera_height_mm '" + calibrated->second +
                               "' is not a positive number");
     }
+    return height_mm;
+  }
+
+  void CheckHeight(const ReplayOptions& options, const dataset::DatasetInfo& info, const std::string& title,
+                   dataset::Metrics* metrics) const {
+    const std::filesystem::path file = options.dataset / dataset::kCameraTruthFile;
+    const std::optional<double> calibrated_mm = CalibratedHeightMm(options, info);
+    std::error_code ec;
+    if (!calibrated_mm || !std::filesystem::exists(file, ec) || reports_.empty()) return;
+    const double height_mm = *calibrated_mm;
     std::unordered_map<std::int64_t, double> truth;
     for (const dataset::CameraTruthSample& sample : dataset::ReadCameraTruth(file)) {
       truth[sample.time.nanoseconds()] = sample.truth.height_mm;
@@ -254,21 +247,38 @@ class ReplayRecord {
     }
   }
 
-  // map_state.png, map_quality.png and timelines.png: what needs no ground truth.
-  void WriteTruthFreePlots(const dataset::DatasetInfo& info, const std::string& heading,
-                           const std::filesystem::path& out) {
-    const auto calibrated = info.provenance.find("camera_height_mm");
+  // map_state.png, map_quality.png and timelines.png: what needs no ground truth. The camera's
+  // height is drawn where the image scale was estimated (it moved from 1) and the calibrated
+  // height is known.
+  void WriteTruthFreePlots(const ReplayOptions& options, const dataset::DatasetInfo& info, const std::string& heading) {
     const bool scale_held = std::any_of(reports_.begin(), reports_.end(),
                                         [](const dataset::FrameReport& r) { return r.scale != 1.0; });
-    double height_mm = kNaN;
-    if (calibrated != info.provenance.end() && scale_held) {
-      char* end = nullptr;
-      height_mm = std::strtod(calibrated->second.c_str(), &end);
-      if (end == calibrated->second.c_str() || *end != '\0') height_mm = kNaN;
+    const double height_mm = scale_held ? CalibratedHeightMm(options, info).value_or(kNaN) : kNaN;
+    std::vector<dataset::TimelineSample> timeline;
+    timeline.reserve(reports_.size());
+    for (std::size_t i = 0; i < reports_.size(); ++i) {
+      const dataset::FrameReport& report = reports_[i];
+      dataset::TimelineSample sample;
+      sample.seconds = core::ToSeconds(report.time - reports_.front().time);
+      sample.quality = report.fixed ? report.quality : kNaN;
+      sample.sigma_mm = report.sigma_mm;
+      sample.nis = report.nis.value_or(kNaN);
+      sample.speed_mps = kNaN;
+      if (i > 0) {
+        const double dt_s = core::ToSeconds(report.time - reports_[i - 1].time);
+        if (dt_s > 0.0) {
+          sample.speed_mps =
+              core::Distance(report.world_from_vehicle, reports_[i - 1].world_from_vehicle) / dt_s / 1000.0;
+        }
+      }
+      sample.latency_ms = timeline_extras_[i].latency_ms;
+      sample.wheel_scale_left_percent = timeline_extras_[i].wheel_scale_percent.x();
+      sample.wheel_scale_right_percent = timeline_extras_[i].wheel_scale_percent.y();
+      sample.height_mm = report.scale * height_mm;
+      timeline.push_back(sample);
     }
-    for (dataset::TimelineSample& sample : timeline_) sample.height_mm *= height_mm;
-    dataset::WriteMapPlots(out, reports_, floor_, heading);
-    dataset::WriteTimelines(out, timeline_, heading);
+    dataset::WriteMapPlots(options.out, reports_, floor_, heading);
+    dataset::WriteTimelines(options.out, timeline, heading);
   }
 
   dataset::Metrics known_;
@@ -283,7 +293,12 @@ class ReplayRecord {
   std::vector<dataset::FrameReport> reports_;
   std::vector<double> view_mapped_;
   std::vector<Eigen::Vector3d> innovations_;
-  std::vector<dataset::TimelineSample> timeline_;
+  // Per report: what the timelines need beyond its row of fixes.csv.
+  struct TimelineExtras {
+    double latency_ms;
+    Eigen::Vector2d wheel_scale_percent;
+  };
+  std::vector<TimelineExtras> timeline_extras_;
   double last_latency_ms_ = kNaN;
   std::optional<dataset::StampedPose> last_estimate_;
   dataset::Trajectory fixed_estimates_;
