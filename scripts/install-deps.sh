@@ -17,6 +17,8 @@ PACKAGES=(
   python3-pymodbus python3-serial python3-serial-asyncio mbpoll socat
   # a real browser for the report page and the console
   chromium
+  # the console: an HTTP server, and the map viewer it serves from the Debian package
+  libcpp-httplib-dev libjs-leaflet
 )
 
 missing=()

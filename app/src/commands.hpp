@@ -28,5 +28,6 @@ Action AddLimitsCommand(CLI::App& app, const GlobalOptions& global);
 Action AddCalibrateCommand(CLI::App& app, const GlobalOptions& global);
 Action AddLocateCommand(CLI::App& app, const GlobalOptions& global);
 Action AddReportCommand(CLI::App& app, const GlobalOptions& global);
+Action AddServeCommand(CLI::App& app, const GlobalOptions& global);
 
 }  // namespace mosaicloc::app

@@ -40,6 +40,7 @@ int main(int argc, char** argv) {
   add(app::AddMapCommand);
   add(app::AddLocateCommand);
   add(app::AddReportCommand);
+  add(app::AddServeCommand);
   add(app::AddBenchCommand);
   add(app::AddRunCommand);
   add(app::AddPlcSimCommand);

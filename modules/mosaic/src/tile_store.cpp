@@ -182,12 +182,12 @@ void TileStore::GiveBack(ReaderPtr reader) const {
   idle_readers_.push_back(std::move(reader));
 }
 
-TileRead TileStore::Read(const TileKey& key, cv::Mat buffer) const {
-  TileRead result;
+TileStatus TileStore::Fetch(const TileKey& key,
+                            const std::function<std::string(const unsigned char*, std::size_t)>& use,
+                            std::string* problem) const {
   const auto corrupt = [&](const std::string& reason) {
-    result.status = TileStatus::kCorrupt;
-    result.problem = file_.string() + ": tile " + key.ToString() + ": " + reason;
-    return result;
+    *problem = file_.string() + ": tile " + key.ToString() + ": " + reason;
+    return TileStatus::kCorrupt;
   };
   std::string why;
   ReaderPtr reader = TakeReader(&why);
@@ -199,28 +199,51 @@ TileRead TileStore::Read(const TileKey& key, cv::Mat buffer) const {
   const int step = sqlite3_step(select);
   if (step == SQLITE_DONE) {
     GiveBack(std::move(reader));
-    return result;  // absent: unmapped
+    return TileStatus::kAbsent;  // unmapped
   }
   if (step != SQLITE_ROW) {
     // The connection is dropped, not pooled: whatever went wrong stays with it.
     return corrupt(std::string("cannot be read: ") + sqlite3_errmsg(reader->db));
   }
-  // The blob is checked and decoded where SQLite holds it (valid until the statement is
-  // reset), not copied out first.
+  // The blob is checked and used where SQLite holds it (valid until the statement is reset),
+  // not copied out first.
   const auto* blob = static_cast<const unsigned char*>(sqlite3_column_blob(select, 0));
   const auto bytes = static_cast<std::size_t>(sqlite3_column_bytes(select, 0));
   const std::int64_t stored_crc = sqlite3_column_int64(select, 1);
-  std::string problem;
-  cv::Mat pixels = buffer;
+  std::string reason;
   if (static_cast<std::int64_t>(internal::Crc32(blob, bytes)) != stored_crc) {
-    problem = "CRC32 mismatch (the tile data is damaged)";
+    reason = "CRC32 mismatch (the tile data is damaged)";
   } else {
-    problem = internal::DecodeGreyPng(blob, bytes, grid_.tile_size_px, pixels);
+    reason = use(blob, bytes);
   }
   GiveBack(std::move(reader));
-  if (!problem.empty()) return corrupt(problem);
-  result.status = TileStatus::kOk;
-  result.pixels = pixels;
+  if (!reason.empty()) return corrupt(reason);
+  return TileStatus::kOk;
+}
+
+TileRead TileStore::Read(const TileKey& key, cv::Mat buffer) const {
+  TileRead result;
+  cv::Mat pixels = buffer;
+  result.status = Fetch(
+      key,
+      [&](const unsigned char* blob, std::size_t bytes) {
+        return internal::DecodeGreyPng(blob, bytes, grid_.tile_size_px, pixels);
+      },
+      &result.problem);
+  if (result.status == TileStatus::kOk) result.pixels = pixels;
+  return result;
+}
+
+EncodedTileRead TileStore::ReadEncoded(const TileKey& key) const {
+  EncodedTileRead result;
+  result.status = Fetch(
+      key,
+      [&](const unsigned char* blob, std::size_t bytes) {
+        result.png.assign(blob, blob + bytes);
+        return std::string();
+      },
+      &result.problem);
+  if (result.status != TileStatus::kOk) result.png.clear();
   return result;
 }
 

@@ -217,6 +217,11 @@ class LiveRun::Impl {
       core::ThrowInvalidInput("run: start.unknown needs a map with a place index: " + map_->places().problem());
     }
     link_ = io::OpenPlcLink(config.plc);
+    if (config.console) {
+      console::ConsoleOptions console_options = *config.console;
+      console_options.live_run = true;
+      console_ = std::make_unique<console::Console>(console_options, config.map);
+    }
     if (!record.empty()) {
       dataset::DatasetInfo info;
       info.camera = camera;
@@ -244,6 +249,7 @@ class LiveRun::Impl {
     }
     Publish(false, 0.0);
     core::Log().info("run: camera {}; PLC {}; map {}", source_->Describe(), config_.plc.Describe(), config_.map.string());
+    if (console_) console_->Start();
 
     std::thread camera([this] { Guard("camera", [this] { CameraLoop(); }); });
     std::thread plc([this] { Guard("PLC link", [this] { PlcLoop(); }); });
@@ -270,7 +276,11 @@ class LiveRun::Impl {
         break;
       }
       if (Clock::now() >= next_status) {
-        if (status) status(Status());
+        if (status || console_) {
+          const nlohmann::json line = Status();
+          if (status) status(line);
+          if (console_) console_->PublishStatus(line);
+        }
         next_status += std::chrono::seconds(1);
       }
     }
@@ -281,6 +291,7 @@ class LiveRun::Impl {
     camera.join();
     tracking.join();
     plc.join();
+    if (console_) console_->Stop();
     if (error_) std::rethrow_exception(error_);
     if (recorder_) recorder_->Commit();
     return Summary(why);
@@ -525,10 +536,33 @@ class LiveRun::Impl {
         core::Log().debug("run: frame {} not fixed: {}", frame->sequence, outcome.reason);
       }
       Publish(outcome.fixed, outcome.fix_quality, outcome.scale);
+      if (console_) console_->PublishPose(LivePoseOf(frame->time, outcome));
       const std::lock_guard lock(stats_.mutex);
       stats_.frame_latency_ms.push_back(Ms(io::MonotonicNow() - frame->time));
     }
     tracking_done_ = true;
+  }
+
+  // What the console shows of a frame's outcome (copied, never waited for).
+  console::LivePose LivePoseOf(core::Timestamp time, const localizer::FrameOutcome& outcome) const {
+    console::LivePose pose;
+    pose.t_s = core::ToSeconds(time - started_);
+    pose.known = localizer_->initialized() && !localizer_->pose_unknown();
+    pose.x_mm = outcome.world_from_vehicle.x_mm();
+    pose.y_mm = outcome.world_from_vehicle.y_mm();
+    pose.yaw_rad = outcome.world_from_vehicle.yaw_rad();
+    pose.cov_xx = outcome.covariance(0, 0);
+    pose.cov_xy = outcome.covariance(0, 1);
+    pose.cov_yy = outcome.covariance(1, 1);
+    pose.sigma_yaw_rad = std::sqrt(std::max(0.0, outcome.covariance(2, 2)));
+    pose.lock = static_cast<int>(outcome.lock);  // design.md section 6, as fixes.csv writes it
+    pose.fixed = outcome.fixed;
+    pose.quality = outcome.fix_quality;
+    pose.scale = outcome.scale;
+    pose.latency_ms = Ms(io::MonotonicNow() - time);
+    pose.frames = stats_.processed;
+    pose.fixes = stats_.fixes;
+    return pose;
   }
 
   // The status line of the last second (LiveRun::Run).
@@ -639,6 +673,7 @@ class LiveRun::Impl {
   std::unique_ptr<localizer::Localizer> localizer_;
   std::unique_ptr<io::PlcLink> link_;
   std::unique_ptr<Recorder> recorder_;
+  std::unique_ptr<console::Console> console_;
   core::Timestamp started_;
 
   std::mutex mutex_;  // guards the queues and camera_done_

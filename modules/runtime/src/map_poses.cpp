@@ -346,6 +346,25 @@ void WriteMappingReport(const fs::path& directory, const MapPosesSummary& summar
     seams << s.from << ',' << s.to << ',' << mapping::ToString(s.kind) << ',' << s.before_px << ',' << s.after_px << '\n';
   }
   core::WriteFileAtomically(directory / "seams.csv", seams.str());
+  // The path with each frame's worst seam after optimization: where the lanes were mapped and
+  // how well they fit, for the console's layer.
+  std::vector<double> worst_seam(m.world_from_vehicle.size(), 0.0);
+  for (const mapping::Seam& s : m.seams) {
+    for (const int frame : {s.from, s.to}) {
+      if (frame >= 0 && static_cast<std::size_t>(frame) < worst_seam.size()) {
+        worst_seam[static_cast<std::size_t>(frame)] = std::max(worst_seam[static_cast<std::size_t>(frame)], s.after_px);
+      }
+    }
+  }
+  std::ostringstream path;
+  path.precision(10);
+  path << "#frame,x_mm,y_mm,yaw_rad,worst_seam_px\n";
+  for (std::size_t i = 0; i < m.world_from_vehicle.size(); ++i) {
+    if (i < m.has_pose.size() && !m.has_pose[i]) continue;
+    const core::Pose2& p = m.world_from_vehicle[i];
+    path << i << ',' << p.x_mm() << ',' << p.y_mm() << ',' << p.yaw_rad() << ',' << worst_seam[i] << '\n';
+  }
+  core::WriteFileAtomically(directory / "path.csv", path.str());
   std::vector<uchar> png;
   if (!cv::imencode(".png", ResidualMap(summary), png)) core::ThrowRuntime("residuals.png: cannot be encoded");
   core::WriteFileAtomically(directory / "residuals.png",

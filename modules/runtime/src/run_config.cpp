@@ -203,6 +203,25 @@ RunConfig LoadRunConfig(const std::filesystem::path& file) {
   start.Finish();
   config.start = core::Pose2(x, y, yaw_deg * std::numbers::pi / 180.0);
 
+  core::YamlMap console = root.OptionalMap("console");
+  bool console_enabled = false;
+  console::ConsoleOptions console_options;
+  console.Optional("enabled", &console_enabled);
+  console.Optional("listen", &console_options.listen);
+  console.Optional("allow_remote", &console_options.allow_remote);
+  std::string token_file;
+  console.Optional("token_file", &token_file);
+  if (!token_file.empty()) {
+    try {
+      console_options.token = console::ReadTokenFile(resolve(token_file));
+    } catch (const core::Error& error) {
+      console.AddProblem("token_file", error.what());
+    }
+  }
+  console.Check(console_options);
+  if (console_enabled) config.console = console_options;
+  console.Finish();
+
   root.Optional("max_encoder_wait_ms", &config.max_encoder_wait_ms);
   root.CheckOwnKeys(config);
   root.Finish();

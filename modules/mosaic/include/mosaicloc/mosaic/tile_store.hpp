@@ -38,6 +38,14 @@ struct TileRead {
   std::string problem;  ///< names the tile, when kCorrupt
 };
 
+/// Outcome of reading one tile as stored: its PNG, CRC-checked but not decoded (to pass on
+/// unchanged, e.g. to a browser).
+struct EncodedTileRead {
+  TileStatus status = TileStatus::kAbsent;
+  std::vector<unsigned char> png;  ///< when kOk
+  std::string problem;             ///< names the tile, when kCorrupt
+};
+
 /// One cell of the place index (design.md section 4): the index's records over one tile of
 /// its level, as the tracking module encodes them; the store keeps them with their CRC32.
 struct PlaceCell {
@@ -87,6 +95,8 @@ class TileStore {
   /// Reads and verifies a tile (CRC, PNG decode, size, type). Never throws for a bad tile.
   /// A `buffer` of the tile's size and type is decoded into rather than allocating.
   TileRead Read(const TileKey& key, cv::Mat buffer = cv::Mat()) const;
+  /// Reads and CRC-checks a tile's PNG without decoding it. Never throws for a bad tile.
+  EncodedTileRead ReadEncoded(const TileKey& key) const;
   /// Writes tiles in one transaction (all or none). Throws core::Error on failure.
   void Write(const std::vector<TileWrite>& tiles);
   /// Every tile of a level (all levels when level < 0), ordered by level, row, col.
@@ -124,6 +134,10 @@ class TileStore {
  private:
   TileStore(std::filesystem::path file, sqlite3* db, MapGrid grid);
   void Execute(const std::string& sql) const;
+  // Finds a tile's row, checks its CRC and hands the blob to `use` (which returns a problem,
+  // or nothing); kCorrupt with `problem` naming the tile when anything fails.
+  TileStatus Fetch(const TileKey& key, const std::function<std::string(const unsigned char*, std::size_t)>& use,
+                   std::string* problem) const;
 
   struct Reader;
   struct ReaderDeleter {

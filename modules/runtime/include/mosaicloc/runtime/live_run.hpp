@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "mosaicloc/calibration/ground.hpp"
+#include "mosaicloc/console/console.hpp"
 #include "mosaicloc/core/pose2.hpp"
 #include "mosaicloc/dataset/dataset.hpp"
 #include "mosaicloc/io/frame_source.hpp"
@@ -67,6 +68,8 @@ struct LiveRunOptions {
   double start_sigma_deg = 1.0;
   /// A frame waits at most this long for the encoder sample that follows it.
   double max_encoder_wait_ms = 100.0;
+  /// The integrator's console served while the run lasts (run.yaml console.enabled), or none.
+  std::optional<console::ConsoleOptions> console;
 
   LocalizationSettings localizer;
   /// The ranges of this struct's own fields (each complaint starts with the field's name);
