@@ -38,31 +38,31 @@ bool ConsoleOptions::Check(std::string* why) const {
     return fail(error.what());
   }
   if (!address.loopback && !allow_remote) {
-    return fail("listen: " + listen +
+    return fail("listen " + listen +
                 " is not a loopback address; listening on another interface needs allow_remote (--allow-remote) and a "
                 "token");
   }
   if (allow_remote && token.size() < 16) {
-    return fail("token: listening beyond loopback needs a token of at least 16 characters for every request");
+    return fail("token of at least 16 characters is needed for every request when listening beyond loopback");
   }
   for (const char c : token) {
     if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-' && c != '_' && c != '.') {
-      return fail("token: only letters, digits, '-', '_' and '.' (it travels in URLs and headers)");
+      return fail("token may hold only letters, digits, '-', '_' and '.' (it travels in URLs and headers)");
     }
   }
-  if (threads < 2 || threads > 64) return fail("threads: must be in [2, 64]");
-  if (max_streams < 1 || max_streams >= threads) return fail("max_streams: must be in [1, threads - 1]");
-  if (!(requests_per_s > 0.0)) return fail("requests_per_s: must be > 0");
-  if (!(burst >= 1.0)) return fail("burst: must be >= 1");
-  if (!(stream_hz > 0.0 && stream_hz <= 100.0)) return fail("stream_hz: must be in (0, 100]");
-  if (tile_cache_bytes < 0) return fail("tile_cache_bytes: must be >= 0");
+  if (threads < 2 || threads > 64) return fail("threads must be in [2, 64]");
+  if (max_streams < 1 || max_streams >= threads) return fail("max_streams must be in [1, threads - 1]");
+  if (!(requests_per_s > 0.0)) return fail("requests_per_s must be > 0");
+  if (!(burst >= 1.0)) return fail("burst must be >= 1");
+  if (!(stream_hz > 0.0 && stream_hz <= 100.0)) return fail("stream_hz must be in (0, 100]");
+  if (tile_cache_bytes < 0) return fail("tile_cache_bytes must be >= 0");
   return true;
 }
 
 ListenAddress ParseListen(const std::string& text) {
   const std::size_t colon = text.rfind(':');
   if (colon == std::string::npos || colon == 0 || colon + 1 == text.size()) {
-    core::ThrowInvalidInput("listen: '" + text + "' is not HOST:PORT (e.g. 127.0.0.1:8080)");
+    core::ThrowInvalidInput("listen '" + text + "' is not HOST:PORT (e.g. 127.0.0.1:8080)");
   }
   ListenAddress address;
   address.host = text.substr(0, colon);
@@ -72,12 +72,12 @@ ListenAddress ParseListen(const std::string& text) {
   const std::string port = text.substr(colon + 1);
   if (port.size() > 5 || !std::all_of(port.begin(), port.end(), [](char c) { return c >= '0' && c <= '9'; }) ||
       std::stoi(port) > 65535) {
-    core::ThrowInvalidInput("listen: '" + text + "': the port must be a number in [0, 65535]");
+    core::ThrowInvalidInput("listen '" + text + "': the port must be a number in [0, 65535]");
   }
   address.port = std::stoi(port);
   for (const char c : address.host) {
     if (!std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != ':' && c != '-') {
-      core::ThrowInvalidInput("listen: '" + text + "': the host must be an IP address or a name");
+      core::ThrowInvalidInput("listen '" + text + "': the host must be an IP address or a name");
     }
   }
   address.loopback = address.host == "localhost" || address.host == "::1" || address.host.rfind("127.", 0) == 0;

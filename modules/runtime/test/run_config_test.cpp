@@ -124,6 +124,10 @@ TEST(RunConfig, RangesAreTheOptionsChecksAtTheirLines) {
       {"map: a.mosaic\nplc:\n  role: client\n  cycle_ms: 0\n", ":4: plc.cycle_ms: must be in [1, 10000]"},
       {"map: a.mosaic\nstart:\n  sigma_deg: 500\n", ":3: start.sigma_deg: must be in [0.0001, 180]"},
       {"map: a.mosaic\nmax_encoder_wait_ms: -1\n", ":2: max_encoder_wait_ms: must be in [0, 10000]"},
+      {"map: a.mosaic\nconsole:\n  enabled: true\n  listen: 0.0.0.0:8080\n", ":4: console.listen: 0.0.0.0:8080 is not a loopback"},
+      {"map: a.mosaic\nconsole:\n  listen: 127.0.0.1:99999\n", ":3: console.listen: '127.0.0.1:99999': the port"},
+      {"map: a.mosaic\nconsole:\n  allow_remote: true\n", "console: token of at least 16 characters is needed"},
+      {"map: a.mosaic\nconsole:\n  token_file: missing.txt\n", ":3: console.token_file: "},
   };
   for (const auto& [yaml, expected] : cases) {
     const std::string error = ErrorOf(yaml);
@@ -131,6 +135,19 @@ TEST(RunConfig, RangesAreTheOptionsChecksAtTheirLines) {
   }
   std::string why;
   EXPECT_TRUE(RunConfig{}.Check(&why)) << why;
+}
+
+TEST(RunConfig, TheConsoleIsOffUnlessEnabledAndReadsItsTokenFromAFile) {
+  test::ScratchDir scratch;
+  test::WriteFile(scratch / "run.yaml", "map: a.mosaic\nconsole:\n  listen: 127.0.0.1:9000\n");
+  EXPECT_FALSE(LoadRunConfig(scratch / "run.yaml").console.has_value());
+  test::WriteFile(scratch / "token", "  a-token-of-enough-length \nsecond line\n");
+  test::WriteFile(scratch / "run.yaml", "map: a.mosaic\nconsole:\n  enabled: true\n  listen: 192.168.4.2:9000\n"
+                                        "  allow_remote: true\n  token_file: token\n");
+  const RunConfig config = LoadRunConfig(scratch / "run.yaml");
+  ASSERT_TRUE(config.console.has_value());
+  EXPECT_EQ(config.console->listen, "192.168.4.2:9000");
+  EXPECT_EQ(config.console->token, "a-token-of-enough-length");
 }
 
 TEST(RunConfig, OneWordOrderForEveryField) {
