@@ -19,6 +19,8 @@ PACKAGES=(
   chromium
   # the console: an HTTP server, and the map viewer it serves from the Debian package
   libcpp-httplib-dev libjs-leaflet
+  # the console's tests and tutorial ask it as any HTTP client would
+  curl
 )
 
 missing=()
