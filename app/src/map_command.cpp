@@ -2,10 +2,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <memory>
 #include <string>
 #include <vector>
 
+#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
@@ -14,6 +16,7 @@
 #include "mosaicloc/mosaic/tile_store.hpp"
 #include "mosaicloc/runtime/map_jobs.hpp"
 #include "mosaicloc/runtime/map_poses.hpp"
+#include "mosaicloc/runtime/map_quality.hpp"
 #include "mosaicloc/tracking/place_index.hpp"
 #include "progress.hpp"
 
@@ -26,6 +29,7 @@ struct MapArgs {
   runtime::MapBuildOptions build;
   runtime::MapPosesOptions poses;
   runtime::MapExportOptions export_;
+  runtime::MapQualityJob quality;
   fs::path map;
 };
 
@@ -137,6 +141,8 @@ void Info(const MapArgs& args, const GlobalOptions& global) {
     } else {
       result["place_index"] = nullptr;
     }
+    result["quality"] = info.quality ? nlohmann::json{{"level", info.quality->level}, {"cells", info.quality->cells}}
+                                     : nlohmann::json(nullptr);
     PrintJson(result);
     return;
   }
@@ -160,6 +166,12 @@ void Info(const MapArgs& args, const GlobalOptions& global) {
     std::printf("  place index: none (global relocalization needs one: mosaicloc map index %s)\n",
                 args.map.string().c_str());
   }
+  if (info.quality) {
+    std::printf("  quality layer: %lld cells (tiles of level %d): mosaicloc map quality %s --out DIR\n",
+                static_cast<long long>(info.quality->cells), info.quality->level, args.map.string().c_str());
+  } else {
+    std::printf("  quality layer: none (mosaicloc map quality %s --out DIR computes it)\n", args.map.string().c_str());
+  }
 }
 
 void Index(const MapArgs& args, const GlobalOptions& global) {
@@ -174,6 +186,32 @@ void Index(const MapArgs& args, const GlobalOptions& global) {
   std::printf("%s: place index of %lld features in %lld cells, %.1f MiB, built in %.1f s\n", args.map.string().c_str(),
               static_cast<long long>(r.features), static_cast<long long>(r.cells),
               static_cast<double>(r.bytes) / (1 << 20), r.seconds);
+}
+
+void Quality(const runtime::MapQualityJob& job, const GlobalOptions& global) {
+  ProgressBar progress("map quality", global.quiet);
+  const runtime::MapQualitySummary r = runtime::MapQuality(job, progress.Callback());
+  progress.Finish();
+  if (global.json) {
+    std::ifstream in(job.out / "quality.json");
+    PrintJson(nlohmann::json::parse(in));
+    return;
+  }
+  std::printf("%s: %lld cells of %.0f mm judged%s; %lld weak (%lld with little texture, %lld where the floor repeats) "
+              "in %zu stretches; %lld at lanes' edges not judged in full\n",
+              job.map.string().c_str(), static_cast<long long>(r.judged), r.cell_mm,
+              r.computed ? fmt::format(" (computed in {:.1f} s and stored in the map)", r.seconds).c_str() : "",
+              static_cast<long long>(r.weak_cells), static_cast<long long>(r.weak_texture),
+              static_cast<long long>(r.repeating), r.stretches.size(), static_cast<long long>(r.unsearched));
+  const std::size_t shown = std::min<std::size_t>(r.stretches.size(), 10);
+  for (std::size_t i = 0; i < shown; ++i) {
+    const runtime::WeakStretch& s = r.stretches[i];
+    std::printf("  %2zu. %4lld cells around (%.0f, %.0f) mm, x %.0f..%.0f y %.0f..%.0f: %s\n", i + 1,
+                static_cast<long long>(s.cells), s.centre_x_mm, s.centre_y_mm, s.x0_mm, s.x1_mm, s.y0_mm, s.y1_mm,
+                s.reason.c_str());
+  }
+  if (r.stretches.size() > shown) std::printf("  ... %zu more in weak.csv\n", r.stretches.size() - shown);
+  std::printf("written: %s (quality.png, weak.csv, quality.json)\n", job.out.string().c_str());
 }
 
 void Check(const MapArgs& args, const GlobalOptions& global) {
@@ -250,19 +288,32 @@ Action AddMapCommand(CLI::App& app, const GlobalOptions& global) {
   CLI::App* info = command->add_subcommand("info", "Extent, resolution, levels, tiles and size of a map");
   info->add_option("MAP", args->map, "Map file")->required();
   CLI::App* check = command->add_subcommand(
-      "check", "Verify every tile (CRC, PNG, size) and the place index's cells (CRC); exit 2 on damage");
+      "check", "Verify every tile (CRC, PNG, size) and the place index's and quality layer's cells (CRC); exit 2 on damage");
   check->add_option("MAP", args->map, "Map file")->required();
   CLI::App* index = command->add_subcommand(
       "index", "Build (or rebuild) the map's place index, which global relocalization looks frames up in");
   index->add_option("MAP", args->map, "Map file")->required();
+  CLI::App* quality = command->add_subcommand(
+      "quality", "Where on the map fixes will be weak (little texture, floor that repeats), before a vehicle drives "
+                 "there: quality.png, weak.csv, quality.json");
+  quality->add_option("MAP", args->quality.map, "Map file")->required()->check(CLI::ExistingFile);
+  quality->add_option("--out", args->quality.out, "Folder to write")->required();
+  quality->add_flag("--rebuild", args->quality.rebuild, "Compute the map's quality layer again and store it");
+  quality->add_option("--min-texture", args->quality.thresholds.min_texture,
+                      "A cell with less texture than this is weak (default 4)")
+      ->check(CLI::NonNegativeNumber);
+  quality->add_option("--max-ambiguity", args->quality.thresholds.max_ambiguity,
+                      "A cell whose floor matches this well elsewhere within 600 mm is weak (ZNCC, default 0.85)")
+      ->check(CLI::Range(-1.0, 1.0));
   CLI::App* export_command = command->add_subcommand("export", "Write a map level (or a region of it) as a PNG");
   export_command->add_option("MAP", args->export_.map, "Map file")->required();
   export_command->add_option("--out", args->export_.out, "PNG file to write")->required();
   export_command->add_option("--level", args->export_.level, "Pyramid level (default: the finest within 8192 px)")
       ->check(CLI::Range(0, 15));
   export_command->add_option("--region", args->export_.region, "x0,y0,x1,y1 in world mm");
-  return [args, &global, build, poses, info, check, index, export_command] {
+  return [args, &global, build, poses, info, check, index, quality, export_command] {
     if (index->parsed()) Index(*args, global);
+    if (quality->parsed()) Quality(args->quality, global);
     if (build->parsed()) Build(args->build, global);
     if (poses->parsed()) Poses(args->poses, global);
     if (info->parsed()) Info(*args, global);

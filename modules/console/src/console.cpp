@@ -224,6 +224,7 @@ class Console::Impl {
     if (!options.Check(&why)) core::ThrowInvalidInput("console: " + why);
     store_ = mosaic::TileStore::Open(map, false);
     map_info_ = MapInfo();
+    quality_ = QualityLayer();
     nlohmann::json reports = nlohmann::json::array();
     for (std::size_t i = 0; i < options.reports.size(); ++i) {
       internal::ReportLayer report = internal::ReadReportLayer(options.reports[i]);
@@ -355,6 +356,37 @@ class Console::Impl {
                           {"mapped_tiles", {{"level", lanes_level}, {"tiles", lanes}}},
                           {"place_index", places ? nlohmann::json{{"cells", places->cells}, {"bytes", places->bytes}}
                                                  : nlohmann::json(nullptr)}}
+        .dump();
+  }
+
+  // The map's quality layer (map build computes it) with the verdict of each cell by the
+  // default thresholds: [col, row, mapped, texture, ambiguity, verdict] with verdict 0 good,
+  // 1 little texture, 2 repeats, 3 not judged in full (a lane's edge: no template-sized square
+  // of floor), -1 too little floor to judge.
+  std::string QualityLayer() const {
+    const std::optional<mosaic::QualityInfo> info = store_->Quality();
+    if (!info) return nlohmann::json{{"available", false}}.dump();
+    const mosaic::QualityThresholds thresholds;
+    nlohmann::json cells = nlohmann::json::array();
+    for (const mosaic::QualityCell& c : store_->ReadQuality()) {
+      const std::string why = mosaic::WeakBecause(c, thresholds);
+      const int verdict = c.mapped < thresholds.min_mapped                ? -1
+                          : why.find("repeats") != std::string::npos      ? 2
+                          : !why.empty()                                  ? 1
+                          : c.ambiguity < -0.5f || c.texture < 0.0f      ? 3
+                                                                          : 0;
+      cells.push_back({c.col, c.row, std::round(c.mapped * 100.0) / 100.0, std::round(c.texture * 10.0) / 10.0,
+                       std::round(c.ambiguity * 1000.0) / 1000.0, verdict});
+    }
+    const mosaic::MapGrid& grid = store_->grid();
+    return nlohmann::json{{"available", true},
+                          {"level", info->level},
+                          {"cell_mm", grid.LevelMmPerPx(info->level) * grid.tile_size_px},
+                          {"thresholds", {{"min_texture", thresholds.min_texture},
+                                          {"max_ambiguity", thresholds.max_ambiguity},
+                                          {"min_mapped", thresholds.min_mapped}}},
+                          {"columns", {"col", "row", "mapped", "texture", "ambiguity", "verdict"}},
+                          {"cells", cells}}
         .dump();
   }
 
@@ -491,6 +523,7 @@ class Console::Impl {
     server_.Get("/api/map", [this](const httplib::Request&, httplib::Response& response) { SendJson(response, map_info_); });
     server_.Get(R"(/api/tiles/(\d{1,2})/(-?\d{1,12})/(-?\d{1,12})\.png)",
                 [this](const httplib::Request& request, httplib::Response& response) { Tile(request, response); });
+    server_.Get("/api/quality", [this](const httplib::Request&, httplib::Response& response) { SendJson(response, quality_); });
     server_.Get("/api/reports", [this](const httplib::Request&, httplib::Response& response) { SendJson(response, reports_); });
     server_.Get(R"(/api/reports/(\d{1,4}))", [this](const httplib::Request& request, httplib::Response& response) {
       const std::size_t id = std::stoul(request.matches[1]);
@@ -547,6 +580,7 @@ class Console::Impl {
   ListenAddress address_;
   std::unique_ptr<mosaic::TileStore> store_;
   std::string map_info_;
+  std::string quality_;
   std::string reports_;
   std::vector<std::string> report_layers_;
   std::map<std::string, StaticFile> viewer_files_;

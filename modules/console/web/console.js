@@ -132,6 +132,30 @@
       {color: '#00bcd4', weight: 1, fillOpacity: 0.05, interactive: false, className: 'mapped-tile'})));
 
     const overlays = {'world axes': axes, 'mapped tiles': lanes};
+    // The map's quality layer: each cell of the floor by what a fix there can expect.
+    const quality = await api('/api/quality');
+    if (quality.available) {
+      const VERDICTS = {0: ['#1a9641', 'good'], 1: ['#f0a020', 'little texture'], 2: ['#d7191c', 'repeats nearby'],
+        3: ['#2b83ba', 'lane edge, not judged in full']};
+      const cellMm = quality.cell_mm;
+      const renderer = L.canvas({padding: 0.5});
+      const cells = L.featureGroup();
+      let weak = 0;
+      for (const [col, row, mapped, texture, ambiguity, verdict] of quality.cells) {
+        if (verdict < 0) continue;
+        weak += verdict === 1 || verdict === 2 ? 1 : 0;
+        const [colour, text] = VERDICTS[verdict];
+        cells.addLayer(L.rectangle(
+          [latLng(x0 + col * cellMm, y0 - (row + 1) * cellMm), latLng(x0 + (col + 1) * cellMm, y0 - row * cellMm)],
+          {renderer, color: colour, weight: 0, fillOpacity: 0.45})
+          .bindTooltip(`${text}: texture ${texture}, best match elsewhere ${ambiguity}, mapped ${Math.round(mapped * 100)} %`));
+      }
+      overlays['map quality'] = cells;
+      $('map-quality').textContent = `${quality.cells.length} cells of ${cellMm} mm, ${weak} weak`;
+      document.body.dataset.qualityCells = quality.cells.length;
+    } else {
+      $('map-quality').textContent = 'none (mosaicloc map quality MAP --out DIR)';
+    }
     const layerControl = L.control.layers(null, overlays, {collapsed: false}).addTo(map);
     const legendControl = L.control({position: 'bottomright'});
     legendControl.onAdd = () => {

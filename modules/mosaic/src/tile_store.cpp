@@ -3,6 +3,7 @@
 #include <sqlite3.h>
 
 #include <charconv>
+#include <cstring>
 #include <map>
 
 #include "mosaicloc/core/error.hpp"
@@ -284,15 +285,30 @@ namespace {
 // Metadata keys of the place index; the table `places` holds its cells.
 constexpr const char* kPlacesKeys[] = {"places_format_version", "places_method", "places_level"};
 
-bool HasPlacesTable(sqlite3* db) {
+bool HasTable(sqlite3* db, const char* name) {
   sqlite3_stmt* raw = nullptr;
   bool found = false;
-  if (sqlite3_prepare_v2(db, "SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'places'", -1, &raw,
-                         nullptr) == SQLITE_OK) {
+  if (sqlite3_prepare_v2(db, "SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = ?", -1, &raw, nullptr) ==
+      SQLITE_OK) {
+    sqlite3_bind_text(raw, 1, name, -1, SQLITE_STATIC);
     found = sqlite3_step(raw) == SQLITE_ROW;
   }
   sqlite3_finalize(raw);
   return found;
+}
+
+bool HasPlacesTable(sqlite3* db) { return HasTable(db, "places"); }
+
+// A quality cell's CRC32: over its address and values as stored (little-endian on every
+// machine the map is written on; the check only has to agree with itself).
+std::uint32_t QualityCrc(const QualityCell& cell) {
+  unsigned char bytes[2 * sizeof(std::int64_t) + 3 * sizeof(float)];
+  std::memcpy(bytes, &cell.col, sizeof(std::int64_t));
+  std::memcpy(bytes + 8, &cell.row, sizeof(std::int64_t));
+  std::memcpy(bytes + 16, &cell.mapped, sizeof(float));
+  std::memcpy(bytes + 20, &cell.texture, sizeof(float));
+  std::memcpy(bytes + 24, &cell.ambiguity, sizeof(float));
+  return internal::Crc32(bytes, sizeof(bytes));
 }
 
 }  // namespace
@@ -387,6 +403,87 @@ void TileStore::WritePlaces(const PlaceIndexInfo& info, const std::vector<PlaceC
       if (sqlite3_step(statement.get()) != SQLITE_DONE) {
         core::ThrowRuntime(file_.string() + ": cannot write place index cell col " + std::to_string(cell.col) +
                            " row " + std::to_string(cell.row) + ": " + sqlite3_errmsg(db_));
+      }
+    }
+    Execute("COMMIT;");
+  } catch (...) {
+    sqlite3_exec(db_, "ROLLBACK;", nullptr, nullptr, nullptr);
+    throw;
+  }
+}
+
+std::optional<QualityInfo> TileStore::Quality() const {
+  const std::lock_guard lock(mutex_);
+  if (!HasTable(db_, "quality")) return std::nullopt;
+  QualityInfo info;
+  const Statement meta(db_, "SELECT value FROM metadata WHERE name = 'quality_level'", file_);
+  if (sqlite3_step(meta.get()) != SQLITE_ROW) core::ThrowInvalidInput(file_.string() + ": metadata key 'quality_level' is missing");
+  const std::string level = reinterpret_cast<const char*>(sqlite3_column_text(meta.get(), 0));
+  const auto result = std::from_chars(level.data(), level.data() + level.size(), info.level);
+  if (result.ec != std::errc() || result.ptr != level.data() + level.size() || info.level < 0 || info.level >= grid_.levels) {
+    core::ThrowInvalidInput(file_.string() + ": metadata key 'quality_level' is not a level of the map: '" + level + "'");
+  }
+  const Statement count(db_, "SELECT COUNT(*) FROM quality", file_);
+  if (sqlite3_step(count.get()) == SQLITE_ROW) info.cells = sqlite3_column_int64(count.get(), 0);
+  return info;
+}
+
+std::vector<QualityCell> TileStore::ReadQuality() const {
+  const std::lock_guard lock(mutex_);
+  if (!HasTable(db_, "quality")) core::ThrowInvalidInput(file_.string() + ": the map has no quality layer");
+  const Statement statement(db_, "SELECT col, row, mapped, texture, ambiguity, crc32 FROM quality ORDER BY row, col", file_);
+  std::vector<QualityCell> cells;
+  int step = SQLITE_ROW;
+  while ((step = sqlite3_step(statement.get())) == SQLITE_ROW) {
+    QualityCell cell;
+    cell.col = sqlite3_column_int64(statement.get(), 0);
+    cell.row = sqlite3_column_int64(statement.get(), 1);
+    cell.mapped = static_cast<float>(sqlite3_column_double(statement.get(), 2));
+    cell.texture = static_cast<float>(sqlite3_column_double(statement.get(), 3));
+    cell.ambiguity = static_cast<float>(sqlite3_column_double(statement.get(), 4));
+    if (static_cast<std::int64_t>(QualityCrc(cell)) != sqlite3_column_int64(statement.get(), 5)) {
+      core::ThrowInvalidInput(file_.string() + ": quality cell col " + std::to_string(cell.col) + " row " +
+                              std::to_string(cell.row) +
+                              ": CRC32 mismatch (the layer is damaged: rebuild it with `mosaicloc map quality MAP "
+                              "--out DIR --rebuild`)");
+    }
+    cells.push_back(cell);
+  }
+  if (step != SQLITE_DONE) core::ThrowRuntime(file_.string() + ": cannot read the quality layer: " + sqlite3_errmsg(db_));
+  return cells;
+}
+
+void TileStore::WriteQuality(int level, const std::vector<QualityCell>& cells) {
+  if (level < 0 || level >= grid_.levels) {
+    core::ThrowInvalidInput(file_.string() + ": quality level " + std::to_string(level) + " is not a level of the map");
+  }
+  const std::lock_guard lock(mutex_);
+  Execute("BEGIN IMMEDIATE;");
+  try {
+    Execute(
+        "DROP TABLE IF EXISTS quality;"
+        "CREATE TABLE quality (col INTEGER, row INTEGER, mapped REAL, texture REAL, ambiguity REAL, crc32 INTEGER,"
+        " PRIMARY KEY (col, row));");
+    {
+      const Statement meta(db_, "INSERT OR REPLACE INTO metadata VALUES ('quality_level', ?)", file_);
+      const std::string value = std::to_string(level);
+      sqlite3_bind_text(meta.get(), 1, value.c_str(), -1, SQLITE_TRANSIENT);
+      if (sqlite3_step(meta.get()) != SQLITE_DONE) {
+        core::ThrowRuntime(file_.string() + ": cannot write the quality layer's metadata: " + sqlite3_errmsg(db_));
+      }
+    }
+    const Statement statement(db_, "INSERT INTO quality VALUES (?, ?, ?, ?, ?, ?)", file_);
+    for (const QualityCell& cell : cells) {
+      sqlite3_reset(statement.get());
+      sqlite3_bind_int64(statement.get(), 1, cell.col);
+      sqlite3_bind_int64(statement.get(), 2, cell.row);
+      sqlite3_bind_double(statement.get(), 3, cell.mapped);
+      sqlite3_bind_double(statement.get(), 4, cell.texture);
+      sqlite3_bind_double(statement.get(), 5, cell.ambiguity);
+      sqlite3_bind_int64(statement.get(), 6, static_cast<std::int64_t>(QualityCrc(cell)));
+      if (sqlite3_step(statement.get()) != SQLITE_DONE) {
+        core::ThrowRuntime(file_.string() + ": cannot write quality cell col " + std::to_string(cell.col) + " row " +
+                           std::to_string(cell.row) + ": " + sqlite3_errmsg(db_));
       }
     }
     Execute("COMMIT;");

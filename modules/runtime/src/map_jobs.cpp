@@ -1,4 +1,5 @@
 #include "mosaicloc/runtime/map_jobs.hpp"
+#include "mosaicloc/runtime/map_quality.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -175,8 +176,11 @@ MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(d
       if (progress) progress(0.8 + 0.15 * fraction);
     });
     place_features = IndexStore(*store, [&](double fraction) {
-                       if (progress) progress(0.95 + 0.05 * fraction);
+                       if (progress) progress(0.95 + 0.03 * fraction);
                      }).features;
+    AssessStore(*store, [&](double fraction) {
+      if (progress) progress(0.98 + 0.02 * fraction);
+    });
     // The renamed file must hold the whole map: its log stays behind under the old name.
     store->Checkpoint();
   }
@@ -227,6 +231,7 @@ MapInfo InspectMap(const std::filesystem::path& map) {
     info.extent_mm = {low.x(), low.y(), high.x(), high.y()};
   }
   info.places = store->Places();
+  info.quality = store->Quality();
   return info;
 }
 
@@ -265,6 +270,11 @@ std::vector<std::string> CheckMap(const std::filesystem::path& map, std::size_t*
   *tiles = keys.size();
   try {
     if (store->Places()) store->ReadPlaces();
+  } catch (const core::Error& e) {
+    problems.push_back(e.what());
+  }
+  try {
+    if (store->Quality()) store->ReadQuality();
   } catch (const core::Error& e) {
     problems.push_back(e.what());
   }

@@ -63,6 +63,32 @@ struct PlaceIndexInfo {
   std::int64_t bytes = 0;  ///< of the cells' data
 };
 
+/// One cell of the map's quality layer (design.md section 4): what a fix can expect over the
+/// floor of one tile of the layer's level, computed when the map is built
+/// (tracking::AssessMapQuality) and kept with a CRC32 per cell.
+struct QualityCell {
+  std::int64_t col = 0;
+  std::int64_t row = 0;
+  float mapped = 0.0f;     ///< share of the cell's floor that is mapped, 0..1
+  float texture = 0.0f;    ///< the texture a template there has (structure tensor's smaller eigenvalue, median); -1: not judged
+  float ambiguity = 0.0f;  ///< the best ZNCC of the cell's floor elsewhere nearby (1: a copy); -1: not judged
+};
+
+/// When a cell's expected fixes are weak, and why: too little texture for a template
+/// (`min_texture`, twice the tracker's default TemplateOptions::min_texture), or floor that
+/// matches elsewhere nearly as well as in its place (`max_ambiguity`). Empty: not weak.
+struct QualityThresholds {
+  double min_texture = 4.0;
+  double max_ambiguity = 0.85;
+  double min_mapped = 0.25;  ///< cells less mapped than this are a lane's edge, not judged
+};
+std::string WeakBecause(const QualityCell& cell, const QualityThresholds& thresholds);
+
+struct QualityInfo {
+  int level = 0;  ///< the map level whose tiles the cells are
+  std::int64_t cells = 0;
+};
+
 /// A tile to write: CV_8UC1, tile_size square.
 struct TileWrite {
   TileKey key;
@@ -113,6 +139,14 @@ class TileStore {
   /// the old index or the new one. Throws core::Error on failure.
   void WritePlaces(const PlaceIndexInfo& info, const std::vector<PlaceCell>& cells);
 
+  /// The quality layer, when the map has one (nullopt otherwise). Throws core::Error naming
+  /// the file when its metadata is damaged.
+  std::optional<QualityInfo> Quality() const;
+  /// Every cell of the quality layer, each checked against its CRC32; throws core::Error naming
+  /// the file and cell when one is damaged, and when the map has none.
+  std::vector<QualityCell> ReadQuality() const;
+  /// Replaces the quality layer (cells are tiles of `level`) in one transaction.
+  void WriteQuality(int level, const std::vector<QualityCell>& cells);
   /// Copies every committed write from the write-ahead log into the map file itself, empties
   /// the log and leaves WAL mode, so that the file alone holds the map (before it is moved or
   /// copied) and readers open it without creating files beside it; the next writable Open

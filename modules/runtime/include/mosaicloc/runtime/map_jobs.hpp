@@ -43,7 +43,7 @@ struct MapBuildSummary {
   std::optional<MapPosesSummary> mapping;  ///< with poses "estimate"
 };
 
-/// The map is written with its place index (IndexMap).
+/// The map is written with its place index (IndexMap) and its quality layer (AssessStore).
 /// With poses "estimate", the poses are estimated first and kept in OUT.poses.tum (and
 /// OUT.poses.K.tum for the joined drives) until the map is written (a resumed build takes them
 /// from there).
@@ -72,6 +72,8 @@ struct MapInfo {
   std::vector<double> extent_mm;
   /// The place index (design.md section 7b), when the map has one.
   std::optional<mosaic::PlaceIndexInfo> places;
+  /// The quality layer (`map quality`), when the map has one.
+  std::optional<mosaic::QualityInfo> quality;
 };
 MapInfo InspectMap(const std::filesystem::path& map);
 
@@ -87,7 +89,7 @@ MapIndexSummary IndexMap(const std::filesystem::path& map, const std::function<v
 /// The same into an open, writable store.
 MapIndexSummary IndexStore(mosaic::TileStore& store, const std::function<void(double)>& progress = {});
 
-/// Reads every tile and the place index's cells; the problems of the damaged ones. *tiles gets the number read.
+/// Reads every tile, the place index's cells and the quality layer's; the problems of the damaged ones. *tiles gets the number read.
 std::vector<std::string> CheckMap(const std::filesystem::path& map, std::size_t* tiles,
                                   const std::function<void(double)>& progress = {});
 

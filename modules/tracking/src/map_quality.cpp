@@ -1,0 +1,209 @@
+#include "mosaicloc/tracking/map_quality.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
+
+#include <opencv2/core/utility.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "mosaicloc/core/error.hpp"
+#include "mosaicloc/mosaic/renderer.hpp"
+#include "mosaicloc/mosaic/tile_cache.hpp"
+#include "mosaicloc/tracking/templates.hpp"
+
+namespace mosaicloc::tracking {
+
+bool MapQualityOptions::Check(std::string* why) const {
+  const auto fail = [&](const char* text) {
+    *why = text;
+    return false;
+  };
+  if (level < 0 || level > 8) return fail("level must be in [0, 8]");
+  if (template_px < 16 || template_px > 512) return fail("template_px must be in [16, 512]");
+  if (search_level < 0 || search_level > 8) return fail("search_level must be in [0, 8]");
+  if (!(search_radius_mm > 0.0 && search_radius_mm <= 10000.0)) return fail("search_radius_mm must be in (0, 10000]");
+  if (!(exclusion_mm > 0.0 && exclusion_mm < search_radius_mm)) return fail("exclusion_mm must be in (0, search_radius_mm)");
+  if (!(min_mapped > 0.0 && min_mapped <= 1.0)) return fail("min_mapped must be in (0, 1]");
+  if (!(template_mm > 0.0 && template_mm <= 1000.0)) return fail("template_mm must be in (0, 1000]");
+  return true;
+}
+
+namespace {
+
+// The median texture of the template-sized windows of a cell's level-0 floor that are all
+// mapped; -1 without one.
+float CellTexture(const mosaic::RasterPatch& floor, int template_px) {
+  std::vector<double> strengths;
+  const int step = template_px;
+  for (int y = 0; y + template_px <= floor.image.rows; y += step) {
+    for (int x = 0; x + template_px <= floor.image.cols; x += step) {
+      const cv::Rect window(x, y, template_px, template_px);
+      if (!floor.all_mapped && cv::countNonZero(floor.mask(window)) < window.area()) continue;
+      cv::Mat half;
+      cv::resize(floor.image(window), half, cv::Size(), 0.5, 0.5, cv::INTER_AREA);
+      strengths.push_back(TextureStrength(half));
+    }
+  }
+  if (strengths.empty()) return -1.0f;  // no window all on the floor: not judged
+  std::nth_element(strengths.begin(), strengths.begin() + static_cast<std::ptrdiff_t>(strengths.size() / 2),
+                   strengths.end());
+  return static_cast<float>(strengths[strengths.size() / 2]);
+}
+
+// The best ZNCC of `floor`'s window `own` elsewhere in `floor` (farther than exclusion_px
+// from its place, at places whose window is all mapped): coarse to fine, since the search
+// covers a wide area. The whole area is correlated at half resolution; the best few places
+// found there are correlated again at full resolution around themselves.
+float BestElsewhere(const mosaic::RasterPatch& floor, const cv::Rect& own, double exclusion_px) {
+  // Windows that hold an unmapped pixel, from the integral image of the unmapped pixels.
+  const auto all_mapped = [](const cv::Mat& integral, int x, int y, int w, int h) {
+    return integral.at<int>(y + h, x + w) - integral.at<int>(y, x + w) - integral.at<int>(y + h, x) +
+               integral.at<int>(y, x) == 0;
+  };
+  cv::Mat unmapped;
+  cv::compare(floor.mask, 0, unmapped, cv::CMP_EQ);
+  unmapped /= 255;
+  constexpr int kCoarse = 4;  // the wide search's reduction
+  cv::Mat coarse, fine_integral;
+  cv::resize(floor.image, coarse, cv::Size(), 1.0 / kCoarse, 1.0 / kCoarse, cv::INTER_AREA);
+  cv::integral(unmapped, fine_integral, CV_32S);
+  const cv::Rect own_coarse(own.x / kCoarse, own.y / kCoarse, own.width / kCoarse, own.height / kCoarse);
+  cv::Mat score;
+  cv::matchTemplate(coarse, coarse(own_coarse), score, cv::TM_CCOEFF_NORMED);
+  // The best few coarse places, each at least half a template from the others.
+  constexpr int kCandidates = 3;
+  std::vector<cv::Point> places;
+  const double coarse_exclusion = exclusion_px / kCoarse;
+  for (int k = 0; k < kCandidates; ++k) {
+    float best = -2.0f;
+    cv::Point at(-1, -1);
+    for (int y = 0; y < score.rows; ++y) {
+      const float* row = score.ptr<float>(y);
+      for (int x = 0; x < score.cols; ++x) {
+        if (!(row[x] > best) || !std::isfinite(row[x])) continue;
+        if (std::hypot(x - own_coarse.x, y - own_coarse.y) <= coarse_exclusion) continue;
+        bool near = false;
+        for (const cv::Point& p : places) near = near || std::hypot(x - p.x, y - p.y) < own_coarse.width / 2.0;
+        if (near || !all_mapped(fine_integral, kCoarse * x, kCoarse * y, own.width, own.height)) continue;
+        best = row[x];
+        at = {x, y};
+      }
+    }
+    if (at.x < 0) break;
+    places.push_back(at);
+  }
+  // Each again at full resolution, within a few pixels of where the coarse search put it.
+  constexpr int kReach = kCoarse + 1;
+  const cv::Mat templ = floor.image(own);
+  float best = -1.0f;
+  for (const cv::Point& p : places) {
+    const cv::Rect window = cv::Rect(kCoarse * p.x - kReach, kCoarse * p.y - kReach, own.width + 2 * kReach, own.height + 2 * kReach) &
+                            cv::Rect(0, 0, floor.image.cols, floor.image.rows);
+    if (window.width < own.width || window.height < own.height) continue;
+    cv::Mat fine;
+    cv::matchTemplate(floor.image(window), templ, fine, cv::TM_CCOEFF_NORMED);
+    for (int y = 0; y < fine.rows; ++y) {
+      for (int x = 0; x < fine.cols; ++x) {
+        const int fx = window.x + x, fy = window.y + y;
+        const float value = fine.at<float>(y, x);
+        if (!(value > best) || !std::isfinite(value)) continue;
+        if (std::hypot(fx - own.x, fy - own.y) <= exclusion_px) continue;
+        if (!all_mapped(fine_integral, fx, fy, own.width, own.height)) continue;
+        best = value;
+      }
+    }
+  }
+  return best;
+}
+
+}  // namespace
+
+std::vector<mosaic::QualityCell> AssessMapQuality(const mosaic::TileStore& store, const MapQualityOptions& options,
+                                                  const std::function<void(double)>& progress) {
+  std::string why;
+  if (!options.Check(&why)) core::ThrowInvalidInput("map quality options: " + why);
+  const mosaic::MapGrid& grid = store.grid();
+  if (options.level >= grid.levels || options.search_level >= grid.levels) {
+    core::ThrowInvalidInput(store.file().string() + ": the quality layer's levels (" + std::to_string(options.level) +
+                            ", " + std::to_string(options.search_level) + ") are not below the map's " +
+                            std::to_string(grid.levels) + " levels");
+  }
+  mosaic::TileCache cache(store, std::size_t{96} << 20);
+  const mosaic::MapRenderer renderer(cache);
+  const std::vector<mosaic::TileKey> keys = store.List(options.level);
+  const int t = grid.tile_size_px;
+  // A cell's extent on level 0 and on the search level (in pixels of that level).
+  const std::int64_t scale0 = std::int64_t{1} << options.level;
+  const double search_scale = std::ldexp(1.0, options.level - options.search_level);
+  const int cell_search_px = std::max(8, static_cast<int>(std::lround(t * search_scale)));
+  const int radius_px = static_cast<int>(std::ceil(options.search_radius_mm / grid.LevelMmPerPx(options.search_level)));
+  const double exclusion_px = options.exclusion_mm / grid.LevelMmPerPx(options.search_level);
+  const int template_search_px =
+      std::min(cell_search_px, std::max(8, static_cast<int>(std::lround(options.template_mm / grid.LevelMmPerPx(options.search_level)))));
+  // One cell; a problem (a damaged tile) is kept, not thrown, off the calling thread.
+  const auto judge = [&](std::size_t n, mosaic::QualityCell& cell) -> std::string {
+    const mosaic::TileKey& key = keys[n];
+    cell.col = key.col;
+    cell.row = key.row;
+    const int size0 = static_cast<int>(t * scale0);
+    const mosaic::RasterPatch floor = renderer.Region(0, key.col * t * scale0, key.row * t * scale0, size0, size0);
+    if (!floor.problems.empty()) return floor.problems.front();
+    cell.mapped = static_cast<float>(floor.all_mapped ? 1.0
+                                                      : static_cast<double>(cv::countNonZero(floor.mask)) /
+                                                            static_cast<double>(floor.mask.total()));
+    if (cell.mapped <= 0.0f) return {};
+    cell.texture = CellTexture(floor, options.template_px);
+    cell.ambiguity = -1.0f;
+    if (cell.mapped < options.min_mapped) return {};
+    const std::int64_t col0 = static_cast<std::int64_t>(std::floor(static_cast<double>(key.col * t) * search_scale));
+    const std::int64_t row0 = static_cast<std::int64_t>(std::floor(static_cast<double>(key.row * t) * search_scale));
+    const mosaic::RasterPatch around = renderer.Region(options.search_level, col0 - radius_px, row0 - radius_px,
+                                                       cell_search_px + 2 * radius_px, cell_search_px + 2 * radius_px);
+    if (!around.problems.empty()) return around.problems.front();
+    // The template: the square of template_mm with its centre in the cell that lies deepest
+    // inside the mapped floor (lanes are often narrower than a cell), if one fits.
+    cv::Mat depth;
+    cv::distanceTransform(around.mask, depth, cv::DIST_C, 3);
+    double deepest = 0.0;
+    cv::Point centre;
+    cv::minMaxLoc(depth(cv::Rect(radius_px, radius_px, cell_search_px, cell_search_px)), nullptr, &deepest, nullptr,
+                  &centre);
+    if (deepest >= template_search_px / 2 + 1) {
+      const cv::Rect own(radius_px + centre.x - template_search_px / 2, radius_px + centre.y - template_search_px / 2,
+                         template_search_px, template_search_px);
+      cell.ambiguity = BestElsewhere(around, own, exclusion_px);
+    }
+    return {};
+  };
+  // The cells are independent: judged on every core (the tile cache is shared and
+  // thread-safe), a batch at a time so that progress is told from this thread.
+  std::vector<mosaic::QualityCell> judged(keys.size());
+  std::vector<std::string> problems(keys.size());
+  constexpr std::size_t kBatch = 64;
+  for (std::size_t first = 0; first < keys.size(); first += kBatch) {
+    const std::size_t last = std::min(keys.size(), first + kBatch);
+    cv::parallel_for_(cv::Range(static_cast<int>(first), static_cast<int>(last)), [&](const cv::Range& range) {
+      for (int n = range.start; n < range.end; ++n) {
+        const auto i = static_cast<std::size_t>(n);
+        try {
+          problems[i] = judge(i, judged[i]);
+        } catch (const std::exception& error) {
+          problems[i] = error.what();
+        }
+      }
+    });
+    if (progress) progress(static_cast<double>(last) / static_cast<double>(keys.size()));
+  }
+  for (const std::string& problem : problems) {
+    if (!problem.empty()) core::ThrowInvalidInput(problem);
+  }
+  std::vector<mosaic::QualityCell> cells;
+  for (const mosaic::QualityCell& cell : judged) {
+    if (cell.mapped > 0.0f) cells.push_back(cell);
+  }
+  if (progress) progress(1.0);
+  return cells;
+}
+
+}  // namespace mosaicloc::tracking
