@@ -178,6 +178,47 @@ TEST(TileStore, PlaceIndexCells) {
   }
 }
 
+TEST(TileStore, QualityCellsAndTheirVerdicts) {
+  test::ScratchDir dir;
+  {
+    auto store = TileStore::Create(dir / "q.mosaic", MapGrid{});
+    EXPECT_FALSE(store->Quality().has_value());
+    EXPECT_THROW(store->ReadQuality(), core::Error);
+    EXPECT_THROW(store->WriteQuality(9, {}), core::Error);  // not a level of the map
+    store->WriteQuality(1, {{0, 0, 1.0f, 30.0f, 0.2f}, {-2, 5, 0.6f, 2.5f, 0.97f}, {4, 4, 0.5f, -1.0f, -1.0f}});
+  }
+  auto store = TileStore::Open(dir / "q.mosaic", false);
+  const auto info = store->Quality();
+  ASSERT_TRUE(info.has_value());
+  EXPECT_EQ(info->level, 1);
+  EXPECT_EQ(info->cells, 3);
+  const std::vector<QualityCell> cells = store->ReadQuality();
+  ASSERT_EQ(cells.size(), 3u);
+  EXPECT_EQ(cells[0].col, 0);  // by row, then column
+  EXPECT_EQ(cells[2].row, 5);
+  EXPECT_FLOAT_EQ(cells[2].ambiguity, 0.97f);
+  const QualityThresholds thresholds;
+  EXPECT_EQ(WeakBecause(cells[0], thresholds), "");
+  EXPECT_EQ(WeakBecause(cells[2], thresholds), "little texture, repeats");
+  EXPECT_EQ(WeakBecause(cells[1], thresholds), "");  // not judged: neither texture nor copies known
+  EXPECT_EQ(WeakBecause({0, 0, 0.1f, 0.0f, 1.0f}, thresholds), "");  // a lane's edge
+  store.reset();
+  SqlOn(dir / "q.mosaic", "UPDATE quality SET ambiguity = 0.5 WHERE col = -2");
+  try {
+    TileStore::Open(dir / "q.mosaic", false)->ReadQuality();
+    ADD_FAILURE() << "a damaged cell was read";
+  } catch (const core::Error& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("quality cell col -2 row 5: CRC32 mismatch"));
+  }
+  SqlOn(dir / "q.mosaic", "UPDATE metadata SET value = '12' WHERE name = 'quality_level'");
+  try {
+    TileStore::Open(dir / "q.mosaic", false)->Quality();
+    ADD_FAILURE() << "a bad level was read";
+  } catch (const core::Error& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("metadata key 'quality_level' is not a level of the map: '12'"));
+  }
+}
+
 // The stored size of one tile's PNG.
 std::int64_t BlobBytes(const fs::path& file, const TileKey& key) {
   sqlite3* db = nullptr;

@@ -161,16 +161,26 @@ std::vector<mosaic::QualityCell> AssessMapQuality(const mosaic::TileStore& store
     const mosaic::RasterPatch around = renderer.Region(options.search_level, col0 - radius_px, row0 - radius_px,
                                                        cell_search_px + 2 * radius_px, cell_search_px + 2 * radius_px);
     if (!around.problems.empty()) return around.problems.front();
-    // The template: the square of template_mm with its centre in the cell that lies deepest
-    // inside the mapped floor (lanes are often narrower than a cell), if one fits.
+    // The template: a square of template_mm all on the floor, centred as near the cell's
+    // centre as the floor allows (lanes are often narrower than a cell), if one fits.
     cv::Mat depth;
     cv::distanceTransform(around.mask, depth, cv::DIST_C, 3);
-    double deepest = 0.0;
-    cv::Point centre;
-    cv::minMaxLoc(depth(cv::Rect(radius_px, radius_px, cell_search_px, cell_search_px)), nullptr, &deepest, nullptr,
-                  &centre);
-    if (deepest >= template_search_px / 2 + 1) {
-      const cv::Rect own(radius_px + centre.x - template_search_px / 2, radius_px + centre.y - template_search_px / 2,
+    const int needed = template_search_px / 2 + 1;
+    std::optional<cv::Point> centre;
+    double nearest = 0.0;
+    for (int y = 0; y < cell_search_px; ++y) {
+      const float* row = depth.ptr<float>(radius_px + y);
+      for (int x = 0; x < cell_search_px; ++x) {
+        if (row[radius_px + x] < needed) continue;
+        const double off = std::hypot(x - 0.5 * cell_search_px, y - 0.5 * cell_search_px);
+        if (!centre || off < nearest) {
+          centre = cv::Point(x, y);
+          nearest = off;
+        }
+      }
+    }
+    if (centre) {
+      const cv::Rect own(radius_px + centre->x - template_search_px / 2, radius_px + centre->y - template_search_px / 2,
                          template_search_px, template_search_px);
       cell.ambiguity = BestElsewhere(around, own, exclusion_px);
     }

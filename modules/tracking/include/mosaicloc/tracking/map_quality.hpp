@@ -19,8 +19,8 @@ struct MapQualityOptions {
   /// each judged as the tracker judges a template (TextureStrength at half resolution); the
   /// cell's figure is their median.
   int template_px = 96;
-  /// Ambiguity: a square of floor `template_mm` wide, all of it mapped, its centre in the cell
-  /// (the deepest inside the mapped floor), on map level `search_level`, correlated (ZNCC) with the floor
+  /// Ambiguity: a square of floor `template_mm` wide, all of it mapped, centred in the cell as
+  /// near its centre as the floor allows, on map level `search_level`, correlated (ZNCC) with the floor
   /// within `search_radius_mm` of the cell; the best match farther than `exclusion_mm` from its
   /// own place, among places whose window is all mapped. A floor that repeats scores near 1
   /// there, a natural floor less. The radius should reach the period of a repeating floor and
