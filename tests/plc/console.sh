@@ -3,9 +3,8 @@
 #    the page's tiles (in the DOM and in a screenshot's pixels), both reports' layers;
 #  - what it refuses: paths outside its files, writes, another interface without the flag and
 #    a token, a request without the token;
-#  - inside `run` (run.yaml console:), against a pymodbus PLC: the live pose reaches the page.
+# (console_live.sh: the console inside `run`.)
 source "$(dirname "$0")/lib.sh"
-require_peers
 command -v chromium >/dev/null || { fail "chromium is not installed (scripts/install-deps.sh installs it)"; finish; }
 [ -f /usr/share/javascript/leaflet/leaflet.js ] || { fail "libjs-leaflet is not installed (scripts/install-deps.sh)"; finish; }
 
@@ -21,27 +20,6 @@ printf 'route: {straight_length_m: 2.0, stop_s: 0.7}\n' > "$SCRATCH/site.yaml"
   --route straight --laps 1 --speed-mps 1.0 --seed 32 >/dev/null || fail "simulate the drive"
 "$MOSAICLOC" --quiet replay --dataset "$SCRATCH/site-run" --map "$SCRATCH/site.mosaic" --out "$SCRATCH/replay" \
   --revisit-places 0 >/dev/null || fail "replay"
-
-browse() {  # URL [SCREENSHOT]: the page's DOM once its requests are done, as chromium sees it
-  local shot=()
-  [ -n "${2:-}" ] && shot=(--screenshot="$2")
-  timeout 60 chromium --headless --no-sandbox --disable-gpu --window-size=900,500 --virtual-time-budget=8000 \
-    "${shot[@]}" --dump-dom "$1" 2>/dev/null
-}
-dom_check() {  # DOM_FILE PYTHON_EXPRESSIONS...: each true, with `data` the body's data-* and `dom` the text
-  $PYTHON - "$@" <<'PY' || fail "the page in chromium: $1"
-import re, sys
-dom = open(sys.argv[1]).read()
-body = re.search(r"<body([^>]*)>", dom).group(1)
-data = {k: v for k, v in re.findall(r'data-([a-z-]+)="([^"]*)"', body)}
-ok = True
-for expression in sys.argv[2:]:
-    if not eval(expression, {"data": data, "dom": dom, "re": re}):
-        print("not true:", expression, "with", data, re.findall(r'<p id="error"[^>]*>([^<]*)', dom))
-        ok = False
-sys.exit(0 if ok else 1)
-PY
-}
 
 # The map's quality layer, computed by map build: procedural floor has texture everywhere and
 # no copies.
@@ -158,36 +136,4 @@ browse "$URL/?token=console-token-for-this-test-0001" > "$SCRATCH/dom.html"
 dom_check "$SCRATCH/dom.html" 'int(data.get("tiles-loaded", 0)) >= 1'
 kill -INT $SERVE; wait $SERVE
 
-# --- inside run: the live pose reaches the page ------------------------------------------------
-PLC_PORT=$(free_port)
-CONSOLE_PORT=$(free_port)
-cat > "$SCRATCH/run.yaml" <<YAML
-map: $SCRATCH/site.mosaic
-camera:
-  source: dataset
-  dataset: {path: $SCRATCH/site-run}
-plc: {port: $PLC_PORT, response_timeout_ms: 30, heartbeat_timeout_ms: 300}
-console: {enabled: true, listen: "127.0.0.1:$CONSOLE_PORT"}
-YAML
-START=$(start_in 3.0)
-$PYTHON "$PLC_DIR/pymodbus_plc.py" --dataset "$SCRATCH/site-run" --port "$PLC_PORT" --start-unix "$START" \
-  --out "$SCRATCH/plc.json" >/dev/null 2>"$SCRATCH/plc.err" &
-PLC=$!
-wait_port "$PLC_PORT"
-"$MOSAICLOC" --json run --config "$SCRATCH/run.yaml" --start-unix "$START" >"$SCRATCH/run.jsonl" 2>"$SCRATCH/run.err" &
-RUN=$!
-wait_port "$CONSOLE_PORT"
-# Once the drive has started: the state as a script reads it, and the page following live
-# updates (20 Hz) for as long as headless chromium's virtual time lets it (about half a second
-# of real time: a few updates, not a fixed number). The drive lasts about 5 s.
-sleep 3.8
-curl -sf "http://127.0.0.1:$CONSOLE_PORT/api/live" > "$SCRATCH/live.json" || fail "GET /api/live during the run"
-browse "http://127.0.0.1:$CONSOLE_PORT/?follow=20" > "$SCRATCH/live.html"
-wait $RUN || fail "run failed: $(tail -3 "$SCRATCH/run.err")"
-wait $PLC || fail "the pymodbus PLC failed: $(tail -3 "$SCRATCH/plc.err")"
-dom_check "$SCRATCH/live.html" 'int(data.get("live-updates", 0)) >= 3' 'dom.count("live-pose") >= 1' \
-  're.search(r"id=\"live-lock\" class=\"lock-1\">tracking<", dom)'
-json_check "$SCRATCH/live.json" 'd["live"] is True' 'd["known"] is True' 'd["frames"] > 5' 'd["lock"] == 1' \
-  'len(d["path"]) > 2' 'd["x_mm"] > 0'
-json_check "$SCRATCH/run.jsonl" 'd["fix_rate"] >= 0.95'
 finish

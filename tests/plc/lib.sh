@@ -133,3 +133,25 @@ run_with_plc() {
   wait $plc || fail "the pymodbus PLC failed: $(tail -3 "$SCRATCH/plc.err")"
   tail -1 "$SCRATCH/run.jsonl"
 }
+
+# The console's page in a real browser (Debian's chromium, headless).
+browse() {  # URL [SCREENSHOT]: the page's DOM once its requests are done, as chromium sees it
+  local shot=()
+  [ -n "${2:-}" ] && shot=(--screenshot="$2")
+  timeout 60 chromium --headless --no-sandbox --disable-gpu --window-size=900,500 --virtual-time-budget=8000 \
+    "${shot[@]}" --dump-dom "$1" 2>/dev/null
+}
+dom_check() {  # DOM_FILE PYTHON_EXPRESSIONS...: each true, with `data` the body's data-* and `dom` the text
+  $PYTHON - "$@" <<'PY' || fail "the page in chromium: $1"
+import re, sys
+dom = open(sys.argv[1]).read()
+body = re.search(r"<body([^>]*)>", dom).group(1)
+data = {k: v for k, v in re.findall(r'data-([a-z-]+)="([^"]*)"', body)}
+ok = True
+for expression in sys.argv[2:]:
+    if not eval(expression, {"data": data, "dom": dom, "re": re}):
+        print("not true:", expression, "with", data, re.findall(r'<p id="error"[^>]*>([^<]*)', dom))
+        ok = False
+sys.exit(0 if ok else 1)
+PY
+}

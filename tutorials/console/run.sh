@@ -4,6 +4,7 @@ mosaicloc --quiet simulate --out mapping-drive --config site.yaml --floor proced
 mosaicloc --quiet map build --dataset mapping-drive --out site.mosaic --report mapping-report
 mosaicloc --quiet simulate --out drive --config site.yaml --floor procedural --route straight --laps 1 --speed-mps 1.5 --seed 2
 mosaicloc --quiet replay --dataset drive --map site.mosaic --out drive-report --revisit-places 0
+mosaicloc --quiet map quality site.mosaic --out quality
 mosaicloc serve --map site.mosaic --report drive-report --report mapping-report --listen 127.0.0.1:0 > console.txt &
 SERVE=$!
 until grep -q "^console: http" console.txt; do sleep 0.1; done

@@ -55,22 +55,29 @@ float CellTexture(const mosaic::RasterPatch& floor, int template_px) {
 // from its place, at places whose window is all mapped): coarse to fine, since the search
 // covers a wide area. The whole area is correlated at half resolution; the best few places
 // found there are correlated again at full resolution around themselves.
-float BestElsewhere(const mosaic::RasterPatch& floor, const cv::Rect& own, double exclusion_px) {
-  // Windows that hold an unmapped pixel, from the integral image of the unmapped pixels.
-  const auto all_mapped = [](const cv::Mat& integral, int x, int y, int w, int h) {
-    return integral.at<int>(y + h, x + w) - integral.at<int>(y, x + w) - integral.at<int>(y + h, x) +
-               integral.at<int>(y, x) == 0;
-  };
-  cv::Mat unmapped;
-  cv::compare(floor.mask, 0, unmapped, cv::CMP_EQ);
-  unmapped /= 255;
+// Whether the w x h window at (x, y) holds no unmapped pixel, from the integral image of the
+// unmapped pixels (1 each).
+bool AllMapped(const cv::Mat& integral, int x, int y, int w, int h) {
+  return integral.at<int>(y + h, x + w) - integral.at<int>(y, x + w) - integral.at<int>(y + h, x) +
+             integral.at<int>(y, x) ==
+         0;
+}
+
+// The working images of one cell, kept per thread: allocating them for every cell cost more
+// in page faults than the correlation itself.
+struct Scratch {
+  cv::Mat region, unmapped, integral, coarse, score, fine;
+};
+
+float BestElsewhere(const mosaic::RasterPatch& floor, const cv::Mat& fine_integral, const cv::Rect& own,
+                    double exclusion_px, Scratch& scratch) {
+  const auto all_mapped = AllMapped;
   constexpr int kCoarse = 4;  // the wide search's reduction
-  cv::Mat coarse, fine_integral;
+  cv::Mat& coarse = scratch.coarse;
   cv::resize(floor.image, coarse, cv::Size(), 1.0 / kCoarse, 1.0 / kCoarse, cv::INTER_AREA);
-  cv::integral(unmapped, fine_integral, CV_32S);
   const cv::Rect own_coarse(own.x / kCoarse, own.y / kCoarse, own.width / kCoarse, own.height / kCoarse);
-  cv::Mat score;
-  cv::matchTemplate(coarse, coarse(own_coarse), score, cv::TM_CCOEFF_NORMED);
+  cv::Mat& score = scratch.score;
+  cv::matchTemplate(coarse, coarse(own_coarse).clone(), score, cv::TM_CCOEFF_NORMED);
   // The best few coarse places, each at least half a template from the others.
   constexpr int kCandidates = 3;
   std::vector<cv::Point> places;
@@ -101,7 +108,7 @@ float BestElsewhere(const mosaic::RasterPatch& floor, const cv::Rect& own, doubl
     const cv::Rect window = cv::Rect(kCoarse * p.x - kReach, kCoarse * p.y - kReach, own.width + 2 * kReach, own.height + 2 * kReach) &
                             cv::Rect(0, 0, floor.image.cols, floor.image.rows);
     if (window.width < own.width || window.height < own.height) continue;
-    cv::Mat fine;
+    cv::Mat& fine = scratch.fine;
     cv::matchTemplate(floor.image(window), templ, fine, cv::TM_CCOEFF_NORMED);
     for (int y = 0; y < fine.rows; ++y) {
       for (int x = 0; x < fine.cols; ++x) {
@@ -158,31 +165,33 @@ std::vector<mosaic::QualityCell> AssessMapQuality(const mosaic::TileStore& store
     if (cell.mapped < options.min_mapped) return {};
     const std::int64_t col0 = static_cast<std::int64_t>(std::floor(static_cast<double>(key.col * t) * search_scale));
     const std::int64_t row0 = static_cast<std::int64_t>(std::floor(static_cast<double>(key.row * t) * search_scale));
-    const mosaic::RasterPatch around = renderer.Region(options.search_level, col0 - radius_px, row0 - radius_px,
-                                                       cell_search_px + 2 * radius_px, cell_search_px + 2 * radius_px);
+    thread_local Scratch scratch;
+    mosaic::RasterPatch around;
+    renderer.Region(options.search_level, col0 - radius_px, row0 - radius_px, cell_search_px + 2 * radius_px,
+                    cell_search_px + 2 * radius_px, scratch.region, &around);
     if (!around.problems.empty()) return around.problems.front();
+    if (around.mask.empty()) around.mask = cv::Mat(around.image.size(), CV_8UC1, cv::Scalar(255));
+    cv::compare(around.mask, 0, scratch.unmapped, cv::CMP_EQ);
+    scratch.unmapped /= 255;
+    cv::integral(scratch.unmapped, scratch.integral, CV_32S);
     // The template: a square of template_mm all on the floor, centred as near the cell's
     // centre as the floor allows (lanes are often narrower than a cell), if one fits.
-    cv::Mat depth;
-    cv::distanceTransform(around.mask, depth, cv::DIST_C, 3);
-    const int needed = template_search_px / 2 + 1;
-    std::optional<cv::Point> centre;
+    std::optional<cv::Point> corner;
     double nearest = 0.0;
+    const int half = template_search_px / 2;
     for (int y = 0; y < cell_search_px; ++y) {
-      const float* row = depth.ptr<float>(radius_px + y);
       for (int x = 0; x < cell_search_px; ++x) {
-        if (row[radius_px + x] < needed) continue;
         const double off = std::hypot(x - 0.5 * cell_search_px, y - 0.5 * cell_search_px);
-        if (!centre || off < nearest) {
-          centre = cv::Point(x, y);
-          nearest = off;
-        }
+        if (corner && off >= nearest) continue;
+        const cv::Point at(radius_px + x - half, radius_px + y - half);
+        if (!AllMapped(scratch.integral, at.x, at.y, template_search_px, template_search_px)) continue;
+        corner = at;
+        nearest = off;
       }
     }
-    if (centre) {
-      const cv::Rect own(radius_px + centre->x - template_search_px / 2, radius_px + centre->y - template_search_px / 2,
-                         template_search_px, template_search_px);
-      cell.ambiguity = BestElsewhere(around, own, exclusion_px);
+    if (corner) {
+      const cv::Rect own(corner->x, corner->y, template_search_px, template_search_px);
+      cell.ambiguity = BestElsewhere(around, scratch.integral, own, exclusion_px, scratch);
     }
     return {};
   };
