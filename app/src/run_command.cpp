@@ -62,6 +62,11 @@ void Run(const RunArgs& args, const GlobalOptions& global) {
                 summary["frames"].get<long long>(), summary["fixes"].get<long long>(),
                 100.0 * summary["fix_rate"].get<double>(), summary["frames_dropped"].get<long long>(),
                 summary["lock_losses"].get<long long>(), summary["scale"].get<double>());
+    if (!summary["processing_p50_ms"].is_null()) {
+      std::printf("per frame: processing %.2f ms p50, %.2f ms p99; capture to fix %.2f ms p50, %.2f ms p99\n",
+                  summary["processing_p50_ms"].get<double>(), summary["processing_p99_ms"].get<double>(),
+                  summary["latency_p50_ms"].get<double>(), summary["latency_p99_ms"].get<double>());
+    }
     std::printf("PLC: %lld requests, %lld answered, %lld fix writes, %lld read errors, %lld timeouts, "
                 "%lld odometry outages\n",
                 summary["requests"].get<long long>(), summary["answered"].get<long long>(),

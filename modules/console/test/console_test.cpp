@@ -101,6 +101,13 @@ TEST_F(ConsoleTest, ServesTheMapsTilesAsStoredAndItsLayout) {
   ASSERT_TRUE(viewer);
   EXPECT_EQ(viewer->status, 200);
   EXPECT_GT(viewer->body.size(), 100000u);
+  // Never brotli on the fly (slow for large answers): gzip when the client takes it.
+  auto br = client.Get("/leaflet/leaflet.js", {{"Accept-Encoding", "br"}});
+  ASSERT_TRUE(br);
+  EXPECT_EQ(br->get_header_value("Content-Encoding"), "");
+  auto gz = client.Get("/leaflet/leaflet.js", {{"Accept-Encoding", "gzip, deflate, br"}});
+  ASSERT_TRUE(gz);
+  EXPECT_EQ(gz->get_header_value("Content-Encoding"), "gzip");
 }
 
 TEST_F(ConsoleTest, ServesNothingOutsideItsMapReportsAndViewer) {

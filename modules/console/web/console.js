@@ -51,6 +51,14 @@
     return group;
   }
 
+  // A layer whose features are made when it is first shown: a large map's tiles and cells would
+  // otherwise delay the first view.
+  function lazyGroup(make) {
+    const group = L.featureGroup();
+    group.once('add', () => make().forEach((layer) => group.addLayer(layer)));
+    return group;
+  }
+
   function legend(entries) {
     return entries.map(([colour, text]) => `<i style="background:${colour}"></i>${text}`).join('<br>');
   }
@@ -127,7 +135,7 @@
 
     // The mapped tiles of a coarse level: where the lanes were mapped.
     const laneTileMm = tileSize * r * Math.pow(2, info.mapped_tiles.level);
-    const lanes = L.featureGroup(info.mapped_tiles.tiles.map(([col, row]) => L.rectangle(
+    const lanes = lazyGroup(() => info.mapped_tiles.tiles.map(([col, row]) => L.rectangle(
       [latLng(x0 + col * laneTileMm, y0 - (row + 1) * laneTileMm), latLng(x0 + (col + 1) * laneTileMm, y0 - row * laneTileMm)],
       {color: '#00bcd4', weight: 1, fillOpacity: 0.05, interactive: false, className: 'mapped-tile'})));
 
@@ -139,18 +147,13 @@
         3: ['#2b83ba', 'lane edge, not judged in full']};
       const cellMm = quality.cell_mm;
       const renderer = L.canvas({padding: 0.5});
-      const cells = L.featureGroup();
-      let weak = 0;
-      for (const [col, row, mapped, texture, ambiguity, verdict] of quality.cells) {
-        if (verdict < 0) continue;
-        weak += verdict === 1 || verdict === 2 ? 1 : 0;
-        const [colour, text] = VERDICTS[verdict];
-        cells.addLayer(L.rectangle(
+      const weak = quality.cells.filter((c) => c[5] === 1 || c[5] === 2).length;
+      overlays['map quality'] = lazyGroup(() => quality.cells.filter((c) => c[5] >= 0).map(
+        ([col, row, mapped, texture, ambiguity, verdict]) => L.rectangle(
           [latLng(x0 + col * cellMm, y0 - (row + 1) * cellMm), latLng(x0 + (col + 1) * cellMm, y0 - row * cellMm)],
-          {renderer, color: colour, weight: 0, fillOpacity: 0.45})
-          .bindTooltip(`${text}: texture ${texture}, best match elsewhere ${ambiguity}, mapped ${Math.round(mapped * 100)} %`));
-      }
-      overlays['map quality'] = cells;
+          {renderer, color: VERDICTS[verdict][0], weight: 0, fillOpacity: 0.45})
+          .bindTooltip(`${VERDICTS[verdict][1]}: texture ${texture}, best match elsewhere ${ambiguity}, ` +
+                       `mapped ${Math.round(mapped * 100)} %`)));
       $('map-quality').textContent = `${quality.cells.length} cells of ${cellMm} mm, ${weak} weak`;
       document.body.dataset.qualityCells = quality.cells.length;
     } else {
