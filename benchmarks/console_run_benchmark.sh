@@ -46,18 +46,25 @@ def connect():
         except OSError:
             time.sleep(0.05)
 def stream():
-    c = connect(); c.request("GET", "/api/live/stream"); r = c.getresponse()
-    while r.read(256): pass
+    try:
+        c = connect(); c.request("GET", "/api/live/stream"); r = c.getresponse()
+        while r.read(256): pass
+    except Exception:
+        pass  # the run ended
 def poll():
     c = connect()
     tiles = []
     c.request("GET", "/api/map"); info = __import__("json").loads(c.getresponse().read())
     for col, row in info["mapped_tiles"]["tiles"]:
         tiles.append(f"/api/tiles/{info['mapped_tiles']['level']}/{col}/{row}.png")
+    count = 0
     while True:
         for path in ["/api/live"] + random.sample(tiles, min(4, len(tiles))):
             try:
                 c.request("GET", path); c.getresponse().read()
+                count += 1
+                if count % 500 == 0:
+                    open("client-requests.txt", "w").write(str(count))
             except Exception:
                 return
 threading.Thread(target=stream, daemon=True).start()
@@ -67,6 +74,7 @@ PY
   fi
   "$MOSAICLOC" --json run --config run.yaml --start-unix "$start" 2>/dev/null | tail -1 > summary.json
   [ -n "$client" ] && kill "$client" 2>/dev/null || true
+  [ -n "$client" ] && echo "client: $(cat client-requests.txt 2>/dev/null || echo 0)+ requests during the run" >&2
   wait "$plc" 2>/dev/null || true
   $PYTHON -c 'import json,sys; d=json.load(open("summary.json"))["summary"]; print(sys.argv[1], d["processing_p50_ms"], d["processing_p99_ms"], d["latency_p50_ms"], d["latency_p99_ms"], d["frames_processed"], d["fixes"])' "$1" >> rounds.txt
 }
