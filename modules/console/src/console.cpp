@@ -95,7 +95,7 @@ std::string ReadTokenFile(const fs::path& file) {
   return line;
 }
 
-namespace {
+namespace internal {
 
 using Clock = std::chrono::steady_clock;
 
@@ -103,18 +103,6 @@ struct StaticFile {
   std::string content_type;
   std::string body;
 };
-
-std::string ReadWhole(const fs::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) {
-    core::ThrowInvalidInput(file.string() +
-                            ": cannot be read (the console's map viewer comes from the Debian package libjs-leaflet: "
-                            "scripts/install-deps.sh installs it)");
-  }
-  std::ostringstream content;
-  content << in.rdbuf();
-  return content.str();
-}
 
 // Token buckets per client address, in a bounded table (the stalest entries go first).
 class RateLimiter {
@@ -158,9 +146,9 @@ class RateLimiter {
 };
 
 // Encoded tiles by key, least recently used first out, bounded in bytes.
-class TileCache {
+class EncodedTileCache {
  public:
-  explicit TileCache(std::int64_t max_bytes) : max_bytes_(max_bytes) {}
+  explicit EncodedTileCache(std::int64_t max_bytes) : max_bytes_(max_bytes) {}
   std::shared_ptr<const std::string> Find(const mosaic::TileKey& key) {
     const std::lock_guard lock(mutex_);
     const auto it = index_.find(key);
@@ -191,6 +179,22 @@ class TileCache {
   std::list<Entry> order_;
   std::unordered_map<mosaic::TileKey, std::list<Entry>::iterator, mosaic::TileKeyHash> index_;
 };
+
+}  // namespace internal
+
+namespace {
+
+std::string ReadWhole(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) {
+    core::ThrowInvalidInput(file.string() +
+                            ": cannot be read (the console's map viewer comes from the Debian package libjs-leaflet: "
+                            "scripts/install-deps.sh installs it)");
+  }
+  std::ostringstream content;
+  content << in.rdbuf();
+  return content.str();
+}
 
 bool SameSecret(const std::string& a, const std::string& b) {
   // Constant time in the secret's length: a wrong token's first wrong character is not timed.
@@ -243,7 +247,7 @@ class Console::Impl {
       const std::string type = file.ends_with(".js")    ? "text/javascript"
                                : file.ends_with(".css") ? "text/css"
                                                         : "image/png";
-      viewer_files_["/leaflet/" + file] = StaticFile{type, ReadWhole(options.leaflet_dir / file)};
+      viewer_files_["/leaflet/" + file] = internal::StaticFile{type, ReadWhole(options.leaflet_dir / file)};
     }
     Routes();
   }
@@ -597,9 +601,9 @@ class Console::Impl {
   std::string quality_;
   std::string reports_;
   std::vector<std::string> report_layers_;
-  std::map<std::string, StaticFile> viewer_files_;
-  RateLimiter limiter_;
-  TileCache cache_;
+  std::map<std::string, internal::StaticFile> viewer_files_;
+  internal::RateLimiter limiter_;
+  internal::EncodedTileCache cache_;
   httplib::Server server_;
   std::thread thread_;
   int port_ = -1;
