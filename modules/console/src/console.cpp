@@ -263,6 +263,14 @@ class Console::Impl {
                          " (the port is in use, or the address is not this machine's)");
     }
     thread_ = std::thread([this] { server_.listen_after_bind(); });
+    // Until the server runs: a stop asked for before it does would find nothing to stop, and the
+    // listening thread would never end.
+    for (int i = 0; i < 5000 && !server_.is_running(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    if (!server_.is_running()) {
+      server_.stop();
+      thread_.join();
+      core::ThrowRuntime("console: the server on " + options_.listen + " did not start");
+    }
     core::Log().info("console: {}", Url());
     return port_;
   }
