@@ -48,6 +48,9 @@ import json, sys
 r = json.load(open(sys.argv[1]))
 assert [x["kind"] for x in r] == ["replay", "mapping"], r
 PY
+curl -sf "$URL/api/reports/0" > "$SCRATCH/replay.json" || fail "GET /api/reports/0"
+json_check "$SCRATCH/replay.json" 'd["columns"][-1] == "error_mm"' \
+  'max(p[6] for p in d["points"] if p[6] is not None) < 1.0' 'len(d["points"]) == d["frames"]'
 curl -sf "$URL/api/reports/1" > "$SCRATCH/mapping.json" || fail "GET /api/reports/1"
 json_check "$SCRATCH/mapping.json" 'len(d["points"]) > 50' 'd["metrics"]["frames"] > 50'
 # A tile comes as the map stores it (a PNG); unmapped ones and anything else are 404.

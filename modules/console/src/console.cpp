@@ -294,7 +294,7 @@ class Console::Impl {
     live_ = pose;
     has_live_ = true;
     ++live_serial_;
-    // The path behind the vehicle: a point every path_step_mm_, in a fixed ring (no allocation).
+    // The path behind the vehicle: a point every kPathStepMm, in a fixed ring (no allocation).
     if (pose.known) {
       const auto& last = path_[(path_next_ + kPathPoints - 1) % kPathPoints];
       if (path_count_ == 0 || std::hypot(pose.x_mm - last[0], pose.y_mm - last[1]) >= kPathStepMm) {
@@ -403,36 +403,49 @@ class Console::Impl {
   }
 
   nlohmann::json LiveJson(bool with_path) {
-    nlohmann::json live = {{"live", false}};
+    // Copied under the lock, made into JSON outside it: the frame loop's try-lock is kept
+    // waiting (and its frame dropped from the console) for a copy's time only.
+    LivePose p;
+    bool has_live = false;
+    std::int64_t serial = 0;
+    std::vector<std::array<double, 2>> path;
     {
       const std::lock_guard lock(live_mutex_);
-      if (has_live_) {
-        const LivePose& p = live_;
-        live = {{"live", true},
-                {"serial", live_serial_},
-                {"t_s", p.t_s},
-                {"known", p.known},
-                {"x_mm", p.x_mm},
-                {"y_mm", p.y_mm},
-                {"yaw_rad", p.yaw_rad},
-                {"covariance_mm2", {p.cov_xx, p.cov_xy, p.cov_yy}},
-                {"sigma_yaw_rad", p.sigma_yaw_rad},
-                {"lock", p.lock},
-                {"fixed", p.fixed},
-                {"quality", p.quality},
-                {"scale", p.scale},
-                {"height_mm", p.height_mm},
-                {"latency_ms", p.latency_ms},
-                {"frames", p.frames},
-                {"fixes", p.fixes}};
-        if (with_path) {
-          nlohmann::json path = nlohmann::json::array();
-          for (std::size_t i = 0; i < path_count_; ++i) {
-            const auto& point = path_[(path_next_ + kPathPoints - path_count_ + i) % kPathPoints];
-            path.push_back({std::round(point[0] * 100.0) / 100.0, std::round(point[1] * 100.0) / 100.0});
-          }
-          live["path"] = std::move(path);
+      p = live_;
+      has_live = has_live_;
+      serial = live_serial_;
+      if (with_path) {
+        path.reserve(path_count_);
+        for (std::size_t i = 0; i < path_count_; ++i) {
+          path.push_back(path_[(path_next_ + kPathPoints - path_count_ + i) % kPathPoints]);
         }
+      }
+    }
+    nlohmann::json live = {{"live", false}};
+    if (has_live) {
+      live = {{"live", true},
+              {"serial", serial},
+              {"t_s", p.t_s},
+              {"known", p.known},
+              {"x_mm", p.x_mm},
+              {"y_mm", p.y_mm},
+              {"yaw_rad", p.yaw_rad},
+              {"covariance_mm2", {p.cov_xx, p.cov_xy, p.cov_yy}},
+              {"sigma_yaw_rad", p.sigma_yaw_rad},
+              {"lock", p.lock},
+              {"fixed", p.fixed},
+              {"quality", p.quality},
+              {"scale", p.scale},
+              {"height_mm", p.height_mm},
+              {"latency_ms", p.latency_ms},
+              {"frames", p.frames},
+              {"fixes", p.fixes}};
+      if (with_path) {
+        nlohmann::json points = nlohmann::json::array();
+        for (const auto& point : path) {
+          points.push_back({std::round(point[0] * 100.0) / 100.0, std::round(point[1] * 100.0) / 100.0});
+        }
+        live["path"] = std::move(points);
       }
     }
     const std::lock_guard lock(status_mutex_);

@@ -77,11 +77,43 @@ ReportLayer ReplayLayer(const fs::path& folder, std::size_t max_points) {
                       std::round(r.world_from_vehicle.y_mm() * 1000.0) / 1000.0, r.status, r.fixed ? 1 : 0,
                       static_cast<int>(std::lround(r.quality * 1000.0)), r.sigma_mm});
   }
+  // With ground truth, the replay wrote each row's position error: a seventh column.
+  const fs::path errors_file = folder / "errors.csv";
+  const bool with_errors = fs::exists(errors_file);
+  if (with_errors) {
+    std::ifstream in(errors_file);
+    std::string text;
+    int line_number = 0;
+    std::size_t row = 0, kept = 0;
+    while (std::getline(in, text)) {
+      ++line_number;
+      if (text.empty() || text[0] == '#') continue;
+      const std::vector<std::string_view> f = Fields(text);
+      if (f.size() != 2 || row >= rows.size() ||
+          Number<std::int64_t>(f[0], errors_file, line_number, "timestamp_ns") != rows[row].time.nanoseconds()) {
+        core::ThrowInvalidInput(errors_file.string() + ":" + std::to_string(line_number) +
+                                ": does not match fixes.csv's row " + std::to_string(row + 1) +
+                                " (timestamp_ns,error_mm, one row per frame)");
+      }
+      if (kept < keep.size() && keep[kept] == row) {
+        points[kept].push_back(f[1].empty() ? nlohmann::json(nullptr)
+                                            : nlohmann::json(Number<double>(f[1], errors_file, line_number, "error_mm")));
+        ++kept;
+      }
+      ++row;
+    }
+    if (row != rows.size()) {
+      core::ThrowInvalidInput(errors_file.string() + ": " + std::to_string(row) + " rows for fixes.csv's " +
+                              std::to_string(rows.size()));
+    }
+  }
   std::int64_t fixes = 0;
   for (const dataset::FrameReport& r : rows) fixes += r.fixed ? 1 : 0;
+  nlohmann::json columns = {"x_mm", "y_mm", "status", "fix", "quality", "sigma_mm"};
+  if (with_errors) columns.push_back("error_mm");
   report.layer = {{"frames", rows.size()},
                   {"fixes", fixes},
-                  {"columns", {"x_mm", "y_mm", "status", "fix", "quality", "sigma_mm"}},
+                  {"columns", columns},
                   {"points", std::move(points)}};
   if (fs::exists(folder / "metrics.json")) report.layer["metrics"] = ReadJsonObject(folder / "metrics.json");
   return report;

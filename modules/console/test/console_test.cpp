@@ -221,6 +221,32 @@ TEST_F(ConsoleTest, ReportsAreServedAsLayers) {
   EXPECT_EQ(layer["points"][25], nlohmann::json({250.0, 5.0, 4, 0, 0, 0.01}));
   EXPECT_EQ(layer["metrics"]["wrong_fixes"], 0);
   EXPECT_EQ(client.Get("/api/reports/1")->status, 404);
+  EXPECT_EQ(layer["columns"].size(), 6u);  // no errors.csv: no ground truth
+
+  // With the replay's errors against the truth, a seventh column; a file that does not match
+  // fixes.csv is named.
+  std::string errors = "#timestamp_ns,error_mm\n";
+  for (int i = 0; i < 30; ++i) {
+    errors += std::to_string(1'000'000'000LL + i * 33'000'000LL) + "," + (i == 7 ? "" : std::to_string(0.01 * i)) + "\n";
+  }
+  test::WriteFile(report_ / "errors.csv", errors);
+  {
+    Console with_errors(Options(), map_);
+    httplib::Client c("127.0.0.1", with_errors.Start());
+    const nlohmann::json l = nlohmann::json::parse(c.Get("/api/reports/0")->body);
+    EXPECT_EQ(l["columns"].back(), "error_mm");
+    EXPECT_DOUBLE_EQ(l["points"][3][6].get<double>(), 0.03);
+    EXPECT_TRUE(l["points"][7][6].is_null());
+  }
+  test::WriteFile(report_ / "errors.csv", "#timestamp_ns,error_mm\n5,0.1\n");
+  try {
+    Console mismatched(Options(), map_);
+    FAIL() << "errors.csv that does not match fixes.csv was served";
+  } catch (const core::Error& error) {
+    EXPECT_NE(std::string(error.what()).find("errors.csv:2: does not match fixes.csv's row 1"), std::string::npos)
+        << error.what();
+  }
+  std::filesystem::remove(report_ / "errors.csv");
 
   // A folder that is not a report, and a damaged one, are named.
   ConsoleOptions bad = Options();

@@ -187,6 +187,13 @@
         const byQuality = colouredPath(report.points, qualityColour, 'report-path report-quality');
         layerControl.addOverlay(byState, report.name + ': lock state');
         layerControl.addOverlay(byQuality, report.name + ': fix quality');
+        if (report.columns.includes('error_mm')) {
+          // Against the ground truth (a simulated or surveyed drive): green within 0.05 mm, amber
+          // within 1 mm, red beyond (a wrong fix, when the frame had one).
+          const byError = colouredPath(report.points, (p) => (p[6] === null ? '#9e9e9e' : p[6] <= 0.05 ? '#1a9641'
+            : p[6] <= 1.0 ? '#f0a020' : '#d7191c'), 'report-path report-error');
+          layerControl.addOverlay(byError, report.name + ': error against the truth');
+        }
         if (first) byState.addTo(map);  // the first replay's; the others are a click away
         first = false;
         item.textContent = `${report.name} (replay): ${report.frames} frames, ${report.fixes} fixes, ` +

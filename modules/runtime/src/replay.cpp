@@ -15,6 +15,8 @@
 #include <unordered_map>
 #include <vector>
 
+#include <fmt/format.h>
+
 #include "mosaicloc/camera/ideal_camera.hpp"
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/file.hpp"
@@ -159,6 +161,19 @@ class ReplayRecord {
     const std::string heading = title + ": " + options.dataset.filename().string();
     CheckHeight(options, info, heading, &metrics);
     core::WriteFileAtomically(options.out / "fixes.csv", fixes_csv_);
+    if (groundtruth_) {
+      // Each row's position error against the truth at its time (empty where the truth has no
+      // pose then), for the console's colouring of the drive by error.
+      std::string errors = "#timestamp_ns,error_mm\n";
+      for (const dataset::FrameReport& r : reports_) {
+        errors += std::to_string(r.time.nanoseconds()) + ",";
+        if (const auto truth = dataset::PoseAt(*groundtruth_, r.time, std::chrono::milliseconds(100))) {
+          errors += fmt::format("{:.5f}", (r.world_from_vehicle.translation_mm() - truth->translation_mm()).norm());
+        }
+        errors += "\n";
+      }
+      core::WriteFileAtomically(options.out / "errors.csv", errors);
+    }
     metrics = WriteReport(options.out, estimate_, groundtruth_, metrics, heading);
     WriteTruthFreePlots(options, info, heading);
     dataset::HtmlReportInputs page;
