@@ -2,7 +2,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <memory>
 #include <string>
 #include <vector>
@@ -193,8 +192,7 @@ void Quality(const runtime::MapQualityJob& job, const GlobalOptions& global) {
   const runtime::MapQualitySummary r = runtime::MapQuality(job, progress.Callback());
   progress.Finish();
   if (global.json) {
-    std::ifstream in(job.out / "quality.json");
-    PrintJson(nlohmann::json::parse(in));
+    PrintJson(r.json);
     return;
   }
   std::printf("%s: %lld cells of %.0f mm judged%s; %lld weak (%lld with little texture, %lld where the floor repeats) "

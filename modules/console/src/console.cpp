@@ -16,6 +16,7 @@
 
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/log.hpp"
+#include "mosaicloc/mosaic/quality.hpp"
 #include "mosaicloc/mosaic/tile_store.hpp"
 #include "reports.hpp"
 #include "web_assets.hpp"
@@ -381,12 +382,7 @@ class Console::Impl {
     const mosaic::QualityThresholds thresholds;
     nlohmann::json cells = nlohmann::json::array();
     for (const mosaic::QualityCell& c : store_->ReadQuality()) {
-      const std::string why = mosaic::WeakBecause(c, thresholds);
-      const int verdict = c.mapped < thresholds.min_mapped                ? -1
-                          : why.find("repeats") != std::string::npos      ? 2
-                          : !why.empty()                                  ? 1
-                          : c.ambiguity < -0.5f || c.texture < 0.0f      ? 3
-                                                                          : 0;
+      const int verdict = static_cast<int>(mosaic::VerdictOf(c, thresholds));
       cells.push_back({c.col, c.row, std::round(c.mapped * 100.0) / 100.0, std::round(c.texture * 10.0) / 10.0,
                        std::round(c.ambiguity * 1000.0) / 1000.0, verdict});
     }

@@ -13,6 +13,7 @@
 
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/file.hpp"
+#include "mosaicloc/mosaic/quality.hpp"
 #include "mosaicloc/mosaic/renderer.hpp"
 #include "mosaicloc/mosaic/tile_cache.hpp"
 #include "mosaicloc/runtime/map_jobs.hpp"
@@ -66,6 +67,23 @@ Picture MapPicture(const mosaic::TileStore& store, int largest_px) {
   return picture;
 }
 
+nlohmann::json SummaryJson(const MapQualityJob& job, const MapQualitySummary& summary) {
+  nlohmann::json stretches = nlohmann::json::array();
+  for (const WeakStretch& s : summary.stretches) {
+    stretches.push_back({{"cells", s.cells}, {"bounds_mm", {s.x0_mm, s.y0_mm, s.x1_mm, s.y1_mm}},
+                         {"centre_mm", {s.centre_x_mm, s.centre_y_mm}}, {"reason", s.reason},
+                         {"min_texture", s.min_texture}, {"max_ambiguity", s.max_ambiguity}});
+  }
+  return {{"map", job.map.string()}, {"level", summary.level}, {"cell_mm", summary.cell_mm},
+          {"cells", summary.cells}, {"judged", summary.judged}, {"weak_cells", summary.weak_cells},
+          {"weak_texture", summary.weak_texture}, {"repeating", summary.repeating}, {"unsearched", summary.unsearched},
+          {"thresholds", {{"min_texture", job.thresholds.min_texture},
+                          {"max_ambiguity", job.thresholds.max_ambiguity},
+                          {"min_mapped", job.thresholds.min_mapped}}},
+          {"computed_s", summary.computed ? nlohmann::json(summary.seconds) : nlohmann::json()},
+          {"stretches", stretches}};
+}
+
 }  // namespace
 
 MapQualitySummary MapQuality(const MapQualityJob& job, const std::function<void(double)>& progress) {
@@ -94,10 +112,8 @@ MapQualitySummary MapQuality(const MapQualityJob& job, const std::function<void(
   std::map<std::pair<std::int64_t, std::int64_t>, std::string> weak;
   for (const mosaic::QualityCell& c : cells) {
     if (c.mapped >= job.thresholds.min_mapped) ++summary.judged;
+    if (mosaic::VerdictOf(c, job.thresholds) == mosaic::QualityVerdict::kPartlyJudged) ++summary.unsearched;
     const std::string why = mosaic::WeakBecause(c, job.thresholds);
-    if (why.empty() && c.mapped >= job.thresholds.min_mapped && (c.ambiguity < -0.5f || c.texture < 0.0f)) {
-      ++summary.unsearched;
-    }
     if (why.empty()) continue;
     weak[{c.col, c.row}] = why;
     ++summary.weak_cells;
@@ -172,11 +188,12 @@ MapQualitySummary MapQuality(const MapQualityJob& job, const std::function<void(
     const double cell_px = std::ldexp(static_cast<double>(grid.tile_size_px), summary.level - picture.level);
     cv::Mat tint = picture.image.clone();
     for (const mosaic::QualityCell& c : cells) {
-      if (c.mapped < job.thresholds.min_mapped) continue;
-      const std::string why = mosaic::WeakBecause(c, job.thresholds);
-      const cv::Scalar colour = !why.empty() ? (why.find("repeats") != std::string::npos ? kRepeats : kLittleTexture)
-                                : c.ambiguity < -0.5f || c.texture < 0.0f ? kUnsearched
-                                                      : kGood;
+      const mosaic::QualityVerdict verdict = mosaic::VerdictOf(c, job.thresholds);
+      if (verdict == mosaic::QualityVerdict::kNotJudged) continue;
+      const cv::Scalar colour = verdict == mosaic::QualityVerdict::kRepeats        ? kRepeats
+                                : verdict == mosaic::QualityVerdict::kLittleTexture ? kLittleTexture
+                                : verdict == mosaic::QualityVerdict::kPartlyJudged  ? kUnsearched
+                                                                                   : kGood;
       const cv::Point corner(static_cast<int>(std::lround(static_cast<double>(c.col) * cell_px - static_cast<double>(picture.col0))),
                              static_cast<int>(std::lround(static_cast<double>(c.row) * cell_px - static_cast<double>(picture.row0))));
       const int side = std::max(1, static_cast<int>(std::lround(cell_px)));
@@ -215,21 +232,8 @@ MapQualitySummary MapQuality(const MapQualityJob& job, const std::function<void(
     if (!cv::imencode(".png", picture.image, png)) core::ThrowRuntime("quality.png: cannot be encoded");
     core::WriteFileAtomically(job.out / "quality.png", std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
   }
-  nlohmann::json stretches = nlohmann::json::array();
-  for (const WeakStretch& s : summary.stretches) {
-    stretches.push_back({{"cells", s.cells}, {"bounds_mm", {s.x0_mm, s.y0_mm, s.x1_mm, s.y1_mm}},
-                         {"centre_mm", {s.centre_x_mm, s.centre_y_mm}}, {"reason", s.reason},
-                         {"min_texture", s.min_texture}, {"max_ambiguity", s.max_ambiguity}});
-  }
-  const nlohmann::json json = {{"map", job.map.string()}, {"level", summary.level}, {"cell_mm", summary.cell_mm},
-                               {"cells", summary.cells}, {"judged", summary.judged}, {"weak_cells", summary.weak_cells},
-                               {"weak_texture", summary.weak_texture}, {"repeating", summary.repeating}, {"unsearched", summary.unsearched},
-                               {"thresholds", {{"min_texture", job.thresholds.min_texture},
-                                               {"max_ambiguity", job.thresholds.max_ambiguity},
-                                               {"min_mapped", job.thresholds.min_mapped}}},
-                               {"computed_s", summary.computed ? nlohmann::json(summary.seconds) : nlohmann::json()},
-                               {"stretches", stretches}};
-  core::WriteFileAtomically(job.out / "quality.json", json.dump(2) + "\n");
+  summary.json = SummaryJson(job, summary);
+  core::WriteFileAtomically(job.out / "quality.json", summary.json.dump(2) + "\n");
   return summary;
 }
 

@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "mosaicloc/mosaic/tile_store.hpp"
 #include "mosaicloc/tracking/map_quality.hpp"
 
@@ -47,6 +49,7 @@ struct MapQualitySummary {
   /// copies could not be judged in full; not counted as weak or as good.
   std::int64_t unsearched = 0;
   std::vector<WeakStretch> stretches;  ///< largest first
+  nlohmann::json json;                 ///< all of the above, as quality.json holds it
 };
 
 /// Reads (or computes and stores) the layer, writes DIR/quality.png (the map's floor tinted by
