@@ -51,6 +51,7 @@ void RunPlcSim(PlcSimArgs args, const GlobalOptions& global) {
   const runtime::PlcSimulatorSummary r = runtime::RunPlcSimulator(o, callbacks);
   const nlohmann::json summary = {{"fixes_received", r.fixes_received},
                                   {"status_counts", r.status_counts},
+                                  {"mode_counts", r.mode_counts},
                                   {"requests", r.requests},
                                   {"answered", r.answered},
                                   {"answer_p50_ms", Optional(r.answer_p50_ms)},

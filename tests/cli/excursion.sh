@@ -41,14 +41,16 @@ for line in open(truth_file):
         t, x, y = (float(v) for v in line.split()[:3])
         truth.append((round(t * 1e9), x * 1000.0, y * 1000.0))
 times = [t for t, _, _ in truth]
-worst, off_map = 0.0, 0
+worst, off_map, modes = 0.0, 0, {}
 for line in open(report + "/fixes.csv"):
     if line.startswith("#"):
         continue
-    ns, x, y, _, status, quality, fixed, _, _, _, reason = line.rstrip("\n").split(",")
+    ns, x, y, _, status, quality, fixed, _, _, _, reason, mode = line.rstrip("\n").split(",")
     if status == "4":
         off_map += 1
         assert fixed == "0" and quality == "0" and reason == "off-map", line
+        assert mode in ("visual-odometry", "dead-reckoning"), line
+        modes[mode] = modes.get(mode, 0) + 1
     if fixed != "1":
         continue
     ns, x, y = int(ns), float(x), float(y)
@@ -58,5 +60,9 @@ for line in open(report + "/fixes.csv"):
     worst = max(worst, math.hypot(x - (x0 + a * (x1 - x0)), y - (y0 + a * (y1 - y0))))
 assert worst <= 1.0, worst
 assert off_map == m["off_map_frames"], (off_map, m["off_map_frames"])
+# Off the map the frames are registered frame to keyframe and chained: visual odometry.
+print(name, "off the map:", modes, "mode switches", m["mode_switches"], m["frames_by_mode"])
+assert modes.get("visual-odometry", 0) >= 0.5 * off_map, modes
+assert m["frames_by_mode"].get("visual-odometry", 0) == modes.get("visual-odometry", 0), m["frames_by_mode"]
 PY
 finish

@@ -49,7 +49,7 @@ r = json.load(open(sys.argv[1]))
 assert [x["kind"] for x in r] == ["replay", "mapping"], r
 PY
 curl -sf "$URL/api/reports/0" > "$SCRATCH/replay.json" || fail "GET /api/reports/0"
-json_check "$SCRATCH/replay.json" 'd["columns"][-1] == "error_mm"' \
+json_check "$SCRATCH/replay.json" 'd["columns"][6:] == ["error_mm", "mode"]' 'set(p[7] for p in d["points"]) == {"track"}' \
   'max(p[6] for p in d["points"] if p[6] is not None) < 1.0' 'len(d["points"]) == d["frames"]'
 curl -sf "$URL/api/reports/1" > "$SCRATCH/mapping.json" || fail "GET /api/reports/1"
 json_check "$SCRATCH/mapping.json" 'len(d["points"]) > 50' 'd["metrics"]["frames"] > 50'

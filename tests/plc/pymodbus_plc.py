@@ -147,7 +147,7 @@ class Plc:
             self.next_request += self.args.request_period_ms * 1e-3
 
     def receive(self, words, now):
-        """The ten fix registers 100-109 as written by (or read from) mosaicloc."""
+        """The eleven fix registers 100-110 as written by (or read from) mosaicloc."""
         fix = {
             "t_s": self.dataset_s(now),
             "x_mm": int32(words[0:2], self.low_first) * 0.01,
@@ -157,6 +157,7 @@ class Plc:
             "quality": words[7],
             "echo": words[8],
             "heartbeat": words[9],
+            "mode": words[10],
         }
         with self.lock:
             if self.request_time is not None and fix["echo"] == (self.request & 0xFFFF) and \
@@ -185,6 +186,7 @@ class Plc:
         out = {
             "fixes_received": len(fixes),
             "status_counts": [sum(1 for f in fixes if f["status"] == s) for s in range(5)],
+            "mode_counts": [sum(1 for f in fixes if f["mode"] == m) for m in range(5)],
             "requests": self.requests_sent,
             "relocalize_requests": self.relocalize,
             "answered": len(answers),
@@ -225,7 +227,7 @@ class RecordingBlock(ModbusSequentialDataBlock):
     def setValues(self, address, values):  # noqa: N802
         super().setValues(address, values)
         if address <= 100 < address + len(values):
-            self.plc.receive(super().getValues(100, 10), time.monotonic())
+            self.plc.receive(super().getValues(100, 11), time.monotonic())
 
 
 async def serve(plc, args):
@@ -267,7 +269,7 @@ def play_as_client(plc, args):
         plc.tick(now)
         try:
             client.write_registers(0, plc.inputs(now), slave=1)
-            r = client.read_holding_registers(100, 10, slave=1)
+            r = client.read_holding_registers(100, 11, slave=1)
             if not r.isError() and r.registers[9] != last_heartbeat:
                 last_heartbeat = r.registers[9]
                 plc.receive(r.registers, time.monotonic())

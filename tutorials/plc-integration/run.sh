@@ -11,7 +11,8 @@ mosaicloc plc-sim --dataset aisle-run --port 15020 --start-unix "$START" --reque
 mosaicloc run --config run.yaml --start-unix "$START" --record aisle-recorded
 # While plc-sim lingers, read the last fix as the PLC holds it: x, y (0.01 mm), yaw (urad).
 mbpoll -m tcp -a 1 -0 -1 -r 100 -c 3 -t 4:int -B -p 15020 127.0.0.1 | grep '^\['
-mbpoll -m tcp -a 1 -0 -1 -r 106 -c 4 -t 4 -p 15020 127.0.0.1 | grep '^\['
+# Status, quality, the request answered, heartbeat and the localizer's mode (1: track).
+mbpoll -m tcp -a 1 -0 -1 -r 106 -c 5 -t 4 -p 15020 127.0.0.1 | grep '^\['
 wait
 tail -1 plc-sim.log
 # Validate the recording offline.

@@ -429,6 +429,7 @@ class Console::Impl {
               {"covariance_mm2", {p.cov_xx, p.cov_xy, p.cov_yy}},
               {"sigma_yaw_rad", p.sigma_yaw_rad},
               {"lock", p.lock},
+              {"mode", p.mode},
               {"fixed", p.fixed},
               {"quality", p.quality},
               {"scale", p.scale},

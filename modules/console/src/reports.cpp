@@ -67,7 +67,7 @@ ReportLayer ReplayLayer(const fs::path& folder, std::size_t max_points) {
   report.kind = "replay";
   const std::vector<dataset::FrameReport> rows = dataset::ReadFixesCsv(folder / "fixes.csv");
   const std::vector<std::size_t> keep = Thinned(rows.size(), max_points, [&](std::size_t i) {
-    return rows[i].status != rows[i - 1].status || rows[i].fixed != rows[i - 1].fixed;
+    return rows[i].status != rows[i - 1].status || rows[i].fixed != rows[i - 1].fixed || rows[i].mode != rows[i - 1].mode;
   });
   // Columns: x_mm, y_mm, status, fix (0/1), quality 0..1000, sigma_mm.
   nlohmann::json points = nlohmann::json::array();
@@ -107,10 +107,17 @@ ReportLayer ReplayLayer(const fs::path& folder, std::size_t max_points) {
                               std::to_string(rows.size()));
     }
   }
+  // The localizer's mode (fixes.csv written with the column): the last column.
+  const bool with_modes =
+      std::any_of(rows.begin(), rows.end(), [](const dataset::FrameReport& r) { return !r.mode.empty(); });
+  if (with_modes) {
+    for (std::size_t k = 0; k < keep.size(); ++k) points[k].push_back(rows[keep[k]].mode);
+  }
   std::int64_t fixes = 0;
   for (const dataset::FrameReport& r : rows) fixes += r.fixed ? 1 : 0;
   nlohmann::json columns = {"x_mm", "y_mm", "status", "fix", "quality", "sigma_mm"};
   if (with_errors) columns.push_back("error_mm");
+  if (with_modes) columns.push_back("mode");
   report.layer = {{"frames", rows.size()},
                   {"fixes", fixes},
                   {"columns", columns},

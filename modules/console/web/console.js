@@ -28,6 +28,9 @@
     return `rgb(${mix(215, 26)},${mix(25, 150)},${mix(28, 65)})`;
   }
   const stateColour = (point) => LOCK_COLOURS[point[2]] || '#000000';
+  // The localizer's modes (design.md section 7c), as the report's map_mode.png draws them.
+  const MODE_COLOURS = {'track': '#28aa3c', 'visual-odometry': '#146ec8', 'dead-reckoning': '#f08c14',
+                        'searching': '#c828c8'};
   const seamColour = (point) => (point[2] < 0.05 ? '#1a9641' : point[2] < 0.2 ? '#f0a020' : '#d7191c');
 
   // A path as polylines, one per run of points of one colour (each run ends on the next
@@ -194,6 +197,12 @@
             : p[6] <= 1.0 ? '#f0a020' : '#d7191c'), 'report-path report-error');
           layerControl.addOverlay(byError, report.name + ': error against the truth');
         }
+        const modeAt = report.columns.indexOf('mode');
+        if (modeAt >= 0) {
+          const byMode = colouredPath(report.points, (p) => MODE_COLOURS[p[modeAt]] || '#9e9e9e',
+                                      'report-path report-mode');
+          layerControl.addOverlay(byMode, report.name + ': mode');
+        }
         if (first) byState.addTo(map);  // the first replay's; the others are a click away
         first = false;
         item.textContent = `${report.name} (replay): ${report.frames} frames, ${report.fixes} fixes, ` +
@@ -243,6 +252,7 @@
       const lock = $('live-lock');
       lock.textContent = LOCK_NAMES[state.lock] || String(state.lock);
       lock.className = 'lock-' + state.lock;
+      $('live-mode').textContent = state.mode || '–';
       if (state.height_mm) $('live-height').textContent = state.height_mm.toFixed(2) + ' mm (scale ' + state.scale.toFixed(4) + ')';
       if (!state.known) {
         $('live-pose').textContent = 'unknown';

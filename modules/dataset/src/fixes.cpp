@@ -14,24 +14,28 @@
 namespace mosaicloc::dataset {
 namespace {
 
-constexpr std::size_t kFields = 11;
+constexpr std::size_t kFields = 12;
+constexpr const char* kModes[] = {"track", "visual-odometry", "dead-reckoning", "searching"};
 
 }  // namespace
 
 std::string FixesCsvHeader() {
-  return "#timestamp_ns,x_mm,y_mm,yaw_rad,status,quality,fix,sigma_mm,scale,nis,reason\n";
+  return "#timestamp_ns,x_mm,y_mm,yaw_rad,status,quality,fix,sigma_mm,scale,nis,reason,mode\n";
 }
 
 std::string FixesCsvRow(const FrameReport& report) {
   if (report.reason.find_first_of(",\"\r\n") != std::string::npos) {
     core::ThrowInvalidInput("fixes.csv: reason '" + report.reason + "' holds a comma, quote or line break");
   }
+  if (!report.mode.empty() && std::find(std::begin(kModes), std::end(kModes), report.mode) == std::end(kModes)) {
+    core::ThrowInvalidInput("fixes.csv: mode '" + report.mode + "' is not one of the localizer's modes");
+  }
   const std::string nis = report.nis && std::isfinite(*report.nis) ? fmt::format("{:.4g}", *report.nis) : "";
-  return fmt::format("{},{:.4f},{:.4f},{:.7f},{},{},{},{:.4f},{:.6f},{},{}\n", report.time.nanoseconds(),
+  return fmt::format("{},{:.4f},{:.4f},{:.7f},{},{},{},{:.4f},{:.6f},{},{},{}\n", report.time.nanoseconds(),
                      report.world_from_vehicle.x_mm(), report.world_from_vehicle.y_mm(),
                      report.world_from_vehicle.yaw_rad(), report.status,
                      static_cast<int>(std::lround(1000.0 * std::clamp(report.quality, 0.0, 1.0))),
-                     report.fixed ? 1 : 0, report.sigma_mm, report.scale, nis, report.reason);
+                     report.fixed ? 1 : 0, report.sigma_mm, report.scale, nis, report.reason, report.mode);
 }
 
 std::vector<FrameReport> ReadFixesCsv(const std::filesystem::path& file) {
@@ -61,10 +65,10 @@ std::vector<FrameReport> ReadFixesCsv(const std::filesystem::path& file) {
     if (!line.empty() && line.back() == '\r') line.pop_back();
     if (line.empty() || line.front() == '#') continue;
     const std::vector<std::string> f = detail::SplitCsv(line);
-    if (f.size() > kFields || f.size() < kFields - 2) {
+    if (f.size() > kFields || f.size() < kFields - 3) {
       detail::LineError(file, number,
                         std::to_string(f.size()) + " fields, " + std::to_string(kFields) +
-                            " expected (timestamp_ns,x_mm,y_mm,yaw_rad,status,quality,fix,sigma_mm,scale,nis,reason)");
+                            " expected (timestamp_ns,x_mm,y_mm,yaw_rad,status,quality,fix,sigma_mm,scale,nis,reason,mode)");
     }
     FrameReport r;
     r.time = core::Timestamp::FromNanoseconds(integer_of(f[0], "timestamp_ns", std::numeric_limits<std::int64_t>::min(),
@@ -76,15 +80,22 @@ std::vector<FrameReport> ReadFixesCsv(const std::filesystem::path& file) {
     r.fixed = integer_of(f[6], "fix", 0, 1) == 1;
     r.sigma_mm = number_of(f[7], "sigma_mm");
     if (r.sigma_mm < 0.0) detail::LineError(file, number, "sigma_mm is negative");
-    if (f.size() >= kFields - 1) {
+    if (f.size() >= kFields - 2) {
       r.scale = number_of(f[8], "scale");
       if (!(r.scale > 0.0 && r.scale < 2.0)) detail::LineError(file, number, "scale " + f[8] + " is outside (0, 2)");
     }
-    if (f.size() == kFields && !f[9].empty()) {
+    if (f.size() >= kFields - 1 && !f[9].empty()) {
       r.nis = number_of(f[9], "nis");
       if (*r.nis < 0.0) detail::LineError(file, number, "nis is negative");
     }
-    r.reason = f.back();
+    r.reason = f[f.size() == kFields ? kFields - 2 : f.size() - 1];
+    if (f.size() == kFields) {
+      r.mode = f.back();
+      if (!r.mode.empty() && std::find(std::begin(kModes), std::end(kModes), r.mode) == std::end(kModes)) {
+        detail::LineError(file, number, "mode '" + r.mode + "' is not one of track, visual-odometry, "
+                                        "dead-reckoning, searching");
+      }
+    }
     reports.push_back(std::move(r));
   }
   return reports;

@@ -76,6 +76,7 @@ const std::vector<std::pair<std::string, std::string>>& ReportPlots() {
   static const std::vector<std::pair<std::string, std::string>> plots = {
       {"map_state.png", "The drive over the map, by lock state; frames without a fix crossed by reason."},
       {"map_quality.png", "The fixes over the map, by quality."},
+      {"map_mode.png", "Every frame over the map, by what the localizer did: tracked the map, visual odometry off it, dead reckoning, searching."},
       {"timelines.png", "Fix quality, uncertainty, NIS against its bound, speed, latency, wheel scales."},
       {"trajectory.png", "Against the ground truth: the estimate coloured by its error."},
       {"position_error.png", "Position error against the ground truth."},

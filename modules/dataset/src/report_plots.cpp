@@ -103,8 +103,22 @@ void DrawWorldAxesAndScale(Axes& axes, const Range& x, const Range& y) {
                 Align::kEnd);
 }
 
+// What a map plot colours the frames by.
+enum class Colouring { kState, kQuality, kMode };
+
+// The colour of a localizer mode (fixes.csv's mode column), in the order of the PLC's mode
+// register: track green, visual odometry blue, dead reckoning orange, searching magenta.
+cv::Scalar ModeColour(const std::string& mode) {
+  if (mode == "track") return {60, 170, 40};
+  if (mode == "visual-odometry") return {200, 110, 20};
+  if (mode == "dead-reckoning") return {20, 140, 240};
+  if (mode == "searching") return {200, 40, 200};
+  return plot::kTrackGrey;
+}
+
 cv::Mat MapPlot(const std::vector<FrameReport>& reports, const FloorPicture& floor, const std::string& title,
-                bool by_quality) {
+                Colouring colouring) {
+  const bool by_quality = colouring == Colouring::kQuality;
   constexpr int kWidth = 1000, kHeight = 900;
   cv::Mat canvas(kHeight, kWidth, CV_8UC3, plot::kWhite);
   const cv::Rect area(110, 80, kWidth - 110 - 210, kHeight - 80 - 80);
@@ -113,8 +127,29 @@ cv::Mat MapPlot(const std::vector<FrameReport>& reports, const FloorPicture& flo
   axes.DrawFrame("x [m]", "y [m]", area.width / 90.0, area.height / 90.0);
   DrawFloor(axes, x, y, floor);
   cv::rectangle(canvas, area, plot::kDarkGrey, 1);
-  plot::DrawTitle(canvas, title + (by_quality ? " - fixes by quality, over the map" : " - lock state, over the map"),
-                  floor.image.empty() ? "no map picture" : "the map's mosaic below");
+  const char* what = colouring == Colouring::kQuality ? " - fixes by quality, over the map"
+                     : colouring == Colouring::kMode  ? " - the localizer's mode, over the map"
+                                                      : " - lock state, over the map";
+  plot::DrawTitle(canvas, title + what, floor.image.empty() ? "no map picture" : "the map's mosaic below");
+  if (colouring == Colouring::kMode) {
+    std::map<std::string, std::int64_t> modes;
+    for (const FrameReport& r : reports) {
+      const cv::Point2d p = axes.ToPixel(r.world_from_vehicle.x_mm() / 1000.0, r.world_from_vehicle.y_mm() / 1000.0);
+      plot::Dot(axes.plot(), p, 2.5, ModeColour(r.mode));
+      ++modes[r.mode.empty() ? std::string("unknown") : r.mode];
+    }
+    DrawWorldAxesAndScale(axes, x, y);
+    const int lx = area.br().x + 16;
+    int ly = area.y + 10;
+    plot::PutText(canvas, "mode", {lx, ly}, 0.55, plot::kBlack, Align::kStart, Align::kCenter);
+    for (const auto& [mode, count] : modes) {
+      ly += 24;
+      plot::Dot(canvas, {lx + 8.0, static_cast<double>(ly)}, 4.0, ModeColour(mode));
+      plot::PutText(canvas, mode + " (" + std::to_string(count) + ")", {lx + 20, ly}, 0.5, plot::kDarkGrey,
+                    Align::kStart, Align::kCenter);
+    }
+    return canvas;
+  }
 
   cv::Mat colormap;
   if (by_quality) {
@@ -247,8 +282,11 @@ void CreateDirectory(const std::filesystem::path& directory) {
 void WriteMapPlots(const std::filesystem::path& directory, const std::vector<FrameReport>& reports,
                    const FloorPicture& floor, const std::string& title) {
   CreateDirectory(directory);
-  plot::SavePng(directory / "map_state.png", MapPlot(reports, floor, title, false));
-  plot::SavePng(directory / "map_quality.png", MapPlot(reports, floor, title, true));
+  plot::SavePng(directory / "map_state.png", MapPlot(reports, floor, title, Colouring::kState));
+  plot::SavePng(directory / "map_quality.png", MapPlot(reports, floor, title, Colouring::kQuality));
+  if (std::any_of(reports.begin(), reports.end(), [](const FrameReport& r) { return !r.mode.empty(); })) {
+    plot::SavePng(directory / "map_mode.png", MapPlot(reports, floor, title, Colouring::kMode));
+  }
 }
 
 void WriteTimelines(const std::filesystem::path& directory, const std::vector<TimelineSample>& samples,

@@ -41,12 +41,21 @@ void AddTruthFreeFigures(const std::vector<FrameReport>& reports, const Trajecto
   metrics->frames_by_state.clear();
   metrics->fixes_by_state.clear();
   metrics->no_fix_reasons.clear();
+  metrics->frames_by_mode.clear();
+  metrics->mode_switches.reset();
+  const std::string* last_mode = nullptr;
   double nis_sum = 0.0;
   std::int64_t nis_count = 0;
   std::int64_t nis_inside = 0;
   for (const FrameReport& report : reports) {
     const std::string state = StatusName(report.status);
     ++metrics->frames_by_state[state];
+    if (!report.mode.empty()) {
+      ++metrics->frames_by_mode[report.mode];
+      if (!metrics->mode_switches) metrics->mode_switches = 0;
+      if (last_mode != nullptr && *last_mode != report.mode) ++*metrics->mode_switches;
+      last_mode = &report.mode;
+    }
     if (report.fixed) {
       ++metrics->fixes_by_state[state];
     } else {

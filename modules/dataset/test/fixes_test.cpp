@@ -16,7 +16,8 @@ namespace {
 using core::Pose2;
 using core::Timestamp;
 
-FrameReport Report(double t_s, const Pose2& pose, int status, bool fixed, const std::string& reason = {}) {
+FrameReport Report(double t_s, const Pose2& pose, int status, bool fixed, const std::string& reason = {},
+                   const std::string& mode = "track") {
   FrameReport r;
   r.time = Timestamp::FromSeconds(t_s);
   r.world_from_vehicle = pose;
@@ -27,14 +28,17 @@ FrameReport Report(double t_s, const Pose2& pose, int status, bool fixed, const 
   r.scale = 1.0 + 0.001 * t_s;
   if (fixed) r.nis = 1.5 + t_s;
   r.reason = reason;
+  r.mode = mode;
   return r;
 }
 
 TEST(FixesCsv, RowsReadBackAsWritten) {
   test::ScratchDir scratch;
   const std::vector<FrameReport> written = {Report(0.1, Pose2(1.25, -2.5, 0.125), 1, true),
-                                            Report(0.2, Pose2(3.0, -4.0, 0.25), 4, false, "off-map"),
-                                            Report(0.3, Pose2(5.0, 6.0, -0.5), 2, false, "no-match")};
+                                            Report(0.2, Pose2(3.0, -4.0, 0.25), 4, false, "off-map", "visual-odometry"),
+                                            Report(0.3, Pose2(5.0, 6.0, -0.5), 2, false, "no-match"),
+                                            Report(0.4, Pose2(5.0, 6.0, -0.5), 4, false, "off-map", "dead-reckoning"),
+                                            Report(0.5, Pose2(5.0, 6.0, -0.5), 5, false, "no-match", "searching")};
   std::string text = FixesCsvHeader();
   for (const FrameReport& r : written) text += FixesCsvRow(r);
   std::ofstream(scratch.path() / "fixes.csv") << text;
@@ -53,8 +57,10 @@ TEST(FixesCsv, RowsReadBackAsWritten) {
       EXPECT_NEAR(*read[i].nis, *written[i].nis, 1e-3);
     }
     EXPECT_EQ(read[i].reason, written[i].reason);
+    EXPECT_EQ(read[i].mode, written[i].mode);
   }
   EXPECT_THROW(FixesCsvRow(Report(0.4, Pose2(), 3, false, "a, b")), core::Error);
+  EXPECT_THROW(FixesCsvRow(Report(0.4, Pose2(), 3, false, "off-map", "mapping")), core::Error);
 }
 
 TEST(FixesCsv, BadLinesNameTheFileAndLine) {
@@ -70,8 +76,10 @@ TEST(FixesCsv, BadLinesNameTheFileAndLine) {
     return std::string("no error");
   };
   EXPECT_NE(message("200,1,2,0.1,6,990,1,0.004,\n").find("bad.csv:3: status 6 is outside [0, 5]"), std::string::npos);
-  EXPECT_NE(message("200,1,2,0.1,1,990,1,0.004\n").find("bad.csv:3: 8 fields, 11 expected"), std::string::npos);
+  EXPECT_NE(message("200,1,2,0.1,1,990,1,0.004\n").find("bad.csv:3: 8 fields, 12 expected"), std::string::npos);
   EXPECT_NE(message("200,1,2,0.1,1,990,1,0.004,1,-2,\n").find("bad.csv:3: nis is negative"), std::string::npos);
+  EXPECT_NE(message("200,1,2,0.1,1,990,1,0.004,1,,,flying\n").find("bad.csv:3: mode 'flying' is not one of"),
+            std::string::npos);
   EXPECT_NE(message("200,1,2,0.1,1,990,1,0.004,2.5,\n").find("bad.csv:3: scale 2.5 is outside (0, 2)"),
             std::string::npos);
   EXPECT_NE(message("200,1,2,0.1,1,990,1,0.004,high,\n").find("bad.csv:3: scale 'high' is not a number"),

@@ -74,6 +74,7 @@ bool EncodeOutputs(const RegisterMap& map, const PlcOutputs& outputs, int base_a
   put(map.fix_yaw, counts(outputs.yaw_rad, map.fix_yaw));
   put(map.fix_status, outputs.status);
   put(map.fix_quality, outputs.quality);
+  put(map.fix_mode, outputs.mode);
   // The counters wrap like the PLC's own: only their low bits are written.
   const auto wrapped = [](std::uint32_t value, const RegisterField& field) -> std::int64_t {
     const std::uint64_t modulus = std::uint64_t{1} << field.width_bits;

@@ -29,7 +29,7 @@ std::vector<const RegisterField*> RegisterMap::Inputs() const {
 }
 
 std::vector<const RegisterField*> RegisterMap::Outputs() const {
-  return {&fix_x, &fix_y, &fix_yaw, &fix_status, &fix_quality, &fix_request_echo, &heartbeat};
+  return {&fix_x, &fix_y, &fix_yaw, &fix_status, &fix_quality, &fix_request_echo, &heartbeat, &fix_mode};
 }
 
 bool RegisterMap::Check(std::string* why) const {
@@ -53,7 +53,8 @@ bool RegisterMap::Check(std::string* why) const {
   }
   // Counters, heartbeats, status and quality are plain integers.
   for (const RegisterField* field :
-       {&plc_heartbeat, &fix_request, &relocalize_request, &fix_status, &fix_quality, &fix_request_echo, &heartbeat}) {
+       {&plc_heartbeat, &fix_request, &relocalize_request, &fix_status, &fix_quality, &fix_request_echo, &heartbeat,
+        &fix_mode}) {
     if (field->scale != 1.0) return fail(fmt::format("{}: scale must be 1 (it is a plain integer)", field->name));
   }
   if (fix_quality.MaxCount() < 1000) return fail("fix_quality: must hold 0-1000 (unsigned, or 32 bits)");

@@ -165,7 +165,7 @@ TEST_P(ClientWordOrder, ReadsInputsAndWritesFixesAsThePlcSeesThem) {
   EXPECT_GE(inputs.value().time, before);
   EXPECT_LE(inputs.value().time, MonotonicNow());
 
-  PlcOutputs outputs{1234.56, -7.89, -0.5, 1, 950, 3, 42};
+  PlcOutputs outputs{1234.56, -7.89, -0.5, 1, 950, 3, 42, 2};
   ASSERT_TRUE(link->Write(outputs).ok());
   const auto word32 = [&](int address) {
     return static_cast<std::int32_t>(order == WordOrder::kHighFirst ? JoinWords(plc.Get(address), plc.Get(address + 1))
@@ -178,6 +178,7 @@ TEST_P(ClientWordOrder, ReadsInputsAndWritesFixesAsThePlcSeesThem) {
   EXPECT_EQ(plc.Get(107), 950);
   EXPECT_EQ(plc.Get(108), 3);
   EXPECT_EQ(plc.Get(109), 42);
+  EXPECT_EQ(plc.Get(110), 2);
   EXPECT_EQ(link->stats().reads, 1);
   EXPECT_EQ(link->stats().writes, 1);
 }
@@ -320,15 +321,16 @@ TEST(PlcServerTest, PlcWritesInputsAndReadsFixes) {
   ASSERT_EQ(modbus_write_register(plc, 4, 10), 1);
   EXPECT_FALSE(link->Read().value().fresh);
 
-  ASSERT_TRUE(link->Write(PlcOutputs{-1.0, 2.5, 0.25, 2, 500, 4, 7}).ok());
-  std::uint16_t fix[10] = {};
-  ASSERT_EQ(modbus_read_registers(plc, 100, 10, fix), 10);
+  ASSERT_TRUE(link->Write(PlcOutputs{-1.0, 2.5, 0.25, 2, 500, 4, 7, 3}).ok());
+  std::uint16_t fix[11] = {};
+  ASSERT_EQ(modbus_read_registers(plc, 100, 11, fix), 11);
   EXPECT_EQ(static_cast<std::int32_t>(JoinWords(fix[0], fix[1])), -100);
   EXPECT_EQ(static_cast<std::int32_t>(JoinWords(fix[2], fix[3])), 250);
   EXPECT_EQ(static_cast<std::int32_t>(JoinWords(fix[4], fix[5])), 250000);
   EXPECT_EQ(fix[6], 2);
   EXPECT_EQ(fix[8], 4);
   EXPECT_EQ(fix[9], 7);
+  EXPECT_EQ(fix[10], 3);
   // Outside the table: an exception for the PLC, nothing changes here.
   EXPECT_EQ(modbus_write_register(plc, 150, 1), -1);
   EXPECT_TRUE(link->stats().connected);

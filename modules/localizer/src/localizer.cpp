@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <utility>
 
 #include <Eigen/Eigenvalues>
@@ -9,6 +10,7 @@
 #include <opencv2/core.hpp>
 
 #include "mosaicloc/core/error.hpp"
+#include "mosaicloc/core/log.hpp"
 #include "mosaicloc/tracking/render_window.hpp"
 
 namespace mosaicloc::localizer {
@@ -60,7 +62,40 @@ bool PartlyOffTheMap(const tracking::TrackResult& track) {
                      [](const tracking::TemplateReport& t) { return t.off_map; });
 }
 
+// The share of the view's shorter side between two camera poses' view centres.
+double ViewShift(const camera::IdealCamera& camera, const core::Pose2& a, const core::Pose2& b) {
+  return (a.translation_mm() - b.translation_mm()).norm() / std::min(camera.width_mm(), camera.height_mm());
+}
+
 }  // namespace
+
+const char* ToString(Mode mode) {
+  switch (mode) {
+    case Mode::kTrack: return "track";
+    case Mode::kVisualOdometry: return "visual-odometry";
+    case Mode::kDeadReckoning: return "dead-reckoning";
+    case Mode::kSearching: return "searching";
+  }
+  return "unknown";
+}
+
+bool VisualOdometryOptions::Check(std::string* why) const {
+  auto fail = [why](const char* message) {
+    if (why != nullptr) *why = message;
+    return false;
+  };
+  if (!(keyframe_fraction > 0.0 && keyframe_fraction <= max_fraction)) {
+    return fail("visual_odometry.keyframe_fraction must be in (0, max_fraction]");
+  }
+  if (!(max_fraction > 0.0 && max_fraction < 1.0)) return fail("visual_odometry.max_fraction must be in (0, 1)");
+  if (!(prior_sigma_mm > 0.0) || !(prior_sigma_fraction >= 0.0) || !(prior_sigma_deg > 0.0)) {
+    return fail("visual_odometry prior sigmas must be > 0 (the fraction >= 0)");
+  }
+  if (!(link_sigma_floor_mm >= 0.0) || !(link_sigma_floor_rad >= 0.0)) {
+    return fail("visual_odometry link sigma floors must be >= 0");
+  }
+  return true;
+}
 
 bool LocalizerOptions::Check(std::string* why) const {
   auto fail = [why](const char* message) {
@@ -91,6 +126,7 @@ bool LocalizerOptions::Check(std::string* why) const {
   if (!(tilt_pivot_height_mm >= -1000.0 && tilt_pivot_height_mm <= 2000.0)) {
     return fail("tilt_pivot_height_mm must be in [-1000, 2000]");
   }
+  if (!visual_odometry.Check(why)) return false;
   // The parts last, so that a complaint about a field of this struct is not hidden by one of theirs.
   return tracker.Check(why) && relocalize.Check(why) && filter.Check(why) && lock.Check(why) && odometry.Check(why);
 }
@@ -135,6 +171,7 @@ Localizer::Localizer(const camera::IdealCamera& camera, const LocalizerOptions& 
 void Localizer::Initialize(core::Timestamp time, const core::Pose2& world_from_vehicle,
                            const Eigen::Matrix3d& covariance) {
   filter_.emplace(options_.filter, time, world_from_vehicle, covariance);
+  keyframe_.reset();
   rejected_run_ = 0;
   unmatched_run_ = 0;
   kidnapped_ = false;
@@ -145,6 +182,7 @@ void Localizer::SetPose(core::Timestamp time, const core::Pose2& world_from_vehi
                         const Eigen::Matrix3d& covariance) {
   if (!filter_) core::ThrowRuntime("localizer: SetPose before Initialize");
   filter_->RestartAt(time, world_from_vehicle, covariance);
+  keyframe_.reset();  // it was placed by the estimate given up
   rejected_run_ = 0;
   unmatched_run_ = 0;
 }
@@ -324,11 +362,91 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   } else {
     verdict = ClassifyMiss(outcome, prior_camera, prior_camera_covariance, &outcome.reason);
   }
+  Mode mode = Mode::kTrack;
+  if (verdict == estimation::FrameVerdict::kSearching) {
+    mode = Mode::kSearching;
+  } else if (verdict == estimation::FrameVerdict::kOffMap) {
+    mode = options_.visual_odometry.enabled && VisualOdometry(time, frame, predicted, &outcome) ? Mode::kVisualOdometry
+                                                                                                : Mode::kDeadReckoning;
+  }
+  if (outcome.fixed) KeepKeyframe(time, frame);
   outcome.world_from_vehicle = filter_->PoseAt(time);
   outcome.covariance = filter_->CovarianceAt(time);
   const double sigma_mm = std::sqrt(std::max(outcome.covariance(0, 0), outcome.covariance(1, 1)));
   outcome.lock = lock_.Update(verdict, sigma_mm, outcome.reason);
+  outcome.mode = mode;
+  if (mode != mode_) {
+    // Every change is said, with what made it: the frame's reason, or the fix that ended it.
+    outcome.mode_switch = outcome.fixed ? std::string("a fix on the map") : outcome.reason;
+    core::Log().info("localizer: mode {} -> {} at {:.3f} s: {}", ToString(mode_), ToString(mode),
+                     core::ToSeconds(time - core::Timestamp()), outcome.mode_switch);
+    mode_ = mode;
+    ++mode_switches_;
+  }
   return outcome;
+}
+
+void Localizer::KeepKeyframe(core::Timestamp time, const cv::Mat& frame) {
+  if (!options_.visual_odometry.enabled) return;
+  if (!keyframe_) keyframe_.emplace();
+  keyframe_->time = time;
+  frame.copyTo(keyframe_->image);  // reuses the buffer: one copy per kept frame
+  keyframe_->world_from_vehicle = filter_->PoseAt(time);
+  keyframe_->covariance = filter_->CovarianceAt(time);
+}
+
+bool Localizer::VisualOdometry(core::Timestamp time, const cv::Mat& frame, const core::Pose2& predicted,
+                               FrameOutcome* outcome) {
+  const VisualOdometryOptions& vo = options_.visual_odometry;
+  const core::Pose2& vehicle_from_camera = options_.vehicle_from_camera;
+  const core::Pose2 predicted_camera = predicted * vehicle_from_camera;
+  if (!keyframe_ || keyframe_->image.size() != frame.size() || time <= keyframe_->time ||
+      ViewShift(camera_, keyframe_->world_from_vehicle * vehicle_from_camera, predicted_camera) > vo.max_fraction) {
+    // Nothing to register against (no frame kept yet, or too far to overlap): this frame
+    // starts the chain where the wheels put it.
+    KeepKeyframe(time, frame);
+    outcome->reason += "; visual odometry: a new keyframe";
+    return false;
+  }
+  const core::Pose2 keyframe_camera = keyframe_->world_from_vehicle * vehicle_from_camera;
+  // The wheels' motion since the keyframe, as the camera saw it, with its uncertainty.
+  const core::Pose2 prior_motion = Between(keyframe_camera, predicted_camera);
+  const double sigma_mm = vo.prior_sigma_mm + vo.prior_sigma_fraction * prior_motion.translation_mm().norm();
+  const double sigma_rad = vo.prior_sigma_deg * std::numbers::pi / 180.0;
+  const Eigen::Matrix3d prior =
+      Eigen::Vector3d(sigma_mm * sigma_mm, sigma_mm * sigma_mm, sigma_rad * sigma_rad).asDiagonal();
+  const tracking::TrackResult link = tracking::RegisterFrames(tracker_, keyframe_->image, frame, prior_motion, prior);
+  if (!link.ok()) {
+    outcome->reason += std::string("; visual odometry: ") + tracking::ToString(link.failure);
+    return false;
+  }
+  // world_from_camera = keyframe_camera * motion: the keyframe's covariance carried through
+  // the composition, plus the link's turned into the world.
+  Eigen::Matrix3d link_covariance = options_.fix_covariance_scale * link.covariance;
+  link_covariance(0, 0) += vo.link_sigma_floor_mm * vo.link_sigma_floor_mm;
+  link_covariance(1, 1) += vo.link_sigma_floor_mm * vo.link_sigma_floor_mm;
+  link_covariance(2, 2) += vo.link_sigma_floor_rad * vo.link_sigma_floor_rad;
+  const core::Pose2 camera_pose = keyframe_camera * link.world_from_camera;
+  const double c = std::cos(keyframe_camera.yaw_rad()), s = std::sin(keyframe_camera.yaw_rad());
+  Eigen::Matrix3d turn = Eigen::Matrix3d::Identity();
+  turn.topLeftCorner<2, 2>() << c, -s, s, c;
+  const Eigen::Matrix3d through = ComposeJacobian(keyframe_camera, link.world_from_camera);
+  const Eigen::Matrix3d camera_covariance =
+      through * CameraCovariance(keyframe_->world_from_vehicle, vehicle_from_camera, keyframe_->covariance) *
+          through.transpose() +
+      turn * link_covariance * turn.transpose();
+  const core::Pose2 pose = camera_pose * vehicle_from_camera.Inverse();
+  const Eigen::Matrix3d covariance = VehicleCovariance(camera_pose, vehicle_from_camera, camera_covariance);
+  filter_->RestartAt(time, pose, covariance);
+  outcome->fix_world_from_vehicle = pose;
+  outcome->fix_quality = std::clamp(link.mean_zncc, 0.0, 1.0);
+  if (ViewShift(camera_, keyframe_camera, camera_pose) >= vo.keyframe_fraction) {
+    keyframe_->time = time;
+    frame.copyTo(keyframe_->image);
+    keyframe_->world_from_vehicle = pose;
+    keyframe_->covariance = covariance;
+  }
+  return true;
 }
 
 core::Pose2 Localizer::MountingPoint(const tracking::TrackResult& track) const {

@@ -95,6 +95,8 @@ class Drive : public ::testing::Test {
     int first_fix_frame = -1;
     std::vector<double> fix_errors_mm;  ///< per frame: the accepted fix's error, -1 without one
     std::vector<estimation::LockState> states;
+    std::vector<Mode> modes;
+    std::vector<double> sigmas_mm;  ///< per frame: the estimate's position standard deviation
     std::vector<Pose2> cameras;  ///< the true camera pose of each frame
     std::vector<int> inliers;    ///< per frame: the templates the accepted fix rests on, 0 without one
     std::int64_t relocalizations = 0;
@@ -159,6 +161,8 @@ class Drive : public ::testing::Test {
       if (outcome.fixed && run.first_fix_frame < 0) run.first_fix_frame = frame;
       run.last_state = outcome.lock;
       run.states.push_back(outcome.lock);
+      run.modes.push_back(outcome.mode);
+      run.sigmas_mm.push_back(std::sqrt(std::max(outcome.covariance(0, 0), outcome.covariance(1, 1))));
       run.cameras.push_back(camera_pose);
       run.inliers.push_back(outcome.fixed ? outcome.track.inliers : 0);
       run.fix_errors_mm.push_back(outcome.fixed ? Distance(outcome.fix_world_from_vehicle, truth) : -1.0);
@@ -406,6 +410,49 @@ TEST_F(RepeatingExcursion, LeavingTheMapIsOffMapAndNeverAWrongFix) {
   ASSERT_LT(first, back + 3) << "no fix within three frames of the return";
   EXPECT_LT(run.fix_errors_mm[first], 0.02);
   EXPECT_LT(run.errors_mm.back(), 0.05);
+}
+
+// Off the map, each frame is registered against the keyframe and the estimate chained on:
+// it holds far better than the wheels (2 % off, while the filter is still learning by how
+// much), its uncertainty grows frame by frame, and it never makes a fix. Back on the map the
+// first fix is on the truth.
+TEST_F(RepeatingExcursion, OffTheMapVisualOdometryHoldsThePoseWhereTheWheelsDrift) {
+  const auto off_map_worst = [](const Run& run, Mode mode, int* frames) {
+    double worst = 0.0;
+    *frames = 0;
+    for (std::size_t i = 0; i < run.errors_mm.size(); ++i) {
+      if (run.states[i] != estimation::LockState::kOffMap) continue;
+      worst = std::max(worst, run.errors_mm[i]);
+      *frames += run.modes[i] == mode ? 1 : 0;
+    }
+    return worst;
+  };
+  options_.visual_odometry.enabled = false;
+  const Run wheels = Localize(1.6, 0.5, Pose2(), 1.0, /*slip_mm=*/0.0);
+  options_.visual_odometry.enabled = true;
+  const Run vo = Localize(1.6, 0.5, Pose2(), 1.0, 0.0);
+  int dead_reckoned = 0, registered = 0;
+  const double wheels_worst = off_map_worst(wheels, Mode::kDeadReckoning, &dead_reckoned);
+  const double vo_worst = off_map_worst(vo, Mode::kVisualOdometry, &registered);
+  RecordProperty("off_map_worst_error_um_wheels", static_cast<int>(1000.0 * wheels_worst));
+  RecordProperty("off_map_worst_error_um_visual_odometry", static_cast<int>(1000.0 * vo_worst));
+  EXPECT_GE(dead_reckoned, 5);
+  EXPECT_GE(registered, 5) << "off the map, frames are registered frame to keyframe";
+  EXPECT_LT(vo_worst, 0.1) << "the wheels alone: " << wheels_worst << " mm";
+  EXPECT_LT(vo_worst, 0.5 * wheels_worst);
+  // The uncertainty grows while off the map, and no frame there counts as a fix.
+  double first_sigma = -1.0, last_sigma = -1.0;
+  for (std::size_t i = 0; i < vo.modes.size(); ++i) {
+    if (vo.modes[i] != Mode::kVisualOdometry) continue;
+    EXPECT_LT(vo.fix_errors_mm[i], 0.0) << "frame " << i + 1 << " off the map counted as a fix";
+    if (first_sigma < 0.0) first_sigma = vo.sigmas_mm[i];
+    last_sigma = vo.sigmas_mm[i];
+  }
+  EXPECT_GT(last_sigma, first_sigma);
+  for (const double e : vo.fix_errors_mm) EXPECT_LT(e, 1.0) << "a wrong fix";
+  EXPECT_EQ(vo.lock_losses, 0);
+  EXPECT_LT(vo.errors_mm.back(), 0.05);
+  EXPECT_EQ(vo.modes.back(), Mode::kTrack);
 }
 
 // Coming back onto the map the view is half off it and its templates all lie on one side; the

@@ -12,6 +12,7 @@
 // With --record, a fifth thread writes what the run saw as a dataset.
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -168,6 +169,7 @@ struct Published {
   bool fixed_once = false;
   double quality = 0.0;
   double scale = 1.0;  // the image scale the localizer holds (FrameOutcome::scale)
+  int mode = 0;        // localizer::Mode of the latest frame; 0 before the first
 };
 
 // Counters for the status line and the summary; each written by one thread.
@@ -183,6 +185,7 @@ struct RunStats {
   std::atomic<std::int64_t> answered{0};
   std::atomic<std::int64_t> fix_writes{0};
   std::atomic<std::int64_t> odometry_outages{0};
+  std::array<std::atomic<std::int64_t>, 5> frames_by_mode{};  // by localizer::Mode (0 unused)
   std::atomic<bool> odometry_valid{false};
   std::atomic<bool> heartbeat_stale{false};
   std::mutex mutex;                     // guards the lists below
@@ -354,6 +357,7 @@ class LiveRun::Impl {
     // Lost or off the map, the pose is dead reckoning: no visual quality to report.
     const bool visual = status == 1 || status == 2;
     outputs.quality = visual ? static_cast<int>(std::lround(1000.0 * state.quality)) : 0;
+    outputs.mode = state.mode;
     return outputs;
   }
 
@@ -485,6 +489,7 @@ class LiveRun::Impl {
       published_.quality = quality;
     }
     if (scale) published_.scale = *scale;
+    if (stats_.processed > 0) published_.mode = static_cast<int>(localizer_->mode());
   }
 
   void TrackingLoop() {
@@ -531,6 +536,7 @@ class LiveRun::Impl {
       const auto processing_start = io::MonotonicNow();
       const localizer::FrameOutcome outcome = localizer_->ProcessFrame(frame->time, frame->image);
       ++stats_.processed;
+      ++stats_.frames_by_mode[static_cast<std::size_t>(outcome.mode)];
       if (recorder_) recorder_->Report(runtime::FrameReportOf(frame->time, outcome));
       if (outcome.fixed) {
         ++stats_.fixes;
@@ -560,6 +566,7 @@ class LiveRun::Impl {
     pose.cov_yy = outcome.covariance(1, 1);
     pose.sigma_yaw_rad = std::sqrt(std::max(0.0, outcome.covariance(2, 2)));
     pose.lock = static_cast<int>(outcome.lock);  // design.md section 6, as fixes.csv writes it
+    pose.mode = localizer::ToString(outcome.mode);
     pose.fixed = outcome.fixed;
     pose.quality = outcome.fix_quality;
     pose.scale = outcome.scale;
@@ -567,6 +574,16 @@ class LiveRun::Impl {
     pose.frames = stats_.processed;
     pose.fixes = stats_.fixes;
     return pose;
+  }
+
+  // Frames per mode so far, by the modes' names.
+  nlohmann::json FramesByMode() const {
+    nlohmann::json counts = nlohmann::json::object();
+    for (const localizer::Mode mode : {localizer::Mode::kTrack, localizer::Mode::kVisualOdometry,
+                                       localizer::Mode::kDeadReckoning, localizer::Mode::kSearching}) {
+      counts[localizer::ToString(mode)] = stats_.frames_by_mode[static_cast<std::size_t>(mode)].load();
+    }
+    return counts;
   }
 
   // The status line of the last second (LiveRun::Run).
@@ -600,6 +617,7 @@ class LiveRun::Impl {
     const std::int64_t errors = link.read_errors + link.write_errors + link.connect_failures;
     return {{"t_s", elapsed},
             {"lock", state.fixed_once ? estimation::ToString(state.lock) : "none"},
+            {"mode", state.mode > 0 ? localizer::ToString(static_cast<localizer::Mode>(state.mode)) : "none"},
             {"fixes_per_s", new_fixes},
             {"frames_per_s", new_frames},
             {"latency_p50_ms", latency},
@@ -646,6 +664,8 @@ class LiveRun::Impl {
             {"fix_rate", processed > 0 ? static_cast<double>(stats_.fixes) / static_cast<double>(processed) : 0.0},
             {"lock_losses", localizer_->lock().losses()},
             {"relocalizations", localizer_->relocalizations()},
+            {"mode_switches", localizer_->mode_switches()},
+            {"frames_by_mode", FramesByMode()},
             {"relocalize_requests", stats_.relocalize_requests.load()},
             {"wheel_scale_error", wheel_scale},
             {"scale", scale},

@@ -102,6 +102,19 @@ void ReadLocalizerConfig(const YAML::Node& node, const std::string& file_name, L
   lock.CheckOwnKeys(o);
   lock.Finish();
 
+  core::YamlMap vo = root.OptionalMap("visual_odometry");
+  localizer::VisualOdometryOptions& v = o.visual_odometry;
+  vo.Optional("enabled", &v.enabled);
+  vo.Optional("keyframe_fraction", &v.keyframe_fraction);
+  vo.Optional("max_fraction", &v.max_fraction);
+  vo.Optional("prior_sigma_mm", &v.prior_sigma_mm);
+  vo.Optional("prior_sigma_fraction", &v.prior_sigma_fraction);
+  vo.Optional("prior_sigma_deg", &v.prior_sigma_deg);
+  vo.Optional("link_sigma_floor_mm", &v.link_sigma_floor_mm);
+  vo.Optional("link_sigma_floor_rad", &v.link_sigma_floor_rad);
+  vo.Check(v);
+  vo.Finish();
+
   core::YamlMap map = root.OptionalMap("map");
   std::int64_t budget = static_cast<std::int64_t>(config->cache_budget_mib);
   map.Optional("cache_budget_mib", &budget, core::IntegerInRange(0, std::int64_t{1} << 40));

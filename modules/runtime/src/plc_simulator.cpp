@@ -79,6 +79,7 @@ PlcSimulatorSummary RunPlcSimulator(const PlcSimulatorOptions& args, const PlcSi
     r.fix.yaw_rad = static_cast<double>(at(map.fix_yaw)) * map.fix_yaw.scale;
     r.fix.status = static_cast<int>(at(map.fix_status));
     r.fix.quality = static_cast<int>(at(map.fix_quality));
+    r.fix.mode = static_cast<int>(at(map.fix_mode));
     r.fix.request_echo = static_cast<std::uint32_t>(at(map.fix_request_echo));
     r.fix.heartbeat = static_cast<std::uint32_t>(at(map.heartbeat));
     const std::lock_guard lock(received_mutex);
@@ -103,8 +104,9 @@ PlcSimulatorSummary RunPlcSimulator(const PlcSimulatorOptions& args, const PlcSi
 
   std::int64_t fixes = 0, requests = 0, answered = 0;
   std::vector<double> answer_ms, errors_mm, heading_errors_deg;
-  std::vector<std::int64_t> status_counts(5, 0);  // none, tracking, degraded, lost, off-map
-  std::string csv = "#time_s,x_mm,y_mm,yaw_rad,status,quality,request_echo,heartbeat,gt_x_mm,gt_y_mm,error_mm\n";
+  std::vector<std::int64_t> status_counts(6, 0);  // none, tracking, degraded, lost, off-map, searching
+  std::vector<std::int64_t> mode_counts(5, 0);    // none, track, visual odometry, dead reckoning, searching
+  std::string csv = "#time_s,x_mm,y_mm,yaw_rad,status,quality,request_echo,heartbeat,gt_x_mm,gt_y_mm,error_mm,mode\n";
   core::Timestamp next_print = io::MonotonicNow() + std::chrono::seconds(1);
 
   const auto process_received = [&] {
@@ -115,7 +117,8 @@ PlcSimulatorSummary RunPlcSimulator(const PlcSimulatorOptions& args, const PlcSi
       }
       for (const ReceivedFix& r : batch) {
         ++fixes;
-        ++status_counts[static_cast<std::size_t>(std::clamp(r.fix.status, 0, 4))];
+        ++status_counts[static_cast<std::size_t>(std::clamp(r.fix.status, 0, 5))];
+        ++mode_counts[static_cast<std::size_t>(std::clamp(r.fix.mode, 0, 4))];
         if (!request_answered && request_time && r.fix.request_echo == Masked(request, map.fix_request_echo)) {
           request_answered = true;
           ++answered;
@@ -131,10 +134,10 @@ PlcSimulatorSummary RunPlcSimulator(const PlcSimulatorOptions& args, const PlcSi
           heading_errors_deg.push_back(std::abs(core::WrapAngle(r.fix.yaw_rad - truth->yaw_rad())) * 180.0 /
                                        std::numbers::pi);
         }
-        csv += fmt::format("{:.6f},{:.2f},{:.2f},{:.6f},{},{},{},{},{},{},{}\n", dataset_time.seconds(), r.fix.x_mm,
+        csv += fmt::format("{:.6f},{:.2f},{:.2f},{:.6f},{},{},{},{},{},{},{},{}\n", dataset_time.seconds(), r.fix.x_mm,
                            r.fix.y_mm, r.fix.yaw_rad, r.fix.status, r.fix.quality, r.fix.request_echo, r.fix.heartbeat,
                            truth ? fmt::format("{:.2f}", truth->x_mm()) : "", truth ? fmt::format("{:.2f}", truth->y_mm()) : "",
-                           std::isnan(error) ? "" : fmt::format("{:.3f}", error));
+                           std::isnan(error) ? "" : fmt::format("{:.3f}", error), r.fix.mode);
       }
   };
   while (!(callbacks.stop && callbacks.stop())) {
@@ -201,6 +204,7 @@ PlcSimulatorSummary RunPlcSimulator(const PlcSimulatorOptions& args, const PlcSi
   PlcSimulatorSummary summary;
   summary.fixes_received = fixes;
   summary.status_counts = status_counts;
+  summary.mode_counts = mode_counts;
   summary.requests = requests;
   summary.answered = answered;
   std::sort(answer_ms.begin(), answer_ms.end());

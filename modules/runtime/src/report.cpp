@@ -54,6 +54,8 @@ dataset::Metrics WriteReport(const std::filesystem::path& directory, const datas
     merged.frames_by_state = metrics.frames_by_state;
     merged.fixes_by_state = metrics.fixes_by_state;
     merged.no_fix_reasons = metrics.no_fix_reasons;
+    merged.frames_by_mode = metrics.frames_by_mode;
+    merged.mode_switches = metrics.mode_switches;
     merged.nis_fixes = metrics.nis_fixes;
     merged.nis_inside_95_share = metrics.nis_inside_95_share;
     merged.nis_mean = metrics.nis_mean;
@@ -116,6 +118,7 @@ dataset::FrameReport FrameReportOf(core::Timestamp time, const localizer::FrameO
   report.scale = outcome.scale;
   report.nis = outcome.nis;
   report.reason = outcome.ReasonWord();
+  report.mode = localizer::ToString(outcome.mode);
   return report;
 }
 

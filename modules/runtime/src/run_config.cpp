@@ -35,7 +35,7 @@ bool ReadRegisters(core::YamlMap* parent, core::YamlMap* registers, io::Register
     for (io::RegisterField* field : {&map->left_ticks, &map->right_ticks, &map->plc_heartbeat, &map->fix_request,
                                      &map->relocalize_request,
                                      &map->fix_x, &map->fix_y, &map->fix_yaw, &map->fix_status, &map->fix_quality,
-                                     &map->fix_request_echo, &map->heartbeat}) {
+                                     &map->fix_request_echo, &map->heartbeat, &map->fix_mode}) {
       field->word_order = word_order;
     }
   }
@@ -51,6 +51,7 @@ bool ReadRegisters(core::YamlMap* parent, core::YamlMap* registers, io::Register
   ReadField(registers, "fix_quality", &map->fix_quality);
   ReadField(registers, "fix_request_echo", &map->fix_request_echo);
   ReadField(registers, "heartbeat", &map->heartbeat);
+  ReadField(registers, "fix_mode", &map->fix_mode);
   registers->Finish();
   std::string why;
   if (map->Check(&why)) return true;

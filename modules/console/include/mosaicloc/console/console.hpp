@@ -66,6 +66,7 @@ struct LivePose {
   double cov_xx = 0.0, cov_xy = 0.0, cov_yy = 0.0;  ///< position covariance, mm^2
   double sigma_yaw_rad = 0.0;
   int lock = 0;                ///< design.md section 6: 1 tracking ... 5 searching
+  std::string mode;            ///< what the localizer did (design.md section 7c): "track", ...
   bool fixed = false;          ///< this frame had an accepted visual fix
   double quality = 0.0;        ///< 0..1
   double scale = 1.0;          ///< the image scale held (height over the calibrated height)

@@ -27,6 +27,9 @@ struct FrameReport {
   /// gate); empty otherwise.
   std::optional<double> nis;
   std::string reason;              ///< why no fix, one word ("off-map", "no-match", ...); empty with one
+  /// What the localizer did with the frame (design.md section 7c): "track",
+  /// "visual-odometry", "dead-reckoning", "searching"; empty in files written before the column.
+  std::string mode;
 };
 
 /// The highest lock state fixes.csv holds (5, searching).
@@ -39,9 +42,10 @@ std::string FixesCsvHeader();
 std::string FixesCsvRow(const FrameReport& report);
 
 /// Reads fixes.csv; every line is validated (field count, numbers, status 0-5, quality
-/// 0-1000, fix 0 or 1, scale in (0, 2), nis empty or not negative, times increasing). Rows of
-/// nine fields (written before the scale column) read with scale 1, rows of ten (before the
-/// nis column) without a NIS. Throws core::Error (invalid input) "file:line:
+/// 0-1000, fix 0 or 1, scale in (0, 2), nis empty or not negative, mode one of its words or
+/// empty, times increasing). Rows of nine fields (written before the scale column) read with
+/// scale 1, rows of ten (before the nis column) without a NIS, rows of eleven (before the mode
+/// column) without a mode. Throws core::Error (invalid input) "file:line:
 /// reason" on the first bad line.
 std::vector<FrameReport> ReadFixesCsv(const std::filesystem::path& file);
 

@@ -22,7 +22,8 @@ struct FloorPicture {
 /// axes at the origin (when in view), a scale bar and a legend with counts:
 ///  - map_state.png: every frame's position, coloured by its lock state; frames without a fix
 ///    marked by reason (crosses);
-///  - map_quality.png: the fixes coloured by their quality (0..1, a colour bar), the rest grey.
+///  - map_quality.png: the fixes coloured by their quality (0..1, a colour bar), the rest grey;
+///  - map_mode.png (when the reports carry the localizer's mode): every frame coloured by it.
 /// `floor` may be empty (no map: a white background). Needs no ground truth.
 void WriteMapPlots(const std::filesystem::path& directory, const std::vector<FrameReport>& reports,
                    const FloorPicture& floor, const std::string& title);

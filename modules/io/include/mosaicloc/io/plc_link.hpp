@@ -62,6 +62,7 @@ struct PlcOutputs {
   int quality = 0;           ///< 0-1000
   std::uint32_t request_echo = 0;
   std::uint32_t heartbeat = 0;
+  int mode = 0;              ///< 0 none, 1 track, 2 visual odometry, 3 dead reckoning, 4 searching
 };
 
 /// Health of the link, for the status line and the logs. Every Modbus error is counted.

@@ -53,6 +53,9 @@ struct RegisterMap {
   RegisterField fix_quality{"fix_quality", 107, 16, false, 1.0};
   RegisterField fix_request_echo{"fix_request_echo", 108, 16, false, 1.0};
   RegisterField heartbeat{"heartbeat", 109, 16, false, 1.0};
+  /// What the localizer does (localizer::Mode): 0 none yet, 1 track, 2 visual odometry,
+  /// 3 dead reckoning, 4 searching.
+  RegisterField fix_mode{"fix_mode", 110, 16, false, 1.0};
 
   std::vector<const RegisterField*> Inputs() const;
   std::vector<const RegisterField*> Outputs() const;

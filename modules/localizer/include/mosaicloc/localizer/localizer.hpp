@@ -20,6 +20,40 @@
 
 namespace mosaicloc::localizer {
 
+/// What the localizer did with a frame (design.md section 7c; the PLC's mode register).
+enum class Mode {
+  kTrack = 1,           ///< registered against the map: a fix, or a miss where the map says one was due
+  kVisualOdometry = 2,  ///< off the map: registered against the last keyframe and chained on from it
+  kDeadReckoning = 3,   ///< off the map and not registered: the wheels alone
+  kSearching = 4,       ///< the pose is unknown and the whole map is searched
+};
+/// "track", "visual-odometry", "dead-reckoning", "searching" (fixes.csv's mode column).
+const char* ToString(Mode mode);
+
+/// Visual odometry off the map (design.md section 7c): a frame off the map is registered
+/// against the keyframe (the last frame with a fix or registered so, kept as the view moves on)
+/// around the wheels' motion since it, and the estimate chained on from the keyframe's with the
+/// registration's covariance added; the wheels carry it only where that fails.
+struct VisualOdometryOptions {
+  bool enabled = true;
+  /// A registered frame becomes the keyframe once its view centre is this share of the view's
+  /// shorter side away from the keyframe's (fewer links in the chain, less drift).
+  double keyframe_fraction = 0.3;
+  /// A frame whose predicted view centre is farther than this share from the keyframe's is not
+  /// registered against it (too little overlap); it becomes the keyframe, dead-reckoned.
+  double max_fraction = 0.6;
+  /// The wheels' motion since the keyframe as the registration's prior: uncertain by
+  /// prior_sigma_mm + prior_sigma_fraction x its length, and prior_sigma_deg.
+  double prior_sigma_mm = 2.0;
+  double prior_sigma_fraction = 0.05;
+  double prior_sigma_deg = 0.5;
+  /// Floors on each link's standard deviation (the registration's covariance is scaled by
+  /// LocalizerOptions::fix_covariance_scale first), mm and rad.
+  double link_sigma_floor_mm = 0.005;
+  double link_sigma_floor_rad = 3e-5;
+  bool Check(std::string* why) const;
+};
+
 struct LocalizerOptions {
   tracking::TrackerOptions tracker;
   estimation::PoseFilterOptions filter;
@@ -85,6 +119,7 @@ struct LocalizerOptions {
   /// tilted by an angle a moves the image centre on the floor by this times a against the
   /// camera's mounting point; the fix takes that out (0: the body tilts about the floor).
   double tilt_pivot_height_mm = 0.0;
+  VisualOdometryOptions visual_odometry;
   bool Check(std::string* why) const;
 };
 
@@ -103,6 +138,9 @@ struct FrameOutcome {
   core::Pose2 world_from_vehicle;    ///< the filter's estimate at the frame's time, after the fix
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
   estimation::LockState lock = estimation::LockState::kTracking;
+  Mode mode = Mode::kTrack;
+  /// The frame changed the mode: why (empty otherwise).
+  std::string mode_switch;
   /// The image scale estimate after the frame, and its standard deviation (LocalizerOptions::
   /// scale_sigma): 1.004 is a camera 0.4 % higher over the floor than calibrated.
   double scale = 1.0;
@@ -180,6 +218,9 @@ class Localizer {
   void RequestGlobalRelocalization();
   /// A kidnap is known (requested, or seen by the view) and not yet resolved by a fix.
   bool kidnapped() const { return kidnapped_; }
+  /// The mode of the latest frame, and how often it has changed since the start.
+  Mode mode() const { return mode_; }
+  std::int64_t mode_switches() const { return mode_switches_; }
 
  private:
   // Relocalizes the frame around the prediction: the verified registration, or nothing.
@@ -201,6 +242,12 @@ class Localizer {
   /// tilt it measured (LocalizerOptions::tilt_pivot_height_mm).
   core::Pose2 MountingPoint(const tracking::TrackResult& track) const;
   tracking::TrackResult AtTheEdge(const cv::Mat& frame, tracking::TrackResult found) const;
+  // Off the map: registers the frame against the keyframe and chains the estimate on from it
+  // (true), or makes it the keyframe where it cannot be registered (false, and why).
+  bool VisualOdometry(core::Timestamp time, const cv::Mat& frame, const core::Pose2& predicted,
+                      FrameOutcome* outcome);
+  // Keeps the frame as the keyframe, at the filter's estimate for its time.
+  void KeepKeyframe(core::Timestamp time, const cv::Mat& frame);
   // Restarts the filter from a fix (a relocalization or a re-anchoring) and says so.
   void Restart(core::Timestamp time, const core::Pose2& fix, const Eigen::Matrix3d& fix_covariance,
                FrameOutcome* outcome);
@@ -232,6 +279,17 @@ class Localizer {
   std::int64_t lost_frames_ = 0;  ///< frames without a fix while lost
   bool kidnapped_ = false;
   bool pose_unknown_ = false;
+  // Visual odometry's keyframe: its time, image (owned: the caller's buffer may be reused),
+  // and the estimate and covariance of world_from_vehicle at its time.
+  struct Keyframe {
+    core::Timestamp time;
+    cv::Mat image;
+    core::Pose2 world_from_vehicle;
+    Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+  };
+  std::optional<Keyframe> keyframe_;
+  Mode mode_ = Mode::kTrack;
+  std::int64_t mode_switches_ = 0;
   // The image scale's estimate, its variance, and the time it was last brought to.
   double scale_ = 1.0;
   double scale_variance_ = 0.0;

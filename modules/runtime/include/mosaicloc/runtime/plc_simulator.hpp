@@ -47,7 +47,8 @@ struct PlcSimulatorCallbacks {
 
 struct PlcSimulatorSummary {
   std::int64_t fixes_received = 0;
-  std::vector<std::int64_t> status_counts;  ///< by PLC status: none, tracking, degraded, lost, off-map
+  std::vector<std::int64_t> status_counts;  ///< by PLC status: none, tracking, degraded, lost, off-map, searching
+  std::vector<std::int64_t> mode_counts;    ///< by PLC mode: none, track, visual odometry, dead reckoning, searching
   std::int64_t requests = 0, answered = 0;
   std::optional<double> answer_p50_ms, answer_p99_ms, answer_max_ms;
   /// Against the ground truth, over fixes with a status other than none (when the drive has one).
