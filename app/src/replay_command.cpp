@@ -28,6 +28,7 @@ struct ReplayArgs {
   std::vector<double> kidnap_offset;  // dx_mm, dy_mm, dyaw_deg in the vehicle's frame
   bool kidnap_told = false;
   std::int64_t revisit_places = 200;
+  bool mapping = false;  // automatic mapping: extend (or create) the map with the floor off it
 };
 
 void Run(const ReplayArgs& args, const GlobalOptions& global) {
@@ -62,6 +63,12 @@ void Run(const ReplayArgs& args, const GlobalOptions& global) {
   }
   options.prefetch = args.prefetch;
   options.revisit_places = args.revisit_places;
+  options.mapping = args.mapping;
+  if (args.mapping && mode != "mosaic") core::ThrowInvalidInput("replay: --mapping needs --map MAP (the mosaic mode)");
+  std::error_code ec;
+  if (!args.map.empty() && !args.mapping && !std::filesystem::is_regular_file(args.map, ec)) {
+    core::ThrowInvalidInput("replay: --map: " + args.map.string() + " does not exist (give --mapping to create it)");
+  }
 
   ProgressBar progress("replay", global.quiet);
   const runtime::ReplaySummary summary = runtime::Replay(options, progress.Callback());
@@ -77,7 +84,10 @@ Action AddReplayCommand(CLI::App& app, const GlobalOptions& global) {
   for (const runtime::ReplayMode mode : runtime::kReplayModes) modes.emplace_back(runtime::ToString(mode));
   CLI::App* command = app.add_subcommand("replay", "Localize a recorded or simulated dataset and write a report");
   command->add_option("--dataset", args->dataset, "Dataset directory")->required();
-  command->add_option("--map", args->map, "Mosaic map (*.mosaic) to localize against")->check(CLI::ExistingFile);
+  command->add_option("--map", args->map, "Mosaic map (*.mosaic) to localize against");
+  command->add_flag("--mapping", args->mapping,
+                    "Automatic mapping: add the floor driven over off the map to it (written as the drive goes); "
+                    "creates the map when it does not exist");
   command->add_option("--out", args->out, "Report directory")->required();
   command->add_option("--config", args->config, "Localizer configuration (see config/default/localizer.yaml)")
       ->check(CLI::ExistingFile);

@@ -130,10 +130,14 @@ for name, first_by in (("kidnap-along", 10), ("kidnap-request", 1)):
     assert m["fix_rate"] >= 0.9 and m["position_p50_mm"] <= 0.01 and m["final_position_error_mm"] <= 0.1, m
 m, rows, first = load("kidnap-across")
 assert m["wrong_fixes"] == 0 and m["lock_losses"] == 0, m
-assert m["off_map_frames"] == m["frames"] and all(r[4] == "4" and r[-1] == "off-map" for r in rows), rows[:3]
+# The estimate, 60 mm across, lies off the lane: off the map it goes on by visual odometry (the
+# vehicle's true motion, 60 mm aside), and where that brings the predicted view onto the map a
+# miss is no fix either.
+assert m["fixes"] == 0 and m["off_map_frames"] >= 0.9 * m["frames"], m
+assert all(r[10] == "off-map" and r[11] in ("visual-odometry", "dead-reckoning") for r in rows if r[4] == "4"), rows[:3]
 m, rows, first = load("kidnap-indexed")
 assert m["wrong_fixes"] == 0 and m["fixes"] == 0, m
-assert rows[0][-1] == "ambiguous", rows[:3]
+assert rows[0][10] == "ambiguous" and rows[0][11] == "track", rows[:3]
 PY
 expect_exit 2 "$MOSAICLOC" replay --dataset "$SCRATCH/asphalt-run" --map "$SCRATCH/asphalt.mosaic" \
   --out "$SCRATCH/x" --start-offset 400,100

@@ -351,6 +351,16 @@ void WriteMetricsJson(const std::filesystem::path& file, const Metrics& metrics)
   json["frames_to_first_fix"] = ToJson(metrics.frames_to_first_fix);
   json["first_fix_s"] = ToJson(metrics.first_fix_s);
   json["kidnap_frames_to_fix"] = ToJson(metrics.kidnap_frames_to_fix);
+  if (metrics.map_extension_segments) {
+    json["map_extension_segments"] = ToJson(metrics.map_extension_segments);
+    json["map_extension_closed"] = ToJson(metrics.map_extension_closed);
+    json["map_extension_keyframes"] = ToJson(metrics.map_extension_keyframes);
+    json["map_extension_tiles"] = ToJson(metrics.map_extension_tiles);
+    json["map_extension_unanchored"] = ToJson(metrics.map_extension_unanchored);
+    json["map_extension_closure_max_mm"] = ToJson(metrics.map_extension_closure_max_mm);
+    json["map_extension_pose_rms_mm"] = ToJson(metrics.map_extension_pose_rms_mm);
+    json["map_extension_pose_max_mm"] = ToJson(metrics.map_extension_pose_max_mm);
+  }
   json["height_error_rms_mm"] = ToJson(metrics.height_error_rms_mm);
   json["height_error_max_mm"] = ToJson(metrics.height_error_max_mm);
   json["estimate_path_length_m"] = ToJson(metrics.estimate_path_length_m);

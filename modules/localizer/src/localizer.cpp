@@ -88,6 +88,9 @@ bool VisualOdometryOptions::Check(std::string* why) const {
     return fail("visual_odometry.keyframe_fraction must be in (0, max_fraction]");
   }
   if (!(max_fraction > 0.0 && max_fraction < 1.0)) return fail("visual_odometry.max_fraction must be in (0, 1)");
+  if (!(keyframe_turn_deg > 0.0 && keyframe_turn_deg <= 45.0)) {
+    return fail("visual_odometry.keyframe_turn_deg must be in (0, 45]");
+  }
   if (!(prior_sigma_mm > 0.0) || !(prior_sigma_fraction >= 0.0) || !(prior_sigma_deg > 0.0)) {
     return fail("visual_odometry prior sigmas must be > 0 (the fraction >= 0)");
   }
@@ -369,7 +372,10 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
     mode = options_.visual_odometry.enabled && VisualOdometry(time, frame, predicted, &outcome) ? Mode::kVisualOdometry
                                                                                                 : Mode::kDeadReckoning;
   }
-  if (outcome.fixed) KeepKeyframe(time, frame);
+  if (outcome.fixed) {
+    KeepKeyframe(time, frame);
+    outcome.keyframe = options_.visual_odometry.enabled;
+  }
   outcome.world_from_vehicle = filter_->PoseAt(time);
   outcome.covariance = filter_->CovarianceAt(time);
   const double sigma_mm = std::sqrt(std::max(outcome.covariance(0, 0), outcome.covariance(1, 1)));
@@ -405,6 +411,7 @@ bool Localizer::VisualOdometry(core::Timestamp time, const cv::Mat& frame, const
     // Nothing to register against (no frame kept yet, or too far to overlap): this frame
     // starts the chain where the wheels put it.
     KeepKeyframe(time, frame);
+    outcome->keyframe = true;
     outcome->reason += "; visual odometry: a new keyframe";
     return false;
   }
@@ -440,7 +447,10 @@ bool Localizer::VisualOdometry(core::Timestamp time, const cv::Mat& frame, const
   filter_->RestartAt(time, pose, covariance);
   outcome->fix_world_from_vehicle = pose;
   outcome->fix_quality = std::clamp(link.mean_zncc, 0.0, 1.0);
-  if (ViewShift(camera_, keyframe_camera, camera_pose) >= vo.keyframe_fraction) {
+  outcome->link = tracking::FrameLink{keyframe_->time, link.world_from_camera, link_covariance};
+  if (ViewShift(camera_, keyframe_camera, camera_pose) >= vo.keyframe_fraction ||
+      std::abs(link.world_from_camera.yaw_rad()) >= vo.keyframe_turn_deg * std::numbers::pi / 180.0) {
+    outcome->keyframe = true;
     keyframe_->time = time;
     frame.copyTo(keyframe_->image);
     keyframe_->world_from_vehicle = pose;
@@ -483,6 +493,18 @@ estimation::FrameVerdict Localizer::ClassifyMiss(const FrameOutcome& outcome, co
                           outcome.track.failure == tracking::TrackFailure::kNotConverged;
   if (found_some && !kidnapped_) {
     unmatched_run_ = 0;
+    if (!outcome.track.ok() && options_.visual_odometry.enabled) {
+      // Some of the view matched, too little for a fix: where most of the predicted view is
+      // unmapped (a lane's edge, floor just mapped behind the vehicle) that is off the map, and
+      // visual odometry carries the estimate on.
+      const tracking::CoarseReference coarse = tracking::Coarsen(reference_, std::min(2, options_.relocalize.level));
+      const double seen = CoverageOn(*coarse.raster, camera_, prior_camera, 0.0);
+      if (seen < options_.on_map_coverage) {
+        *reason = "off-map: " + std::to_string(static_cast<int>(std::floor(100.0 * seen))) +
+                  " % of the predicted view is mapped (" + *reason + ")";
+        return estimation::FrameVerdict::kOffMap;
+      }
+    }
     return estimation::FrameVerdict::kMissed;
   }
   // A known kidnap makes the prediction meaningless: where it lies says nothing.

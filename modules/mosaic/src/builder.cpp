@@ -115,6 +115,13 @@ void MapBuilder::AddFrame(const cv::Mat& image, const core::Pose2& world_from_ca
   }
 }
 
+std::vector<TileKey> MapBuilder::TileKeys() const {
+  std::vector<TileKey> keys;
+  keys.reserve(accumulators_.size());
+  for (const auto& [key, accumulator] : accumulators_) keys.push_back(key);
+  return keys;
+}
+
 cv::Mat MapBuilder::FinishTile(const TileKey& key) const {
   cv::Mat channels[2];
   cv::split(accumulators_.at(key), channels);

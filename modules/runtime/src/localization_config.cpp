@@ -107,6 +107,7 @@ void ReadLocalizerConfig(const YAML::Node& node, const std::string& file_name, L
   vo.Optional("enabled", &v.enabled);
   vo.Optional("keyframe_fraction", &v.keyframe_fraction);
   vo.Optional("max_fraction", &v.max_fraction);
+  vo.Optional("keyframe_turn_deg", &v.keyframe_turn_deg);
   vo.Optional("prior_sigma_mm", &v.prior_sigma_mm);
   vo.Optional("prior_sigma_fraction", &v.prior_sigma_fraction);
   vo.Optional("prior_sigma_deg", &v.prior_sigma_deg);
@@ -114,6 +115,14 @@ void ReadLocalizerConfig(const YAML::Node& node, const std::string& file_name, L
   vo.Optional("link_sigma_floor_rad", &v.link_sigma_floor_rad);
   vo.Check(v);
   vo.Finish();
+
+  core::YamlMap extension = root.OptionalMap("map_extension");
+  extension.Optional("max_segment_m", &config->map_extension.max_segment_m);
+  extension.Optional("max_anchor_sigma_mm", &config->map_extension.max_anchor_sigma_mm);
+  extension.Optional("return_prior_sigma_mm", &config->map_extension.return_prior_sigma_mm);
+  extension.Optional("return_prior_sigma_deg", &config->map_extension.return_prior_sigma_deg);
+  extension.Check(config->map_extension);
+  extension.Finish();
 
   core::YamlMap map = root.OptionalMap("map");
   std::int64_t budget = static_cast<std::int64_t>(config->cache_budget_mib);

@@ -9,7 +9,15 @@
 namespace mosaicloc::runtime {
 
 MapSession::MapSession(const std::filesystem::path& map, const MapSessionOptions& options) {
-  store_ = mosaic::TileStore::Open(map, /*writable=*/false);
+  std::error_code ec;
+  if (options.writable && !std::filesystem::exists(map, ec)) {
+    mosaic::MapGrid grid;
+    grid.mm_per_px = options.camera_mm_per_px;
+    store_ = mosaic::TileStore::Create(map, grid);
+    created_ = true;
+  } else {
+    store_ = mosaic::TileStore::Open(map, options.writable);
+  }
   if (std::abs(store_->grid().mm_per_px - options.camera_mm_per_px) > 1e-9) {
     core::ThrowInvalidInput(fmt::format("{}: map resolution {} mm/px differs from the camera's {} mm/px",
                                         map.string(), store_->grid().mm_per_px, options.camera_mm_per_px));

@@ -32,6 +32,7 @@
 #include "mosaicloc/estimation/odometry.hpp"
 #include "mosaicloc/localizer/localizer.hpp"
 #include "mosaicloc/localizer/speed_limits.hpp"
+#include "mosaicloc/mapping/map_extension.hpp"
 #include "mosaicloc/runtime/drive.hpp"
 #include "mosaicloc/runtime/map_session.hpp"
 #include "mosaicloc/runtime/report.hpp"
@@ -129,6 +130,14 @@ class ReplayRecord {
     metrics.frames_to_first_fix = known_.frames_to_first_fix;
     metrics.first_fix_s = known_.first_fix_s;
     metrics.kidnap_frames_to_fix = known_.kidnap_frames_to_fix;
+    metrics.map_extension_segments = known_.map_extension_segments;
+    metrics.map_extension_closed = known_.map_extension_closed;
+    metrics.map_extension_keyframes = known_.map_extension_keyframes;
+    metrics.map_extension_tiles = known_.map_extension_tiles;
+    metrics.map_extension_unanchored = known_.map_extension_unanchored;
+    metrics.map_extension_closure_max_mm = known_.map_extension_closure_max_mm;
+    metrics.map_extension_pose_rms_mm = known_.map_extension_pose_rms_mm;
+    metrics.map_extension_pose_max_mm = known_.map_extension_pose_max_mm;
     metrics.revisit_repeatability_mm = known_.revisit_repeatability_mm;
     metrics.revisit_places = known_.revisit_places;
     metrics.revisit_visits = known_.revisit_visits;
@@ -332,6 +341,58 @@ double EncoderTimingSigmaOf(const dataset::DatasetInfo& info, double otherwise) 
   }
 }
 
+// A frame's outcome as automatic mapping takes it: the localizer's estimate after the frame
+// (a fix fused, or the visual odometry's chain) as the camera's pose.
+mapping::ExtensionFrame ExtensionFrameOf(core::Timestamp time, const cv::Mat& image,
+                                         const localizer::FrameOutcome& outcome, const dataset::DatasetInfo& info) {
+  mapping::ExtensionFrame frame;
+  frame.time = time;
+  frame.image = image;
+  frame.world_from_camera = outcome.world_from_vehicle * info.camera.vehicle_from_camera;
+  frame.covariance =
+      localizer::CameraCovariance(outcome.world_from_vehicle, info.camera.vehicle_from_camera, outcome.covariance);
+  frame.fixed = outcome.fixed;
+  frame.keyframe = outcome.keyframe;
+  frame.link = outcome.link;
+  return frame;
+}
+
+// Ends automatic mapping (commits the open stretch) and records what it did: the figures,
+// and the painted frames' vehicle poses (mapped.tum) with their error against the truth.
+void RecordExtension(mapping::MapExtender& extender, const std::optional<dataset::Trajectory>& groundtruth,
+                     const dataset::DatasetInfo& info, const std::filesystem::path& out, dataset::Metrics* known) {
+  extender.Finish();
+  const mapping::ExtensionSummary& s = extender.summary();
+  known->map_extension_segments = s.segments;
+  known->map_extension_closed = s.closed;
+  known->map_extension_keyframes = s.keyframes;
+  known->map_extension_tiles = s.tiles_written;
+  known->map_extension_unanchored = s.unanchored;
+  known->map_extension_closure_max_mm = s.closure_max_mm;
+  dataset::Trajectory painted;
+  double sum_sq = 0.0, worst = 0.0;
+  std::int64_t compared = 0;
+  for (const auto& [time, world_from_camera] : extender.painted()) {
+    painted.push_back({time, world_from_camera * info.camera.vehicle_from_camera.Inverse()});
+    if (!groundtruth) continue;
+    const auto truth = dataset::PoseAt(*groundtruth, time, std::chrono::milliseconds(100));
+    if (!truth) continue;
+    const double error = (painted.back().world_from_vehicle.translation_mm() - truth->translation_mm()).norm();
+    sum_sq += error * error;
+    worst = std::max(worst, error);
+    ++compared;
+  }
+  if (compared > 0) {
+    known->map_extension_pose_rms_mm = std::sqrt(sum_sq / static_cast<double>(compared));
+    known->map_extension_pose_max_mm = worst;
+  }
+  std::error_code ec;
+  std::filesystem::create_directories(out, ec);
+  dataset::WriteTum(out / "mapped.tum", painted);
+  core::Log().info("map extension: {} stretches ({} closed onto the map), {} frames painted, {} tiles written, "
+                   "{:.1f} s", s.segments, s.closed, s.keyframes, s.tiles_written, s.seconds);
+}
+
 // Dead reckoning: integrate the wheel encoders from the starting pose, and report the pose
 // at every frame's time. This is the baseline the mosaic fix removes the drift from.
 ReplaySummary ReplayDeadReckoning(const ReplayOptions& options, const std::function<void(double)>& progress) {
@@ -388,13 +449,19 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
   map_options.cache_budget_bytes = settings.cache_budget_mib << 20;
   map_options.camera_mm_per_px = info.camera.mm_per_px;
   if (options.prefetch) map_options.prefetch = PrefetchOptionsFor(settings, info.camera);
+  map_options.writable = options.mapping;
   MapSession map(options.map, map_options);
+  if (map.created()) core::Log().info("replay: {} created empty, to be mapped as the drive goes", options.map.string());
 
   const camera::IdealCamera camera = CameraOf(info);
   const localizer::LocalizerOptions localizer_options =
       LocalizerOptionsFor(settings.localizer, info.camera, info.vehicle,
                           EncoderTimingSigmaOf(info, settings.localizer.odometry_timing_sigma_ms));
   localizer::Localizer localizer(camera, localizer_options, map.reference(), &map.places());
+  std::optional<mapping::MapExtender> extender;
+  if (options.mapping) {
+    extender.emplace(map.store(), map.cache(), camera, localizer_options.tracker, settings.map_extension);
+  }
 
   auto encoders = reader.Encoders();
   std::optional<dataset::EncoderSample> pending = encoders.Next();
@@ -406,7 +473,12 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
     localizer.InitializeUnknown(pending->time);
     if (!map.places().usable()) core::Log().warn("replay: the start is unknown, and {}", map.places().problem());
   } else {
-    localizer.Initialize(pending->time, start, StartCovariance(settings.start_sigma_mm, settings.start_sigma_deg));
+    // A map with no floor yet (automatic mapping from scratch) is where the vehicle starts: the
+    // start is its origin, exact by definition.
+    const bool empty = options.mapping && map.store().Count(0) == 0;
+    localizer.Initialize(pending->time, start,
+                         empty ? StartCovariance(1e-3, 1e-4) : StartCovariance(settings.start_sigma_mm, settings.start_sigma_deg));
+    if (empty) core::Log().info("replay: the map has no floor yet: the start is its origin");
   }
   if (options.relocalize) localizer.RequestRelocalization();
   std::optional<core::Timestamp> first_frame;
@@ -440,6 +512,7 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
     }
     const auto started = std::chrono::steady_clock::now();
     const localizer::FrameOutcome outcome = localizer.ProcessFrame(frame->time, frame->image);
+    if (extender && !localizer.pose_unknown()) extender->Frame(ExtensionFrameOf(frame->time, frame->image, outcome, info));
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count();
     // While the pose is unknown there is no estimate to evaluate.
     record.Frame(frame->time,
@@ -477,6 +550,7 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
   if (summary.encoder_samples_rejected > 0) {
     core::Log().warn("{} encoder samples rejected", summary.encoder_samples_rejected);
   }
+  if (extender) RecordExtension(*extender, groundtruth, info, options.out, &record.known());
   summary.tiles_loaded = map.cache().stats().misses;
   summary.relocalizations = localizer.relocalizations();
   summary.wheel_scale_error = localizer.wheel_scale_error();

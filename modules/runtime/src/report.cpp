@@ -41,6 +41,14 @@ dataset::Metrics WriteReport(const std::filesystem::path& directory, const datas
     keep(merged.frames_to_first_fix, metrics.frames_to_first_fix);
     keep(merged.first_fix_s, metrics.first_fix_s);
     keep(merged.kidnap_frames_to_fix, metrics.kidnap_frames_to_fix);
+    keep(merged.map_extension_segments, metrics.map_extension_segments);
+    keep(merged.map_extension_closed, metrics.map_extension_closed);
+    keep(merged.map_extension_keyframes, metrics.map_extension_keyframes);
+    keep(merged.map_extension_tiles, metrics.map_extension_tiles);
+    keep(merged.map_extension_unanchored, metrics.map_extension_unanchored);
+    keep(merged.map_extension_closure_max_mm, metrics.map_extension_closure_max_mm);
+    keep(merged.map_extension_pose_rms_mm, metrics.map_extension_pose_rms_mm);
+    keep(merged.map_extension_pose_max_mm, metrics.map_extension_pose_max_mm);
     keep(merged.processing_fps, metrics.processing_fps);
     keep(merged.latency_p50_ms, metrics.latency_p50_ms);
     keep(merged.latency_p99_ms, metrics.latency_p99_ms);

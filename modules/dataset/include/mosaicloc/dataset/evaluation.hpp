@@ -83,6 +83,18 @@ struct Metrics {
   std::optional<double> first_fix_s;
   /// A kidnap (replay --kidnap-at): frames from it to the first fix after it (caller).
   std::optional<std::int64_t> kidnap_frames_to_fix;
+  /// Automatic mapping (replay --mapping; caller): stretches committed, of them closed onto
+  /// the map at both ends, frames painted, level-0 tiles written, frames off the map not mapped
+  /// (no confident keyframe to start from), the largest correction a return made, mm; with
+  /// ground truth the painted frames' vehicle position error, RMS and largest, mm.
+  std::optional<std::int64_t> map_extension_segments;
+  std::optional<std::int64_t> map_extension_closed;
+  std::optional<std::int64_t> map_extension_keyframes;
+  std::optional<std::int64_t> map_extension_tiles;
+  std::optional<std::int64_t> map_extension_unanchored;
+  std::optional<double> map_extension_closure_max_mm;
+  std::optional<double> map_extension_pose_rms_mm;
+  std::optional<double> map_extension_pose_max_mm;
   /// The camera's height the localizer held at its fixes (image scale x calibrated height)
   /// against the simulator's truth (groundtruth/camera.csv), mm (caller).
   std::optional<double> height_error_rms_mm;

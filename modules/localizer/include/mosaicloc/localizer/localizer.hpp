@@ -39,6 +39,9 @@ struct VisualOdometryOptions {
   /// A registered frame becomes the keyframe once its view centre is this share of the view's
   /// shorter side away from the keyframe's (fewer links in the chain, less drift).
   double keyframe_fraction = 0.3;
+  /// ... or once it has turned this far from the keyframe, degrees (in a tight turn the view
+  /// turns away from the keyframe's faster than it moves).
+  double keyframe_turn_deg = 3.0;
   /// A frame whose predicted view centre is farther than this share from the keyframe's is not
   /// registered against it (too little overlap); it becomes the keyframe, dead-reckoned.
   double max_fraction = 0.6;
@@ -139,6 +142,11 @@ struct FrameOutcome {
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
   estimation::LockState lock = estimation::LockState::kTracking;
   Mode mode = Mode::kTrack;
+  /// Visual odometry: the frame's registration against the keyframe (kVisualOdometry only).
+  std::optional<tracking::FrameLink> link;
+  /// The localizer keeps this frame as its keyframe from now on (a fix, a registered frame far
+  /// enough from the last keyframe, or a frame off the map that starts a new chain).
+  bool keyframe = false;
   /// The frame changed the mode: why (empty otherwise).
   std::string mode_switch;
   /// The image scale estimate after the frame, and its standard deviation (LocalizerOptions::

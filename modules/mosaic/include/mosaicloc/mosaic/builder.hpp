@@ -37,6 +37,8 @@ class MapBuilder {
 
   std::int64_t frames() const { return frames_; }
   std::size_t tiles() const { return accumulators_.size(); }
+  /// The level-0 tiles painted so far.
+  std::vector<TileKey> TileKeys() const;
 
   /// Level 0 tile values as they will be stored (for tests).
   cv::Mat FinishTile(const TileKey& key) const;

@@ -21,6 +21,9 @@ struct MapSessionOptions {
   /// Load tiles ahead on threads of their own along predicted paths; none: the tracker loads
   /// what it needs itself.
   std::optional<mosaic::PrefetchOptions> prefetch;
+  /// Open for writing (automatic mapping), and create an empty map at the camera's resolution
+  /// when the file does not exist.
+  bool writable = false;
 };
 
 /// An open map, read-only: the tile store, the byte-bounded cache over it, the renderer, the
@@ -42,11 +45,15 @@ class MapSession {
   const mosaic::TileCache& cache() const { return *cache_; }
   mosaic::TileCache& cache() { return *cache_; }
   const mosaic::MapGrid& grid() const { return store_->grid(); }
+  mosaic::TileStore& store() { return *store_; }
+  /// The map file was created empty by this session (MapSessionOptions::writable).
+  bool created() const { return created_; }
   const mosaic::MapRenderer& renderer() const { return *renderer_; }
   /// Null without prefetching.
   mosaic::TilePrefetcher* prefetcher() { return prefetcher_.get(); }
 
  private:
+  bool created_ = false;
   std::unique_ptr<mosaic::TileStore> store_;
   std::unique_ptr<mosaic::TileCache> cache_;
   std::unique_ptr<mosaic::MapRenderer> renderer_;

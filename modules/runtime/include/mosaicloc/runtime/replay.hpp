@@ -53,6 +53,9 @@ struct ReplayOptions {
   /// kMosaic: at most this many revisited places are registered frame to frame for the
   /// repeatability without ground truth (revisit_* in metrics.json); 0: none.
   std::int64_t revisit_places = 200;
+  /// kMosaic: automatic mapping (design.md section 7d): the floor driven over off the map is
+  /// added to it (settings.map_extension); the map is created empty when it does not exist.
+  bool mapping = false;
   /// The configuration file `settings` came from, shown in index.html (empty: the built-in
   /// defaults).
   std::filesystem::path config_file;

@@ -9,6 +9,7 @@
 
 #include "mosaicloc/camera/ideal_camera.hpp"
 #include "mosaicloc/core/pose2.hpp"
+#include "mosaicloc/core/timestamp.hpp"
 #include "mosaicloc/tracking/pose_solver.hpp"
 #include "mosaicloc/tracking/reference.hpp"
 #include "mosaicloc/tracking/refine.hpp"
@@ -111,6 +112,15 @@ class Tracker {
  private:
   camera::IdealCamera camera_;
   TrackerOptions options_;
+};
+
+/// A frame registered against an earlier one (visual odometry): when the earlier frame was
+/// taken, and the camera's pose in the earlier camera's axes with its covariance (x mm, y mm,
+/// yaw rad, in those axes).
+struct FrameLink {
+  core::Timestamp earlier_time;
+  core::Pose2 earlier_from_camera;
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
 };
 
 /// Frame-to-frame visual odometry with the same matcher: the previous frame is the reference.
