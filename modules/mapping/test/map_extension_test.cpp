@@ -16,7 +16,7 @@
 namespace mosaicloc::mapping {
 namespace {
 
-constexpr double kMmPerPx = 0.25;
+constexpr double kExtensionMmPerPx = 0.25;
 
 // A stretch of floor off the map between two mapped places: frames every 30 mm along x from
 // 100 to 640 mm, the map holding only the floor under the first and the last two.
@@ -27,14 +27,14 @@ class ExtensionDrive : public ::testing::Test {
     if (!texture) GTEST_SKIP() << test::SharedDataMissingMessage();
     sim::ImageFloorOptions options;
     options.image = *texture;
-    options.mm_per_texel = kMmPerPx;
+    options.mm_per_texel = kExtensionMmPerPx;
     floor_image_ = sim::MakeImageFloor(options)->Render(0, 0, 3200, 2000);  // world (x, y) mm = texel (c, r) / 4
     for (int i = 0; i < 19; ++i) truth_.emplace_back(100.0 + 30.0 * i, 250.0, 0.0);
     mosaic::MapGrid grid;
     store_ = mosaic::TileStore::Create(scratch_.path() / "site.mosaic", grid);
     mosaic::MapBuilder builder(grid, mosaic::Blend::kFeather);
     for (const std::size_t i : {std::size_t{0}, truth_.size() - 2, truth_.size() - 1}) {
-      builder.AddFrame(Frame(truth_[i]), truth_[i], kMmPerPx);
+      builder.AddFrame(Frame(truth_[i]), truth_[i], kExtensionMmPerPx);
     }
     builder.Write(*store_);
     for (const mosaic::TileKey& key : store_->List(0)) before_[{key.col, key.row}] = store_->Read(key).pixels;
@@ -43,9 +43,9 @@ class ExtensionDrive : public ::testing::Test {
 
   cv::Mat Frame(const core::Pose2& world_from_camera) const {
     const Eigen::Matrix<double, 2, 3> world = camera_.PixelToWorldAffine(world_from_camera);
-    const cv::Mat texel_from_pixel = (cv::Mat_<double>(2, 3) << world(0, 0) / kMmPerPx, world(0, 1) / kMmPerPx,
-                                      world(0, 2) / kMmPerPx, world(1, 0) / kMmPerPx, world(1, 1) / kMmPerPx,
-                                      world(1, 2) / kMmPerPx);
+    const cv::Mat texel_from_pixel = (cv::Mat_<double>(2, 3) << world(0, 0) / kExtensionMmPerPx, world(0, 1) / kExtensionMmPerPx,
+                                      world(0, 2) / kExtensionMmPerPx, world(1, 0) / kExtensionMmPerPx, world(1, 1) / kExtensionMmPerPx,
+                                      world(1, 2) / kExtensionMmPerPx);
     cv::Mat frame;
     cv::warpAffine(floor_image_, frame, texel_from_pixel, cv::Size(camera_.width_px(), camera_.height_px()),
                    cv::INTER_CUBIC | cv::WARP_INVERSE_MAP);
