@@ -95,7 +95,8 @@ TEST(RegisterCodecTest, OutputsUseTheScales) {
   outputs.quality = 987;
   outputs.request_echo = 70000;  // wraps like a 16-bit PLC counter
   outputs.heartbeat = 65536 + 9;
-  std::uint16_t words[10] = {};
+  outputs.mode = 2;
+  std::uint16_t words[11] = {};  // registers 100-110
   ASSERT_TRUE(EncodeOutputs(map, outputs, 100, words));
   EXPECT_EQ(DecodeCount(map.fix_x, words + 0), 123457);
   EXPECT_EQ(DecodeCount(map.fix_y, words + 2), -2);  // -1.5 counts rounds away from zero
@@ -104,6 +105,7 @@ TEST(RegisterCodecTest, OutputsUseTheScales) {
   EXPECT_EQ(words[7], 987);
   EXPECT_EQ(words[8], 70000 - 65536);
   EXPECT_EQ(words[9], 9);
+  EXPECT_EQ(words[10], 2);
 
   outputs.x_mm = 3.0e7;  // 30 km does not fit 0.01 mm in int32
   EXPECT_FALSE(EncodeOutputs(map, outputs, 100, words));
