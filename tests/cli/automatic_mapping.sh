@@ -34,6 +34,9 @@ json_check "$SCRATCH/mapped/metrics.json" 'd["map_extension_keyframes"] > 100' '
   'd["map_extension_unanchored"] <= d["frames"] // 50' 'd["map_extension_pose_max_mm"] < 5.0' \
   'd["frames_by_mode"]["visual-odometry"] > d["frames"] // 2' 'd["lock_losses"] == 0'
 expect_exit 0 "$MOSAICLOC" --quiet map check "$SCRATCH/site.mosaic"
+# The map it made has a place index and a quality layer over the new floor, as map build's has.
+expect_exit 0 "$MOSAICLOC" --quiet --json map info "$SCRATCH/site.mosaic"
+json_check "$SCRATCH/out" 'd["place_index"]["features"] > 1000' 'd["quality"]["cells"] > 50'
 
 # The next lap, twice as fast, tracks the map the first one made.
 expect_exit 0 "$MOSAICLOC" --quiet --json replay --dataset "$SCRATCH/drive" --map "$SCRATCH/site.mosaic" \

@@ -34,6 +34,8 @@
 #include "mosaicloc/localizer/speed_limits.hpp"
 #include "mosaicloc/mapping/map_extension.hpp"
 #include "mosaicloc/runtime/drive.hpp"
+#include "mosaicloc/runtime/map_jobs.hpp"
+#include "mosaicloc/runtime/map_quality.hpp"
 #include "mosaicloc/runtime/map_session.hpp"
 #include "mosaicloc/runtime/report.hpp"
 #include "mosaicloc/runtime/revisits.hpp"
@@ -550,7 +552,17 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
   if (summary.encoder_samples_rejected > 0) {
     core::Log().warn("{} encoder samples rejected", summary.encoder_samples_rejected);
   }
-  if (extender) RecordExtension(*extender, groundtruth, info, options.out, &record.known());
+  if (extender) {
+    RecordExtension(*extender, groundtruth, info, options.out, &record.known());
+    if (extender->summary().tiles_written > 0) {
+      // The new floor joins the place index (global relocalization) and the quality layer, as
+      // `map build` makes them.
+      const MapIndexSummary index = IndexStore(map.store());
+      AssessStore(map.store());
+      core::Log().info("map extension: place index rebuilt ({} features, {:.1f} s), quality layer assessed",
+                       index.features, index.seconds);
+    }
+  }
   summary.tiles_loaded = map.cache().stats().misses;
   summary.relocalizations = localizer.relocalizations();
   summary.wheel_scale_error = localizer.wheel_scale_error();
