@@ -51,6 +51,6 @@ print(f"dead reckoning:   {d['position_rms_mm']:.1f} mm RMS, {d['final_position_
 PY
 echo
 echo "Report: $(pwd)/$OUT/report/index.html (the page to share; beside it metrics.json, estimate.tum,"
-echo "        fixes.csv, map_state.png, map_quality.png, timelines.png, trajectory.png, position_error.png,"
-echo "        heading_error.png, map.png); dead reckoning: $(pwd)/$OUT/dead-reckoning;"
+echo "        fixes.csv, map_state.png, map_quality.png, map_mode.png, timelines.png, trajectory.png,"
+echo "        position_error.png, heading_error.png, map.png); dead reckoning: $(pwd)/$OUT/dead-reckoning;"
 echo "        the map's consistency: $(pwd)/$OUT/consistency (consistency.json, loops.csv, seams.csv, residuals.png)"
