@@ -119,9 +119,9 @@ cv::Scalar ModeColour(const std::string& mode) {
 cv::Mat MapPlot(const std::vector<FrameReport>& reports, const FloorPicture& floor, const std::string& title,
                 Colouring colouring) {
   const bool by_quality = colouring == Colouring::kQuality;
-  constexpr int kWidth = 1000, kHeight = 900;
+  constexpr int kWidth = 1040, kHeight = 900;  // the legend's 250 px hold "visual-odometry (12345)"
   cv::Mat canvas(kHeight, kWidth, CV_8UC3, plot::kWhite);
-  const cv::Rect area(110, 80, kWidth - 110 - 210, kHeight - 80 - 80);
+  const cv::Rect area(110, 80, kWidth - 110 - 250, kHeight - 80 - 80);
   const auto [x, y] = EqualScaleExtent(reports, area);
   Axes axes(canvas, area, x, y);
   axes.DrawFrame("x [m]", "y [m]", area.width / 90.0, area.height / 90.0);
