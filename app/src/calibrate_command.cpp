@@ -184,15 +184,12 @@ void RunRectify(const RectifyArgs& args, const GlobalOptions& global) {
 }
 
 void RunVerify(const RectifyArgs& args, const GlobalOptions& global) {
-  const camera::BoardSpec board = camera::ParseBoardSpec(args.board);
-  const calibration::Rectifier rectifier(calibration::ReadGroundCalibration(args.ground));
-  const std::vector<std::filesystem::path> files = calibration::MatchImages(args.images);
+  const calibration::RectificationCheck check =
+      calibration::VerifyRectification(args.images, args.ground, camera::ParseBoardSpec(args.board));
+  const double worst_scale = check.worst_scale_error;
   nlohmann::json images = nlohmann::json::array();
-  double worst_scale = 0.0;
   if (!global.json) std::printf("  %-28s %14s %14s %14s\n", "image", "scale error %", "residual mm", "max mm");
-  for (const std::filesystem::path& file : files) {
-    const calibration::IdealBoardMeasurement m = calibration::MeasureRectifiedBoard(file, rectifier, board);
-    worst_scale = std::max(worst_scale, std::abs(m.scale_error));
+  for (const auto& [file, m] : check.images) {
     images.push_back({{"image", file.filename().string()},
                       {"scale_error_percent", 100.0 * m.scale_error},
                       {"residual_rms_mm", m.residual_rms_mm},

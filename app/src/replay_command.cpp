@@ -65,10 +65,6 @@ void Run(const ReplayArgs& args, const GlobalOptions& global) {
   options.revisit_places = args.revisit_places;
   options.mapping = args.mapping;
   if (args.mapping && mode != "mosaic") core::ThrowInvalidInput("replay: --mapping needs --map MAP (the mosaic mode)");
-  std::error_code ec;
-  if (!args.map.empty() && !args.mapping && !std::filesystem::is_regular_file(args.map, ec)) {
-    core::ThrowInvalidInput("replay: --map: " + args.map.string() + " does not exist (give --mapping to create it)");
-  }
 
   ProgressBar progress("replay", global.quiet);
   const runtime::ReplaySummary summary = runtime::Replay(options, progress.Callback());

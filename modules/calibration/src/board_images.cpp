@@ -3,6 +3,7 @@
 #include <glob.h>
 
 #include <algorithm>
+#include <cmath>
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -121,6 +122,17 @@ GroundResult CalibrateGroundFromImages(const std::string& pattern, const camera:
                          "mosaicloc calibrate ground, board " + board.ToString() + ", " + std::to_string(views.size()) +
                              " images, intrinsics " + camera_xml.filename().string());
   return result;
+}
+
+RectificationCheck VerifyRectification(const std::string& pattern, const std::filesystem::path& ground,
+                                       const camera::BoardSpec& board) {
+  const Rectifier rectifier(ReadGroundCalibration(ground));
+  RectificationCheck check;
+  for (const std::filesystem::path& file : MatchImages(pattern)) {
+    check.images.emplace_back(file, MeasureRectifiedBoard(file, rectifier, board));
+    check.worst_scale_error = std::max(check.worst_scale_error, std::abs(check.images.back().second.scale_error));
+  }
+  return check;
 }
 
 }  // namespace mosaicloc::calibration

@@ -459,6 +459,15 @@ bool Localizer::VisualOdometry(core::Timestamp time, const cv::Mat& frame, const
   return true;
 }
 
+bool Localizer::OffTheMap(const tracking::ReferenceRaster& coarse, const core::Pose2& prior_camera,
+                          std::string* reason) const {
+  const double seen = CoverageOn(coarse, camera_, prior_camera, 0.0);
+  if (seen >= options_.on_map_coverage) return false;
+  *reason = "off-map: " + std::to_string(static_cast<int>(std::floor(100.0 * seen))) +
+            " % of the predicted view is mapped (" + *reason + ")";
+  return true;
+}
+
 core::Pose2 Localizer::MountingPoint(const tracking::TrackResult& track) const {
   if (!track.tilt_estimated || options_.tilt_pivot_height_mm == 0.0) return track.world_from_camera;
   // The floor's normal in camera axes is (-tan tilt_y, tan tilt_x, 1): a body turned about an
@@ -498,12 +507,7 @@ estimation::FrameVerdict Localizer::ClassifyMiss(const FrameOutcome& outcome, co
       // unmapped (a lane's edge, floor just mapped behind the vehicle) that is off the map, and
       // visual odometry carries the estimate on.
       const tracking::CoarseReference coarse = tracking::Coarsen(reference_, std::min(2, options_.relocalize.level));
-      const double seen = CoverageOn(*coarse.raster, camera_, prior_camera, 0.0);
-      if (seen < options_.on_map_coverage) {
-        *reason = "off-map: " + std::to_string(static_cast<int>(std::floor(100.0 * seen))) +
-                  " % of the predicted view is mapped (" + *reason + ")";
-        return estimation::FrameVerdict::kOffMap;
-      }
+      if (OffTheMap(*coarse.raster, prior_camera, reason)) return estimation::FrameVerdict::kOffMap;
     }
     return estimation::FrameVerdict::kMissed;
   }
@@ -513,11 +517,8 @@ estimation::FrameVerdict Localizer::ClassifyMiss(const FrameOutcome& outcome, co
     return estimation::FrameVerdict::kMissed;
   }
   const tracking::CoarseReference coarse = tracking::Coarsen(reference_, std::min(2, options_.relocalize.level));
-  const double seen = CoverageOn(*coarse.raster, camera_, prior_camera, 0.0);
-  if (seen < options_.on_map_coverage) {
+  if (OffTheMap(*coarse.raster, prior_camera, reason)) {
     unmatched_run_ = 0;
-    *reason = "off-map: " + std::to_string(static_cast<int>(std::floor(100.0 * seen))) +
-              " % of the predicted view is mapped (" + *reason + ")";
     return estimation::FrameVerdict::kOffMap;
   }
   // Evidence against the prior only if, wherever its 3-sigma region puts the camera, the view

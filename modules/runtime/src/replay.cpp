@@ -683,6 +683,10 @@ ReplaySummary Replay(const ReplayOptions& options, const std::function<void(doub
     case ReplayMode::kMosaic: break;
   }
   if (options.map.empty()) core::ThrowInvalidInput("replay: the mosaic mode needs a map");
+  std::error_code ec;
+  if (!options.mapping && !std::filesystem::is_regular_file(options.map, ec)) {
+    core::ThrowInvalidInput("replay: --map: " + options.map.string() + " does not exist (give --mapping to create it)");
+  }
   return ReplayMosaic(options, progress);
 }
 

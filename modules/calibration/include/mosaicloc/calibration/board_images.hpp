@@ -55,4 +55,14 @@ void RectifyImages(const std::vector<std::filesystem::path>& files, const Rectif
 IdealBoardMeasurement MeasureRectifiedBoard(const std::filesystem::path& file, const Rectifier& rectifier,
                                             const camera::BoardSpec& board);
 
+/// `calibrate verify`: every photograph matching `pattern`, rectified with the ground
+/// calibration in `ground` and measured, and the largest scale error among them.
+struct RectificationCheck {
+  std::vector<std::pair<std::filesystem::path, IdealBoardMeasurement>> images;
+  double worst_scale_error = 0.0;  ///< relative: 0.001 is 0.1 %
+};
+/// Throws core::Error (invalid input) as MeasureRectifiedBoard and ReadGroundCalibration do.
+RectificationCheck VerifyRectification(const std::string& pattern, const std::filesystem::path& ground,
+                                       const camera::BoardSpec& board);
+
 }  // namespace mosaicloc::calibration

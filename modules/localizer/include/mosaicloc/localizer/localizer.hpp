@@ -244,6 +244,9 @@ class Localizer {
   // that is evidence against the prior, or a miss that is neither.
   estimation::FrameVerdict ClassifyMiss(const FrameOutcome& outcome, const core::Pose2& prior_camera,
                                         const Eigen::Matrix3d& prior_camera_covariance, std::string* reason);
+  // The predicted view is less than on_map_coverage on `coarse` (the map at the coverage's
+  // level): says so in front of `reason`.
+  bool OffTheMap(const tracking::ReferenceRaster& coarse, const core::Pose2& prior_camera, std::string* reason) const;
   // A registration of a view partly off the map, registered again around itself with more
   // templates; the one with more inliers.
   /// Where the camera's mounting point is, from the image centre the tracker found and the
