@@ -182,36 +182,104 @@ void MapBuilder::Write(TileStore& store, const std::function<void(double)>& prog
 
 namespace mosaicloc::mosaic {
 
-void WriteWithPyramid(TileStore& store, const std::vector<TileWrite>& level0) {
+namespace {
+
+using TileIndex = std::pair<std::int64_t, std::int64_t>;
+
+// Every pyramid tile above changed level-0 tiles (an empty Mat: a tile removed), recomputed
+// from them and their unchanged siblings in the store. Tiles left with nothing mapped are
+// listed in `removed` instead.
+void PyramidAbove(const TileStore& store, std::map<TileIndex, cv::Mat> changed, std::vector<TileWrite>* writes,
+                  std::vector<TileKey>* removed) {
   const MapGrid& grid = store.grid();
-  std::vector<TileWrite> all = level0;
-  // The tiles of the level being processed, new content first, then the store's.
-  std::map<std::pair<std::int64_t, std::int64_t>, cv::Mat> changed;
-  for (const auto& tile : level0) {
-    if (tile.key.level != 0) core::ThrowInvalidInput("WriteWithPyramid takes level-0 tiles only");
-    changed[{tile.key.col, tile.key.row}] = tile.pixels;
-  }
   for (int k = 1; k < grid.levels; ++k) {
-    std::set<std::pair<std::int64_t, std::int64_t>> parent_keys;
+    std::set<TileIndex> parent_keys;
     for (const auto& [index, pixels] : changed) parent_keys.insert({FloorDiv(index.first, 2), FloorDiv(index.second, 2)});
-    std::map<std::pair<std::int64_t, std::int64_t>, cv::Mat> parents;
+    std::map<TileIndex, cv::Mat> parents;
     for (const auto& parent : parent_keys) {
       std::array<cv::Mat, 4> children;
+      bool any = false;
       for (int i = 0; i < 4; ++i) {
-        const std::pair<std::int64_t, std::int64_t> child{2 * parent.first + i % 2, 2 * parent.second + i / 2};
+        const TileIndex child{2 * parent.first + i % 2, 2 * parent.second + i / 2};
         if (const auto it = changed.find(child); it != changed.end()) {
           children[static_cast<std::size_t>(i)] = it->second;
         } else if (const TileRead read = store.Read(TileKey{k - 1, child.first, child.second});
                    read.status == TileStatus::kOk) {
           children[static_cast<std::size_t>(i)] = read.pixels;
         }
+        any = any || !children[static_cast<std::size_t>(i)].empty();
       }
-      parents[parent] = internal::Downsample(children, grid.tile_size_px);
-      all.push_back({TileKey{k, parent.first, parent.second}, parents[parent]});
+      const TileKey key{k, parent.first, parent.second};
+      if (any) {
+        parents[parent] = internal::Downsample(children, grid.tile_size_px);
+        writes->push_back({key, parents[parent]});
+      } else {
+        parents[parent] = cv::Mat();
+        if (removed != nullptr) removed->push_back(key);
+      }
     }
     changed = std::move(parents);
   }
-  store.Write(all);  // one transaction: level 0 and the pyramid change together or not at all
+}
+
+}  // namespace
+
+std::optional<std::int64_t> WriteWithPyramid(TileStore& store, const std::vector<TileWrite>& level0,
+                                             const std::string& reason) {
+  std::vector<TileWrite> all = level0;
+  std::map<TileIndex, cv::Mat> changed;
+  for (const auto& tile : level0) {
+    if (tile.key.level != 0) core::ThrowInvalidInput("WriteWithPyramid takes level-0 tiles only");
+    changed[{tile.key.col, tile.key.row}] = tile.pixels;
+  }
+  PyramidAbove(store, std::move(changed), &all, nullptr);
+  // One transaction: level 0 and the pyramid change together or not at all.
+  if (reason.empty()) {
+    store.Write(all);
+    return std::nullopt;
+  }
+  return store.WriteRecorded(all, reason);
+}
+
+RevertSummary RevertUpdate(TileStore& store, std::int64_t id) {
+  const std::vector<MapUpdate> history = store.History();
+  const auto it = std::find_if(history.begin(), history.end(), [id](const MapUpdate& u) { return u.id == id; });
+  const std::string name = store.file().string() + ": update " + std::to_string(id);
+  if (it == history.end()) core::ThrowInvalidInput(name + ": no such update (`map history` lists them)");
+  if (!it->reverted.empty()) core::ThrowInvalidInput(name + ": already reverted at " + it->reverted);
+  const std::vector<ReplacedTile> replaced = store.Replaced(id);
+  std::set<TileIndex> mine;
+  for (const ReplacedTile& tile : replaced) mine.insert({tile.key.col, tile.key.row});
+  // A later update in force over the same floor was made on top of this one: undoing this one
+  // alone would throw the later one away with it.
+  for (auto later = std::next(it); later != history.end(); ++later) {
+    if (!later->reverted.empty()) continue;
+    for (const ReplacedTile& tile : store.Replaced(later->id)) {
+      if (mine.count({tile.key.col, tile.key.row}) > 0) {
+        core::ThrowInvalidInput(name + ": update " + std::to_string(later->id) + " (" + later->time +
+                                ") changed tile " + tile.key.ToString() + " after it; revert that one first");
+      }
+    }
+  }
+  RevertSummary summary;
+  std::vector<TileWrite> writes;
+  std::vector<TileKey> removed;
+  std::map<TileIndex, cv::Mat> changed;
+  for (const ReplacedTile& tile : replaced) {
+    if (tile.pixels) {
+      writes.push_back({tile.key, *tile.pixels});
+      ++summary.restored;
+    } else {
+      removed.push_back(tile.key);
+      ++summary.removed;
+    }
+    changed[{tile.key.col, tile.key.row}] = tile.pixels ? *tile.pixels : cv::Mat();
+  }
+  PyramidAbove(store, std::move(changed), &writes, &removed);
+  store.WriteRevert(id, writes, removed);
+  summary.id = id;
+  summary.reason = it->reason;
+  return summary;
 }
 
 }  // namespace mosaicloc::mosaic

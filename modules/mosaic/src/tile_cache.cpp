@@ -114,6 +114,13 @@ void TileCache::Invalidate(const TileKey& key) {
   entries_.erase(it);
 }
 
+void TileCache::InvalidateWithPyramid(const TileKey& level0) {
+  for (int level = 0; level < store_.grid().levels; ++level) {
+    const std::int64_t factor = std::int64_t{1} << level;
+    Invalidate(TileKey{level, FloorDiv(level0.col, factor), FloorDiv(level0.row, factor)});
+  }
+}
+
 void TileCache::Clear() {
   const std::lock_guard lock(mutex_);
   entries_.clear();

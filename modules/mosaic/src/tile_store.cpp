@@ -3,6 +3,8 @@
 #include <sqlite3.h>
 
 #include <charconv>
+#include <chrono>
+#include <ctime>
 #include <cstring>
 #include <map>
 
@@ -14,6 +16,10 @@ namespace mosaicloc::mosaic {
 namespace {
 
 using internal::Statement;
+
+// A connection that finds the file locked for a moment (another connection opening it and
+// recovering its write-ahead log, a checkpoint) waits this long before it reports the lock.
+constexpr int kBusyTimeoutMs = 5000;
 
 std::string FormatDouble(double value) {
   char buffer[64];
@@ -54,6 +60,7 @@ std::unique_ptr<TileStore> TileStore::Create(const std::filesystem::path& file, 
     core::ThrowRuntime(file.string() + ": cannot create the map: " + reason);
   }
   std::unique_ptr<TileStore> store(new TileStore(file, db, grid));
+  sqlite3_busy_timeout(db, kBusyTimeoutMs);
   // 64 KiB pages (SQLite's largest): a 256 px tile stored as a level-0 PNG (66 KB) spans two
   // pages, where 4 KiB pages made it a chain of 17, each its own read.
   store->Execute("PRAGMA page_size=65536; PRAGMA journal_mode=WAL; PRAGMA synchronous=FULL;");
@@ -83,6 +90,7 @@ std::unique_ptr<TileStore> TileStore::Open(const std::filesystem::path& file, bo
     core::ThrowInvalidInput(file.string() + ": cannot open the map: " + reason);
   }
   std::unique_ptr<TileStore> store(new TileStore(file, db, MapGrid{}));
+  sqlite3_busy_timeout(db, kBusyTimeoutMs);
   std::map<std::string, std::string> metadata;
   {
     sqlite3_stmt* raw = nullptr;
@@ -173,6 +181,7 @@ TileStore::ReaderPtr TileStore::TakeReader(std::string* why) const {
     *why = reader->db ? sqlite3_errmsg(reader->db) : "out of memory";
     return nullptr;
   }
+  sqlite3_busy_timeout(reader->db, kBusyTimeoutMs);
   return reader;
 }
 
@@ -248,7 +257,7 @@ EncodedTileRead TileStore::ReadEncoded(const TileKey& key) const {
   return result;
 }
 
-void TileStore::Write(const std::vector<TileWrite>& tiles) {
+std::vector<std::vector<unsigned char>> TileStore::EncodeAll(const std::vector<TileWrite>& tiles) const {
   std::vector<std::vector<unsigned char>> encoded;
   encoded.reserve(tiles.size());
   for (const auto& tile : tiles) {
@@ -258,19 +267,181 @@ void TileStore::Write(const std::vector<TileWrite>& tiles) {
     }
     encoded.push_back(Encode(tile.pixels, png_compression_));
   }
+  return encoded;
+}
+
+void TileStore::Insert(const std::vector<TileWrite>& tiles, const std::vector<std::vector<unsigned char>>& encoded) {
+  const Statement statement(db_, "INSERT OR REPLACE INTO tiles VALUES (?, ?, ?, ?, ?)", file_);
+  for (std::size_t i = 0; i < tiles.size(); ++i) {
+    sqlite3_reset(statement.get());
+    sqlite3_bind_int(statement.get(), 1, tiles[i].key.level);
+    sqlite3_bind_int64(statement.get(), 2, tiles[i].key.col);
+    sqlite3_bind_int64(statement.get(), 3, tiles[i].key.row);
+    sqlite3_bind_blob(statement.get(), 4, encoded[i].data(), static_cast<int>(encoded[i].size()), SQLITE_STATIC);
+    sqlite3_bind_int64(statement.get(), 5, static_cast<std::int64_t>(Crc32(encoded[i])));
+    if (sqlite3_step(statement.get()) != SQLITE_DONE) {
+      core::ThrowRuntime(file_.string() + ": cannot write tile " + tiles[i].key.ToString() + ": " + sqlite3_errmsg(db_));
+    }
+  }
+}
+
+void TileStore::Write(const std::vector<TileWrite>& tiles) {
+  const std::vector<std::vector<unsigned char>> encoded = EncodeAll(tiles);
   const std::lock_guard lock(mutex_);
   Execute("BEGIN IMMEDIATE;");
   try {
-    const Statement statement(db_, "INSERT OR REPLACE INTO tiles VALUES (?, ?, ?, ?, ?)", file_);
-    for (std::size_t i = 0; i < tiles.size(); ++i) {
-      sqlite3_reset(statement.get());
-      sqlite3_bind_int(statement.get(), 1, tiles[i].key.level);
-      sqlite3_bind_int64(statement.get(), 2, tiles[i].key.col);
-      sqlite3_bind_int64(statement.get(), 3, tiles[i].key.row);
-      sqlite3_bind_blob(statement.get(), 4, encoded[i].data(), static_cast<int>(encoded[i].size()), SQLITE_STATIC);
-      sqlite3_bind_int64(statement.get(), 5, static_cast<std::int64_t>(Crc32(encoded[i])));
-      if (sqlite3_step(statement.get()) != SQLITE_DONE) {
-        core::ThrowRuntime(file_.string() + ": cannot write tile " + tiles[i].key.ToString() + ": " + sqlite3_errmsg(db_));
+    Insert(tiles, encoded);
+    Execute("COMMIT;");
+  } catch (...) {
+    sqlite3_exec(db_, "ROLLBACK;", nullptr, nullptr, nullptr);
+    throw;
+  }
+}
+
+namespace {
+
+bool HasTable(sqlite3* db, const char* name);
+
+// Now, UTC, ISO 8601 to the second.
+std::string UtcNow() {
+  const std::time_t now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+  std::tm utc{};
+  gmtime_r(&now, &utc);
+  char text[32];
+  std::strftime(text, sizeof(text), "%Y-%m-%dT%H:%M:%SZ", &utc);
+  return text;
+}
+
+std::string ColumnText(sqlite3_stmt* statement, int column) {
+  const auto* text = reinterpret_cast<const char*>(sqlite3_column_text(statement, column));
+  return text ? text : "";
+}
+
+// The history's tables (design.md section 4): a map written before them has neither, and they
+// are made by the first recorded write.
+constexpr const char* kHistorySchema =
+    "CREATE TABLE IF NOT EXISTS updates (id INTEGER PRIMARY KEY, time TEXT NOT NULL, reason TEXT NOT NULL,"
+    " tiles INTEGER NOT NULL, reverted TEXT);"
+    "CREATE TABLE IF NOT EXISTS replaced (update_id INTEGER NOT NULL, level INTEGER, col INTEGER, row INTEGER,"
+    " data BLOB, crc32 INTEGER, PRIMARY KEY (update_id, level, col, row));";
+
+}  // namespace
+
+std::int64_t TileStore::WriteRecorded(const std::vector<TileWrite>& tiles, const std::string& reason) {
+  if (reason.empty()) core::ThrowInvalidInput(file_.string() + ": a recorded write needs a reason");
+  const std::vector<std::vector<unsigned char>> encoded = EncodeAll(tiles);
+  const std::lock_guard lock(mutex_);
+  Execute("BEGIN IMMEDIATE;");
+  try {
+    Execute(kHistorySchema);
+    std::int64_t level0 = 0;
+    for (const TileWrite& tile : tiles) level0 += tile.key.level == 0 ? 1 : 0;
+    {
+      const Statement insert(db_, "INSERT INTO updates (time, reason, tiles) VALUES (?, ?, ?)", file_);
+      const std::string now = UtcNow();
+      sqlite3_bind_text(insert.get(), 1, now.c_str(), -1, SQLITE_TRANSIENT);
+      sqlite3_bind_text(insert.get(), 2, reason.c_str(), -1, SQLITE_TRANSIENT);
+      sqlite3_bind_int64(insert.get(), 3, level0);
+      if (sqlite3_step(insert.get()) != SQLITE_DONE) {
+        core::ThrowRuntime(file_.string() + ": cannot record an update: " + sqlite3_errmsg(db_));
+      }
+    }
+    const std::int64_t id = sqlite3_last_insert_rowid(db_);
+    // The level-0 tiles as they are now, copied as stored (a NULL blob: absent). The pyramid
+    // above is not kept: it is recomputed from level 0 when the update is undone.
+    const Statement keep(db_,
+                         "INSERT INTO replaced SELECT ?1, ?2, ?3, ?4,"
+                         " (SELECT data FROM tiles WHERE level = ?2 AND col = ?3 AND row = ?4),"
+                         " (SELECT crc32 FROM tiles WHERE level = ?2 AND col = ?3 AND row = ?4)",
+                         file_);
+    for (const TileWrite& tile : tiles) {
+      if (tile.key.level != 0) continue;
+      sqlite3_reset(keep.get());
+      sqlite3_bind_int64(keep.get(), 1, id);
+      sqlite3_bind_int(keep.get(), 2, 0);
+      sqlite3_bind_int64(keep.get(), 3, tile.key.col);
+      sqlite3_bind_int64(keep.get(), 4, tile.key.row);
+      if (sqlite3_step(keep.get()) != SQLITE_DONE) {
+        core::ThrowRuntime(file_.string() + ": cannot keep tile " + tile.key.ToString() + ": " + sqlite3_errmsg(db_));
+      }
+    }
+    Insert(tiles, encoded);
+    Execute("COMMIT;");
+    return id;
+  } catch (...) {
+    sqlite3_exec(db_, "ROLLBACK;", nullptr, nullptr, nullptr);
+    throw;
+  }
+}
+
+std::vector<MapUpdate> TileStore::History() const {
+  const std::lock_guard lock(mutex_);
+  std::vector<MapUpdate> updates;
+  if (!HasTable(db_, "updates")) return updates;
+  const Statement statement(db_, "SELECT id, time, reason, tiles, reverted FROM updates ORDER BY id", file_);
+  while (sqlite3_step(statement.get()) == SQLITE_ROW) {
+    updates.push_back(MapUpdate{sqlite3_column_int64(statement.get(), 0), ColumnText(statement.get(), 1),
+                                ColumnText(statement.get(), 2), sqlite3_column_int64(statement.get(), 3),
+                                ColumnText(statement.get(), 4)});
+  }
+  return updates;
+}
+
+std::vector<ReplacedTile> TileStore::Replaced(std::int64_t id) const {
+  const std::lock_guard lock(mutex_);
+  const std::string name = file_.string() + ": update " + std::to_string(id);
+  if (!HasTable(db_, "updates")) core::ThrowInvalidInput(name + ": the map has no recorded updates");
+  {
+    const Statement exists(db_, "SELECT 1 FROM updates WHERE id = ?", file_);
+    sqlite3_bind_int64(exists.get(), 1, id);
+    if (sqlite3_step(exists.get()) != SQLITE_ROW) core::ThrowInvalidInput(name + ": no such update");
+  }
+  const Statement statement(db_, "SELECT level, col, row, data, crc32 FROM replaced WHERE update_id = ? ORDER BY row, col",
+                            file_);
+  sqlite3_bind_int64(statement.get(), 1, id);
+  std::vector<ReplacedTile> tiles;
+  while (sqlite3_step(statement.get()) == SQLITE_ROW) {
+    ReplacedTile tile;
+    tile.key = TileKey{sqlite3_column_int(statement.get(), 0), sqlite3_column_int64(statement.get(), 1),
+                       sqlite3_column_int64(statement.get(), 2)};
+    if (sqlite3_column_type(statement.get(), 3) != SQLITE_NULL) {
+      const auto* blob = static_cast<const unsigned char*>(sqlite3_column_blob(statement.get(), 3));
+      const std::vector<unsigned char> png(blob, blob + sqlite3_column_bytes(statement.get(), 3));
+      const auto crc = static_cast<std::uint32_t>(sqlite3_column_int64(statement.get(), 4));
+      if (Crc32(png) != crc) core::ThrowInvalidInput(name + ": kept tile " + tile.key.ToString() + ": CRC mismatch");
+      cv::Mat pixels;
+      const std::string problem = Decode(png, grid_.tile_size_px, pixels);
+      if (!problem.empty()) core::ThrowInvalidInput(name + ": kept tile " + tile.key.ToString() + ": " + problem);
+      tile.pixels = pixels;
+    }
+    tiles.push_back(std::move(tile));
+  }
+  return tiles;
+}
+
+void TileStore::WriteRevert(std::int64_t id, const std::vector<TileWrite>& tiles, const std::vector<TileKey>& removed) {
+  const std::vector<std::vector<unsigned char>> encoded = EncodeAll(tiles);
+  const std::lock_guard lock(mutex_);
+  Execute("BEGIN IMMEDIATE;");
+  try {
+    {
+      const Statement mark(db_, "UPDATE updates SET reverted = ? WHERE id = ? AND reverted IS NULL", file_);
+      const std::string now = UtcNow();
+      sqlite3_bind_text(mark.get(), 1, now.c_str(), -1, SQLITE_TRANSIENT);
+      sqlite3_bind_int64(mark.get(), 2, id);
+      if (sqlite3_step(mark.get()) != SQLITE_DONE || sqlite3_changes(db_) != 1) {
+        core::ThrowInvalidInput(file_.string() + ": update " + std::to_string(id) + " is not in force");
+      }
+    }
+    Insert(tiles, encoded);
+    const Statement remove(db_, "DELETE FROM tiles WHERE level = ? AND col = ? AND row = ?", file_);
+    for (const TileKey& key : removed) {
+      sqlite3_reset(remove.get());
+      sqlite3_bind_int(remove.get(), 1, key.level);
+      sqlite3_bind_int64(remove.get(), 2, key.col);
+      sqlite3_bind_int64(remove.get(), 3, key.row);
+      if (sqlite3_step(remove.get()) != SQLITE_DONE) {
+        core::ThrowRuntime(file_.string() + ": cannot remove tile " + key.ToString() + ": " + sqlite3_errmsg(db_));
       }
     }
     Execute("COMMIT;");

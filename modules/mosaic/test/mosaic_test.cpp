@@ -3,7 +3,9 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <map>
 #include <random>
+#include <tuple>
 #include <unordered_set>
 #include <thread>
 
@@ -757,6 +759,124 @@ TEST(WriteWithPyramid, UpdatedTileKeepsEveryLevelConsistent) {
   }
   // The changed area shows at level 3: tile (5, 2) of level 0 is pixels 40..47 x 16..23 there.
   EXPECT_NEAR(cv::mean(renderer.Region(3, 40, 16, 8, 8).image)[0], 200.0, 1.0);
+}
+
+// Every tile of every level, as stored.
+std::map<std::tuple<int, std::int64_t, std::int64_t>, cv::Mat> AllTiles(const TileStore& store) {
+  std::map<std::tuple<int, std::int64_t, std::int64_t>, cv::Mat> tiles;
+  for (const TileKey& key : store.List()) tiles[{key.level, key.col, key.row}] = store.Read(key).pixels;
+  return tiles;
+}
+
+bool SameTiles(const std::map<std::tuple<int, std::int64_t, std::int64_t>, cv::Mat>& a,
+               const std::map<std::tuple<int, std::int64_t, std::int64_t>, cv::Mat>& b) {
+  if (a.size() != b.size()) return false;
+  for (const auto& [key, pixels] : a) {
+    const auto it = b.find(key);
+    if (it == b.end() || cv::norm(pixels, it->second, cv::NORM_INF) != 0.0) return false;
+  }
+  return true;
+}
+
+// Recorded writes keep the level-0 tiles they replace; reverting them, newest first, gives back
+// the map as it was, pyramid and all, and a tile an update added is removed again.
+TEST(MapHistory, RevertingUpdatesGivesBackTheMapExactly) {
+  test::ScratchDir dir;
+  MapGrid grid;
+  grid.tile_size_px = 64;
+  grid.levels = 3;
+  auto store = TileStore::Create(dir / "h.mosaic", grid);
+  const cv::Mat source = SourceTexture(256);
+  std::vector<TileWrite> level0;
+  for (int row = 0; row < 4; ++row) {
+    for (int col = 0; col < 4; ++col) {
+      cv::Mat pixels;
+      cv::max(source(cv::Rect(64 * col, 64 * row, 64, 64)), 1, pixels);
+      level0.push_back({TileKey{0, col, row}, pixels});
+    }
+  }
+  WriteWithPyramid(*store, level0);
+  EXPECT_TRUE(store->History().empty());  // a plain write is not recorded
+  const auto original = AllTiles(*store);
+
+  const auto first = WriteWithPyramid(*store, {{TileKey{0, 1, 1}, cv::Mat(64, 64, CV_8UC1, cv::Scalar(90))}}, "a stain");
+  const auto second = WriteWithPyramid(*store,
+                                       {{TileKey{0, 1, 1}, cv::Mat(64, 64, CV_8UC1, cv::Scalar(120))},
+                                        {TileKey{0, 4, 0}, cv::Mat(64, 64, CV_8UC1, cv::Scalar(60))}},
+                                       "a new tile, beyond the map's edge");
+  ASSERT_TRUE(first && second);
+  const std::vector<MapUpdate> history = store->History();
+  ASSERT_EQ(history.size(), 2u);
+  EXPECT_EQ(history[0].id, *first);
+  EXPECT_EQ(history[0].reason, "a stain");
+  EXPECT_EQ(history[0].tiles, 1);
+  EXPECT_EQ(history[1].tiles, 2);
+  EXPECT_EQ(history[0].time.size(), 20u) << history[0].time;  // 2026-12-05T03:12:45Z
+  EXPECT_TRUE(history[0].reverted.empty());
+
+  // The older one is under the newer one: it cannot be undone alone.
+  try {
+    RevertUpdate(*store, *first);
+    FAIL() << "reverted an update a later one built on";
+  } catch (const core::Error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("update " + std::to_string(*second)));
+    EXPECT_THAT(e.what(), HasSubstr("revert that one first"));
+  }
+  const RevertSummary undone = RevertUpdate(*store, *second);
+  EXPECT_EQ(undone.restored, 1);
+  EXPECT_EQ(undone.removed, 1);
+  EXPECT_EQ(store->Read(TileKey{0, 4, 0}).status, TileStatus::kAbsent);
+  EXPECT_EQ(store->Read(TileKey{2, 1, 0}).status, TileStatus::kAbsent);  // nothing mapped under it any more
+  EXPECT_NEAR(cv::mean(store->Read(TileKey{0, 1, 1}).pixels)[0], 90.0, 1e-9);
+  RevertUpdate(*store, *first);
+  EXPECT_TRUE(SameTiles(AllTiles(*store), original));
+  EXPECT_FALSE(store->History()[0].reverted.empty());
+  EXPECT_THROW(RevertUpdate(*store, *first), core::Error);  // already reverted
+  try {
+    RevertUpdate(*store, 99);
+    FAIL();
+  } catch (const core::Error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("update 99: no such update"));
+  }
+}
+
+// A kept tile that was damaged on disk is named, and the revert changes nothing.
+TEST(MapHistory, DamagedKeptTileIsNamedAndNothingChanges) {
+  test::ScratchDir dir;
+  MapGrid grid;
+  grid.tile_size_px = 64;
+  grid.levels = 2;
+  auto store = TileStore::Create(dir / "d.mosaic", grid);
+  WriteWithPyramid(*store, {{TileKey{0, 0, 0}, cv::Mat(64, 64, CV_8UC1, cv::Scalar(50))}});
+  const auto id = WriteWithPyramid(*store, {{TileKey{0, 0, 0}, cv::Mat(64, 64, CV_8UC1, cv::Scalar(70))}}, "update");
+  ASSERT_TRUE(id);
+  store.reset();
+  SqlOn(dir / "d.mosaic", "UPDATE replaced SET crc32 = crc32 + 1;");
+  store = TileStore::Open(dir / "d.mosaic", true);
+  try {
+    RevertUpdate(*store, *id);
+    FAIL();
+  } catch (const core::Error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("kept tile level 0 col 0 row 0: CRC mismatch"));
+  }
+  EXPECT_NEAR(cv::mean(store->Read(TileKey{0, 0, 0}).pixels)[0], 70.0, 1e-9);
+  EXPECT_TRUE(store->History()[0].reverted.empty());
+}
+
+// A map written before the history existed has none, opens read-only as before, and gets its
+// history with the first recorded write.
+TEST(MapHistory, AMapWithoutHistoryGetsOneWithItsFirstRecordedWrite) {
+  test::ScratchDir dir;
+  MapGrid grid;
+  grid.tile_size_px = 64;
+  grid.levels = 1;
+  TileStore::Create(dir / "o.mosaic", grid)->Write({{TileKey{0, 0, 0}, cv::Mat(64, 64, CV_8UC1, cv::Scalar(9))}});
+  EXPECT_TRUE(TileStore::Open(dir / "o.mosaic", false)->History().empty());
+  EXPECT_THROW(TileStore::Open(dir / "o.mosaic", false)->Replaced(1), core::Error);
+  auto store = TileStore::Open(dir / "o.mosaic", true);
+  store->WriteRecorded({{TileKey{0, 0, 0}, cv::Mat(64, 64, CV_8UC1, cv::Scalar(10))}}, "first");
+  EXPECT_EQ(TileStore::Open(dir / "o.mosaic", false)->History().size(), 1u);
+  EXPECT_THROW(store->WriteRecorded({}, ""), core::Error);
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <unordered_map>
 #include <unordered_set>
@@ -60,7 +61,23 @@ class MapBuilder {
 
 /// Replaces level-0 tiles and recomputes every pyramid tile above them (reading their
 /// unchanged siblings from the store), all in one transaction: a crash leaves either the old
-/// map or the new one, never a pyramid that disagrees with level 0.
-void WriteWithPyramid(TileStore& store, const std::vector<TileWrite>& level0);
+/// map or the new one, never a pyramid that disagrees with level 0. With a `reason`, the write
+/// is recorded in the map's history (TileStore::WriteRecorded) and its id returned.
+std::optional<std::int64_t> WriteWithPyramid(TileStore& store, const std::vector<TileWrite>& level0,
+                                             const std::string& reason = {});
+
+/// What undoing a recorded update did.
+struct RevertSummary {
+  std::int64_t id = 0;
+  std::string reason;         ///< the update's
+  std::int64_t restored = 0;  ///< level-0 tiles put back as they were
+  std::int64_t removed = 0;   ///< level-0 tiles it had added, removed
+};
+/// `map revert`: puts back the level-0 tiles update `id` replaced (removing those it added),
+/// recomputes the pyramid above them and marks the update reverted, in one transaction.
+/// Throws core::Error (invalid input) naming the map and update when it does not exist, is
+/// already reverted, or a later update in force changed one of its tiles (that one is to be
+/// reverted first).
+RevertSummary RevertUpdate(TileStore& store, std::int64_t id);
 
 }  // namespace mosaicloc::mosaic

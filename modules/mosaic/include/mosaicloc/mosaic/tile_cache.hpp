@@ -57,6 +57,8 @@ class TileCache {
   bool Contains(const TileKey& key);
   /// Drops a tile so the next Get reads the store again.
   void Invalidate(const TileKey& key);
+  /// Drops a level-0 tile and every pyramid tile above it (after WriteWithPyramid).
+  void InvalidateWithPyramid(const TileKey& level0);
   void Clear();
 
   TileCacheStats stats() const;

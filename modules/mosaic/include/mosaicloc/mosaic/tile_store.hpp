@@ -95,6 +95,23 @@ struct TileWrite {
   cv::Mat pixels;
 };
 
+/// One recorded change of the map's floor (design.md section 4, the map's history): automatic
+/// mapping's stretches and automatic map updates are written so, keeping the level-0 tiles
+/// they replaced, and `map revert` undoes one.
+struct MapUpdate {
+  std::int64_t id = 0;      ///< 1, 2, ... in the order written
+  std::string time;         ///< when it was written, UTC, ISO 8601 (2026-12-05T03:12:45Z)
+  std::string reason;       ///< what wrote it and why, one line
+  std::int64_t tiles = 0;   ///< level-0 tiles it replaced or added
+  std::string reverted;     ///< when it was undone (UTC, ISO 8601); empty while in force
+};
+
+/// A level-0 tile as an update found it: its pixels, or none when it was not there.
+struct ReplacedTile {
+  TileKey key;
+  std::optional<cv::Mat> pixels;
+};
+
 /// The map file (design.md section 4): one SQLite database with a metadata table and a
 /// tiles table of lossless 8-bit PNGs with their CRC32. Written in WAL mode, every change in
 /// one transaction, so a crash or power cut leaves each tile either old or new.
@@ -125,6 +142,21 @@ class TileStore {
   EncodedTileRead ReadEncoded(const TileKey& key) const;
   /// Writes tiles in one transaction (all or none). Throws core::Error on failure.
   void Write(const std::vector<TileWrite>& tiles);
+  /// Write() recorded in the map's history as one update (MapUpdate): the level-0 tiles it
+  /// replaces (or that they were absent) are kept with it, in the same one transaction. Returns
+  /// the update's id. Throws core::Error on failure, and for an empty `reason`.
+  std::int64_t WriteRecorded(const std::vector<TileWrite>& tiles, const std::string& reason);
+  /// The map's recorded updates, oldest first (none for a map never updated so).
+  std::vector<MapUpdate> History() const;
+  /// The level-0 tiles update `id` replaced, as they were before it, each checked against its
+  /// CRC32. Throws core::Error (invalid input) naming the map and update when there is no such
+  /// update, and naming the tile when a kept one is damaged.
+  std::vector<ReplacedTile> Replaced(std::int64_t id) const;
+  /// Undoes update `id` in one transaction: writes `tiles`, removes `removed` and marks the
+  /// update reverted now (mosaic::RevertUpdate computes them). Throws core::Error when the
+  /// update is not in force.
+  void WriteRevert(std::int64_t id, const std::vector<TileWrite>& tiles, const std::vector<TileKey>& removed);
+
   /// Every tile of a level (all levels when level < 0), ordered by level, row, col.
   std::vector<TileKey> List(int level = -1) const;
   std::int64_t Count(int level = -1) const;
@@ -168,6 +200,10 @@ class TileStore {
  private:
   TileStore(std::filesystem::path file, sqlite3* db, MapGrid grid);
   void Execute(const std::string& sql) const;
+  // PNG-encodes tiles to write, checking their size and type.
+  std::vector<std::vector<unsigned char>> EncodeAll(const std::vector<TileWrite>& tiles) const;
+  // Inserts (or replaces) encoded tiles; inside a transaction the caller holds.
+  void Insert(const std::vector<TileWrite>& tiles, const std::vector<std::vector<unsigned char>>& encoded);
   // Finds a tile's row, checks its CRC and hands the blob to `use` (which returns a problem,
   // or nothing); kCorrupt with `problem` naming the tile when anything fails.
   TileStatus Fetch(const TileKey& key, const std::function<std::string(const unsigned char*, std::size_t)>& use,
