@@ -30,6 +30,7 @@ struct MapArgs {
   runtime::MapExportOptions export_;
   runtime::MapQualityJob quality;
   fs::path map;
+  std::int64_t update_id = 0;  ///< map revert
 };
 
 // The estimated poses' figures, as JSON and as the lines printed.
@@ -142,6 +143,8 @@ void Info(const MapArgs& args, const GlobalOptions& global) {
     }
     result["quality"] = info.quality ? nlohmann::json{{"level", info.quality->level}, {"cells", info.quality->cells}}
                                      : nlohmann::json(nullptr);
+    result["updates"] = info.updates;
+    result["updates_in_force"] = info.updates_in_force;
     PrintJson(result);
     return;
   }
@@ -163,6 +166,11 @@ void Info(const MapArgs& args, const GlobalOptions& global) {
                 static_cast<double>(info.places->bytes) / (1 << 20));
   } else {
     std::printf("  place index: none (global relocalization needs one: mosaicloc map index %s)\n",
+                args.map.string().c_str());
+  }
+  if (info.updates > 0) {
+    std::printf("  history: %lld recorded updates, %lld in force (mosaicloc map history %s)\n",
+                static_cast<long long>(info.updates), static_cast<long long>(info.updates_in_force),
                 args.map.string().c_str());
   }
   if (info.quality) {
@@ -227,6 +235,43 @@ void Check(const MapArgs& args, const GlobalOptions& global) {
     core::ThrowInvalidInput(message);
   }
   if (!global.json) std::printf("%s: all %zu tiles intact\n", args.map.string().c_str(), tiles);
+}
+
+void History(const MapArgs& args, const GlobalOptions& global) {
+  const std::vector<mosaic::MapUpdate> history = runtime::MapHistory(args.map);
+  if (global.json) {
+    nlohmann::json updates = nlohmann::json::array();
+    for (const mosaic::MapUpdate& u : history) {
+      updates.push_back({{"id", u.id}, {"time", u.time}, {"reason", u.reason}, {"tiles", u.tiles},
+                         {"reverted", u.reverted.empty() ? nlohmann::json() : nlohmann::json(u.reverted)}});
+    }
+    PrintJson({{"map", args.map.string()}, {"updates", updates}});
+    return;
+  }
+  if (history.empty()) {
+    std::printf("%s: no recorded updates (automatic mapping and map updates record theirs)\n", args.map.string().c_str());
+    return;
+  }
+  std::printf("%s: %zu recorded updates\n", args.map.string().c_str(), history.size());
+  for (const mosaic::MapUpdate& u : history) {
+    std::printf("  %4lld  %s  %3lld tiles  %s%s\n", static_cast<long long>(u.id), u.time.c_str(),
+                static_cast<long long>(u.tiles), u.reason.c_str(),
+                u.reverted.empty() ? "" : fmt::format("  [reverted {}]", u.reverted).c_str());
+  }
+}
+
+void Revert(const MapArgs& args, const GlobalOptions& global) {
+  const runtime::MapRevertSummary r = runtime::RevertMapUpdate(args.map, args.update_id);
+  if (global.json) {
+    PrintJson({{"map", args.map.string()}, {"update", r.revert.id}, {"reason", r.revert.reason},
+               {"tiles_restored", r.revert.restored}, {"tiles_removed", r.revert.removed},
+               {"place_index_rebuilt", r.reindexed}, {"quality_layer_rebuilt", r.reassessed}});
+    return;
+  }
+  std::printf("%s: update %lld reverted (%s): %lld tiles restored, %lld removed%s\n", args.map.string().c_str(),
+              static_cast<long long>(r.revert.id), r.revert.reason.c_str(), static_cast<long long>(r.revert.restored),
+              static_cast<long long>(r.revert.removed),
+              r.reindexed || r.reassessed ? "; place index and quality layer rebuilt" : "");
 }
 
 void Export(const runtime::MapExportOptions& args, const GlobalOptions& global) {
@@ -303,19 +348,28 @@ Action AddMapCommand(CLI::App& app, const GlobalOptions& global) {
   quality->add_option("--max-ambiguity", args->quality.thresholds.max_ambiguity,
                       "A cell whose floor matches this well elsewhere within 600 mm is weak (ZNCC, default 0.85)")
       ->check(CLI::Range(-1.0, 1.0));
+  CLI::App* history = command->add_subcommand(
+      "history", "The map's recorded updates (automatic mapping, map updates): when, why, how many tiles, reverted");
+  history->add_option("MAP", args->map, "Map file")->required();
+  CLI::App* revert = command->add_subcommand(
+      "revert", "Undo a recorded update: its tiles as they were before it (a later update over them first)");
+  revert->add_option("MAP", args->map, "Map file")->required();
+  revert->add_option("ID", args->update_id, "The update's id (map history lists them)")->required()->check(CLI::PositiveNumber);
   CLI::App* export_command = command->add_subcommand("export", "Write a map level (or a region of it) as a PNG");
   export_command->add_option("MAP", args->export_.map, "Map file")->required();
   export_command->add_option("--out", args->export_.out, "PNG file to write")->required();
   export_command->add_option("--level", args->export_.level, "Pyramid level (default: the finest within 8192 px)")
       ->check(CLI::Range(0, 15));
   export_command->add_option("--region", args->export_.region, "x0,y0,x1,y1 in world mm");
-  return [args, &global, build, poses, info, check, index, quality, export_command] {
+  return [args, &global, build, poses, info, check, index, quality, history, revert, export_command] {
     if (index->parsed()) Index(*args, global);
     if (quality->parsed()) Quality(args->quality, global);
     if (build->parsed()) Build(args->build, global);
     if (poses->parsed()) Poses(args->poses, global);
     if (info->parsed()) Info(*args, global);
     if (check->parsed()) Check(*args, global);
+    if (history->parsed()) History(*args, global);
+    if (revert->parsed()) Revert(*args, global);
     if (export_command->parsed()) Export(args->export_, global);
   };
 }

@@ -361,6 +361,16 @@ void WriteMetricsJson(const std::filesystem::path& file, const Metrics& metrics)
     json["map_extension_pose_rms_mm"] = ToJson(metrics.map_extension_pose_rms_mm);
     json["map_extension_pose_max_mm"] = ToJson(metrics.map_extension_pose_max_mm);
   }
+  if (const auto& u = metrics.map_update) {
+    json["map_updates"] = u->updates;
+    json["map_update_cells"] = u->cells;
+    json["map_update_tiles"] = u->tiles;
+    json["map_update_pending_cells"] = u->pending_cells;
+    json["map_update_compared"] = u->compared;
+    json["map_update_mostly_changed"] = u->mostly_changed;
+    json["map_update_repeating"] = u->repeating;
+    json["map_update_pose_max_mm"] = ToJson(u->pose_max_mm);
+  }
   json["height_error_rms_mm"] = ToJson(metrics.height_error_rms_mm);
   json["height_error_max_mm"] = ToJson(metrics.height_error_max_mm);
   json["estimate_path_length_m"] = ToJson(metrics.estimate_path_length_m);

@@ -49,6 +49,7 @@ MapExtender::MapExtender(mosaic::TileStore& store, mosaic::TileCache& cache, con
     core::ThrowInvalidInput(fmt::format("{}: map resolution {} mm/px differs from the camera's {} mm/px",
                                         store_.file().string(), store_.grid().mm_per_px, camera_.mm_per_px()));
   }
+  map_empty_ = store_.Count(0) == 0;
 }
 
 MapExtender::Node MapExtender::NodeOf(const ExtensionFrame& frame) {
@@ -61,8 +62,11 @@ void MapExtender::Frame(const ExtensionFrame& frame) {
     if (segment_.empty()) {
       // A stretch starts at the keyframe the first frame off the map was registered against,
       // if that keyframe's pose is known well enough to build on.
+      // On a map with no floor yet the first stretch defines the map's frame: its start is
+      // where the map says it is, however uncertain the estimate was (a start before the
+      // wheels' first counts, say).
       if (!keyframe_ || keyframe_->time != link.earlier_time ||
-          PositionSigmaMm(keyframe_->covariance) > options_.max_anchor_sigma_mm) {
+          (!map_empty_ && PositionSigmaMm(keyframe_->covariance) > options_.max_anchor_sigma_mm)) {
         ++summary_.unanchored;
         if (!unanchored_warned_) {
           unanchored_warned_ = true;
@@ -207,14 +211,14 @@ void MapExtender::Paint(const std::vector<Node>& nodes) {
     if (cv::countNonZero(out != read.pixels) > 0) writes.push_back({key, out});
   }
   if (writes.empty()) return;
-  mosaic::WriteWithPyramid(store_, writes);  // one transaction: a crash leaves the map before or after
-  for (const mosaic::TileWrite& write : writes) {
-    for (int level = 0; level < grid.levels; ++level) {
-      const std::int64_t factor = std::int64_t{1} << level;
-      cache_.Invalidate(mosaic::TileKey{level, mosaic::FloorDiv(write.key.col, factor),
-                                        mosaic::FloorDiv(write.key.row, factor)});
-    }
-  }
+  map_empty_ = false;
+  // One transaction, recorded in the map's history (`map revert` undoes it): a crash leaves the
+  // map before or after.
+  mosaic::WriteWithPyramid(store_, writes,
+                           fmt::format("automatic mapping: {} frames of the drive from {:.3f} s to {:.3f} s",
+                                       nodes.size(), core::ToSeconds(nodes.front().time - core::Timestamp()),
+                                       core::ToSeconds(nodes.back().time - core::Timestamp())));
+  for (const mosaic::TileWrite& write : writes) cache_.InvalidateWithPyramid(write.key);
   summary_.tiles_written += static_cast<std::int64_t>(writes.size());
   core::Log().info("map extension: committed {} frames, {} tiles written; the map holds {} tiles at level 0",
                    nodes.size(), writes.size(), store_.Count(0));

@@ -105,6 +105,11 @@ TEST_F(ExtensionDrive, AStretchOffTheMapIsClosedOntoItAndPaintedWhereTheMapHadNo
   EXPECT_GT(s.tiles_written, 4);
   EXPECT_NEAR(s.closure_max_mm, 0.02 * static_cast<double>(truth_.size() - 2), 0.03);
   EXPECT_TRUE(s.warnings.empty()) << s.warnings.front();
+  // The stretch is one update in the map's history: `map revert` can undo it.
+  const std::vector<mosaic::MapUpdate> history = store_->History();
+  ASSERT_EQ(history.size(), 1u);
+  EXPECT_NE(history.front().reason.find("automatic mapping"), std::string::npos) << history.front().reason;
+  EXPECT_EQ(history.front().tiles, s.tiles_written);
   for (const auto& [time, pose] : extender.painted()) {
     const std::size_t i = static_cast<std::size_t>(std::lround(core::ToSeconds(time - core::Timestamp()) / 0.1));
     EXPECT_LT(core::Distance(pose, truth_[i]), 0.02) << "frame " << i;

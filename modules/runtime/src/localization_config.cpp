@@ -124,6 +124,31 @@ void ReadLocalizerConfig(const YAML::Node& node, const std::string& file_name, L
   extension.Check(config->map_extension);
   extension.Finish();
 
+  core::YamlMap update = root.OptionalMap("map_update");
+  mapping::MapUpdateOptions& u = config->map_update;
+  update.Optional("enabled", &u.enabled);
+  std::int64_t passes = u.passes, min_cells = u.min_cells, min_fixes = u.min_fixes_in_row;
+  update.Optional("passes", &passes, core::IntegerInRange(2, 1000));
+  update.Optional("min_cells", &min_cells, core::IntegerInRange(1, 100000));
+  update.Optional("min_fixes_in_row", &min_fixes, core::IntegerInRange(1, 1000000));
+  u.passes = static_cast<int>(passes);
+  u.min_cells = static_cast<int>(min_cells);
+  u.min_fixes_in_row = static_cast<int>(min_fixes);
+  update.Optional("pass_gap_s", &u.pass_gap_s);
+  update.Optional("cell_mm", &u.cell_mm);
+  update.Optional("min_zncc", &u.min_zncc);
+  update.Optional("border_zncc", &u.border_zncc);
+  update.Optional("flat_dn", &u.flat_dn);
+  update.Optional("max_flat_change_dn", &u.max_flat_change_dn);
+  update.Optional("max_changed_share", &u.max_changed_share);
+  update.Optional("max_nis", &u.max_nis);
+  update.Optional("max_sigma_mm", &u.max_sigma_mm);
+  update.Optional("max_ambiguity", &u.max_ambiguity);
+  update.Optional("compare_every_fraction", &u.compare_every_fraction);
+  update.Optional("margin_px", &u.margin_px);
+  update.Check(u);
+  update.Finish();
+
   core::YamlMap map = root.OptionalMap("map");
   std::int64_t budget = static_cast<std::int64_t>(config->cache_budget_mib);
   map.Optional("cache_budget_mib", &budget, core::IntegerInRange(0, std::int64_t{1} << 40));

@@ -232,7 +232,30 @@ MapInfo InspectMap(const std::filesystem::path& map) {
   }
   info.places = store->Places();
   info.quality = store->Quality();
+  for (const mosaic::MapUpdate& update : store->History()) {
+    ++info.updates;
+    if (update.reverted.empty()) ++info.updates_in_force;
+  }
   return info;
+}
+
+std::vector<mosaic::MapUpdate> MapHistory(const std::filesystem::path& map) {
+  return mosaic::TileStore::Open(map, false)->History();
+}
+
+MapRevertSummary RevertMapUpdate(const std::filesystem::path& map, std::int64_t id) {
+  const auto store = mosaic::TileStore::Open(map, true);
+  MapRevertSummary summary;
+  summary.revert = mosaic::RevertUpdate(*store, id);
+  if (store->Places()) {
+    IndexStore(*store);
+    summary.reindexed = true;
+  }
+  if (store->Quality()) {
+    AssessStore(*store);
+    summary.reassessed = true;
+  }
+  return summary;
 }
 
 MapIndexSummary IndexStore(mosaic::TileStore& store, const std::function<void(double)>& progress) {
@@ -277,6 +300,13 @@ std::vector<std::string> CheckMap(const std::filesystem::path& map, std::size_t*
     if (store->Quality()) store->ReadQuality();
   } catch (const core::Error& e) {
     problems.push_back(e.what());
+  }
+  for (const mosaic::MapUpdate& update : store->History()) {
+    try {
+      store->Replaced(update.id);
+    } catch (const core::Error& e) {
+      problems.push_back(e.what());
+    }
   }
   return problems;
 }

@@ -1,4 +1,5 @@
 #include "mosaicloc/runtime/replay.hpp"
+#include "mosaicloc/runtime/map_keeping.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -32,7 +33,6 @@
 #include "mosaicloc/estimation/odometry.hpp"
 #include "mosaicloc/localizer/localizer.hpp"
 #include "mosaicloc/localizer/speed_limits.hpp"
-#include "mosaicloc/mapping/map_extension.hpp"
 #include "mosaicloc/runtime/drive.hpp"
 #include "mosaicloc/runtime/map_jobs.hpp"
 #include "mosaicloc/runtime/map_quality.hpp"
@@ -140,6 +140,7 @@ class ReplayRecord {
     metrics.map_extension_closure_max_mm = known_.map_extension_closure_max_mm;
     metrics.map_extension_pose_rms_mm = known_.map_extension_pose_rms_mm;
     metrics.map_extension_pose_max_mm = known_.map_extension_pose_max_mm;
+    metrics.map_update = known_.map_update;
     metrics.revisit_repeatability_mm = known_.revisit_repeatability_mm;
     metrics.revisit_places = known_.revisit_places;
     metrics.revisit_visits = known_.revisit_visits;
@@ -343,28 +344,11 @@ double EncoderTimingSigmaOf(const dataset::DatasetInfo& info, double otherwise) 
   }
 }
 
-// A frame's outcome as automatic mapping takes it: the localizer's estimate after the frame
-// (a fix fused, or the visual odometry's chain) as the camera's pose.
-mapping::ExtensionFrame ExtensionFrameOf(core::Timestamp time, const cv::Mat& image,
-                                         const localizer::FrameOutcome& outcome, const dataset::DatasetInfo& info) {
-  mapping::ExtensionFrame frame;
-  frame.time = time;
-  frame.image = image;
-  frame.world_from_camera = outcome.world_from_vehicle * info.camera.vehicle_from_camera;
-  frame.covariance =
-      localizer::CameraCovariance(outcome.world_from_vehicle, info.camera.vehicle_from_camera, outcome.covariance);
-  frame.fixed = outcome.fixed;
-  frame.keyframe = outcome.keyframe;
-  frame.link = outcome.link;
-  return frame;
-}
-
-// Ends automatic mapping (commits the open stretch) and records what it did: the figures,
-// and the painted frames' vehicle poses (mapped.tum) with their error against the truth.
-void RecordExtension(mapping::MapExtender& extender, const std::optional<dataset::Trajectory>& groundtruth,
-                     const dataset::DatasetInfo& info, const std::filesystem::path& out, dataset::Metrics* known) {
-  extender.Finish();
-  const mapping::ExtensionSummary& s = extender.summary();
+// Records what automatic mapping did: the figures, and the painted frames' vehicle poses
+// (mapped.tum) with their error against the truth.
+void RecordExtension(const MapKeeper& keeper, const mapping::ExtensionSummary& s,
+                     const std::optional<dataset::Trajectory>& groundtruth, const dataset::DatasetInfo& info,
+                     const std::filesystem::path& out, dataset::Metrics* known) {
   known->map_extension_segments = s.segments;
   known->map_extension_closed = s.closed;
   known->map_extension_keyframes = s.keyframes;
@@ -374,7 +358,7 @@ void RecordExtension(mapping::MapExtender& extender, const std::optional<dataset
   dataset::Trajectory painted;
   double sum_sq = 0.0, worst = 0.0;
   std::int64_t compared = 0;
-  for (const auto& [time, world_from_camera] : extender.painted()) {
+  for (const auto& [time, world_from_camera] : keeper.painted()) {
     painted.push_back({time, world_from_camera * info.camera.vehicle_from_camera.Inverse()});
     if (!groundtruth) continue;
     const auto truth = dataset::PoseAt(*groundtruth, time, std::chrono::milliseconds(100));
@@ -391,8 +375,31 @@ void RecordExtension(mapping::MapExtender& extender, const std::optional<dataset
   std::error_code ec;
   std::filesystem::create_directories(out, ec);
   dataset::WriteTum(out / "mapped.tum", painted);
-  core::Log().info("map extension: {} stretches ({} closed onto the map), {} frames painted, {} tiles written, "
-                   "{:.1f} s", s.segments, s.closed, s.keyframes, s.tiles_written, s.seconds);
+}
+
+// Records what automatic map updates did; with the truth, how far off the frames they were
+// painted from were.
+void RecordUpdates(const mapping::UpdateSummary& s, const std::optional<dataset::Trajectory>& groundtruth,
+                   const dataset::DatasetInfo& info, dataset::Metrics* known) {
+  dataset::Metrics::MapUpdateFigures figures;
+  figures.updates = s.updates;
+  figures.cells = s.cells_updated;
+  figures.tiles = s.tiles_written;
+  figures.pending_cells = s.cells_pending;
+  figures.compared = s.compared;
+  figures.mostly_changed = s.mostly_changed;
+  figures.repeating = s.repeating;
+  if (groundtruth) {
+    double worst = 0.0;
+    for (const auto& [time, world_from_camera] : s.painted) {
+      const auto truth = dataset::PoseAt(*groundtruth, time, std::chrono::milliseconds(100));
+      if (!truth) continue;
+      const core::Pose2 vehicle = world_from_camera * info.camera.vehicle_from_camera.Inverse();
+      worst = std::max(worst, (vehicle.translation_mm() - truth->translation_mm()).norm());
+    }
+    if (!s.painted.empty()) figures.pose_max_mm = worst;
+  }
+  known->map_update = figures;
 }
 
 // Dead reckoning: integrate the wheel encoders from the starting pose, and report the pose
@@ -460,9 +467,10 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
       LocalizerOptionsFor(settings.localizer, info.camera, info.vehicle,
                           EncoderTimingSigmaOf(info, settings.localizer.odometry_timing_sigma_ms));
   localizer::Localizer localizer(camera, localizer_options, map.reference(), &map.places());
-  std::optional<mapping::MapExtender> extender;
+  std::optional<MapKeeper> keeper;
   if (options.mapping) {
-    extender.emplace(map.store(), map.cache(), camera, localizer_options.tracker, settings.map_extension);
+    keeper.emplace(map, camera, localizer_options.tracker, settings, info.camera.vehicle_from_camera,
+                   /*background=*/false);
   }
 
   auto encoders = reader.Encoders();
@@ -514,7 +522,7 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
     }
     const auto started = std::chrono::steady_clock::now();
     const localizer::FrameOutcome outcome = localizer.ProcessFrame(frame->time, frame->image);
-    if (extender && !localizer.pose_unknown()) extender->Frame(ExtensionFrameOf(frame->time, frame->image, outcome, info));
+    if (keeper) keeper->Frame(frame->time, frame->image, outcome, !localizer.pose_unknown());
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started).count();
     // While the pose is unknown there is no estimate to evaluate.
     record.Frame(frame->time,
@@ -552,16 +560,10 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
   if (summary.encoder_samples_rejected > 0) {
     core::Log().warn("{} encoder samples rejected", summary.encoder_samples_rejected);
   }
-  if (extender) {
-    RecordExtension(*extender, groundtruth, info, options.out, &record.known());
-    if (extender->summary().tiles_written > 0) {
-      // The new floor joins the place index (global relocalization) and the quality layer, as
-      // `map build` makes them.
-      const MapIndexSummary index = IndexStore(map.store());
-      AssessStore(map.store());
-      core::Log().info("map extension: place index rebuilt ({} features, {:.1f} s), quality layer assessed",
-                       index.features, index.seconds);
-    }
+  if (keeper) {
+    const MapKeepingSummary kept = keeper->Finish();
+    RecordExtension(*keeper, kept.extension, groundtruth, info, options.out, &record.known());
+    if (settings.map_update.enabled) RecordUpdates(kept.updates, groundtruth, info, &record.known());
   }
   summary.tiles_loaded = map.cache().stats().misses;
   summary.relocalizations = localizer.relocalizations();

@@ -95,6 +95,19 @@ struct Metrics {
   std::optional<double> map_extension_closure_max_mm;
   std::optional<double> map_extension_pose_rms_mm;
   std::optional<double> map_extension_pose_max_mm;
+  /// Automatic map updates (replay --mapping; caller, design.md section 7e).
+  struct MapUpdateFigures {
+    std::int64_t updates = 0;         ///< written, each one transaction in the map's history
+    std::int64_t cells = 0;           ///< cells rewritten
+    std::int64_t tiles = 0;           ///< level-0 tiles written
+    std::int64_t pending_cells = 0;   ///< seen changed, not on enough passes (yet)
+    std::int64_t compared = 0;        ///< confident frames compared with the map
+    std::int64_t mostly_changed = 0;  ///< ... that looked changed over too much of the view to vote
+    std::int64_t repeating = 0;       ///< confident frames not compared: the floor under them repeats
+    /// With ground truth: the largest position error of a frame an update was painted from, mm.
+    std::optional<double> pose_max_mm;
+  };
+  std::optional<MapUpdateFigures> map_update;
   /// The camera's height the localizer held at its fixes (image scale x calibrated height)
   /// against the simulator's truth (groundtruth/camera.csv), mm (caller).
   std::optional<double> height_error_rms_mm;

@@ -27,7 +27,8 @@ struct MapExtensionOptions {
   /// lost to a crash, more of a long loop's error left at the far end.
   double max_segment_m = 5.0;
   /// A stretch starts only from a keyframe whose position is known to this, one standard
-  /// deviation: the map is never extended from an unconfident pose.
+  /// deviation: the map is never extended from an unconfident pose. (On a map with no floor
+  /// yet, the first stretch defines the map's frame and starts from wherever it is.)
   double max_anchor_sigma_mm = 2.0;
   /// The return onto the map is registered against the stretch's last keyframe around the
   /// fix's motion from it, uncertain by this (one standard deviation).
@@ -109,6 +110,7 @@ class MapExtender {
   std::vector<PoseGraphEdge> edges_;
   double segment_mm_ = 0.0;
   bool unanchored_warned_ = false;
+  bool map_empty_ = false;  ///< no floor in the map yet: the first stretch defines its frame
   ExtensionSummary summary_;
   std::vector<std::pair<core::Timestamp, core::Pose2>> painted_;
 };

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "mosaicloc/mosaic/builder.hpp"
 #include "mosaicloc/mosaic/tile_store.hpp"
 #include "mosaicloc/runtime/map_poses.hpp"
 
@@ -74,6 +75,9 @@ struct MapInfo {
   std::optional<mosaic::PlaceIndexInfo> places;
   /// The quality layer (`map quality`), when the map has one.
   std::optional<mosaic::QualityInfo> quality;
+  /// Recorded updates (`map history`), and how many of them are in force (not reverted).
+  std::int64_t updates = 0;
+  std::int64_t updates_in_force = 0;
 };
 MapInfo InspectMap(const std::filesystem::path& map);
 
@@ -89,7 +93,20 @@ MapIndexSummary IndexMap(const std::filesystem::path& map, const std::function<v
 /// The same into an open, writable store.
 MapIndexSummary IndexStore(mosaic::TileStore& store, const std::function<void(double)>& progress = {});
 
-/// Reads every tile, the place index's cells and the quality layer's; the problems of the damaged ones. *tiles gets the number read.
+/// `mosaicloc map history`: the map's recorded updates, oldest first.
+std::vector<mosaic::MapUpdate> MapHistory(const std::filesystem::path& map);
+
+/// `mosaicloc map revert`: undoes a recorded update (mosaic::RevertUpdate), then rebuilds the
+/// place index and the quality layer where the map has them, so that they describe its floor.
+struct MapRevertSummary {
+  mosaic::RevertSummary revert;
+  bool reindexed = false;
+  bool reassessed = false;
+};
+MapRevertSummary RevertMapUpdate(const std::filesystem::path& map, std::int64_t id);
+
+/// Reads every tile, the place index's cells, the quality layer's and the tiles the history
+/// keeps; the problems of the damaged ones. *tiles gets the number of tiles read.
 std::vector<std::string> CheckMap(const std::filesystem::path& map, std::size_t* tiles,
                                   const std::function<void(double)>& progress = {});
 

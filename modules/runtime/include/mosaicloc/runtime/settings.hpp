@@ -7,6 +7,7 @@
 #include "mosaicloc/estimation/pose_filter.hpp"
 #include "mosaicloc/localizer/localizer.hpp"
 #include "mosaicloc/mapping/map_extension.hpp"
+#include "mosaicloc/mapping/map_update.hpp"
 #include "mosaicloc/mosaic/prefetcher.hpp"
 
 namespace mosaicloc::runtime {
@@ -25,6 +26,8 @@ struct LocalizationSettings {
   double required_overlap = 0.5;   ///< beta of the overlap speed limit
   /// Automatic mapping (`replay --mapping`, design.md section 7d).
   mapping::MapExtensionOptions map_extension;
+  /// Automatic map updates (`replay --mapping`, design.md section 7e).
+  mapping::MapUpdateOptions map_update;
   /// The localizer's options and: cache_budget_mib in [16, 2^20], prefetch_horizon_s in
   /// [0, 10], prefetch_turn_radius_mm in [0, 1e6], start_sigma_mm in [1e-3, 1e5],
   /// start_sigma_deg in [1e-4, 180], required_overlap in [0, 0.95].

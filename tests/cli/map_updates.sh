@@ -1,0 +1,112 @@
+# Automatic map updates (design.md section 7e) on the procedural floor: a small loop mapped, then
+# driven three times over a floor where a 60 mm tile was replaced since. The second pass rewrites
+# it, from frames whose pose is right to 0.05 mm, in updates the map's history keeps: `map
+# history` lists them and `map revert` undoes them. A kidnapped vehicle over the unchanged floor
+# writes nothing, and a replay killed with SIGKILL after an update leaves a map that checks
+# clean and holds it.
+# Usage: map_updates.sh MOSAICLOC
+source "$(dirname "$0")/lib.sh"
+# json_check FILE EXPR...: every Python expression holds for the JSON object d read from FILE.
+json_check() {
+  local file=$1
+  shift
+  python3 - "$file" "$@" <<'PY' || fail "$file: $*"
+import json, sys
+d = json.load(open(sys.argv[1]))
+print(sys.argv[1], {k: v for k, v in d.items() if k.startswith("map_update") or k in ("fix_rate", "lock_losses", "wrong_fixes", "updates", "updates_in_force")})
+for check in sys.argv[2:]:
+    assert eval(check), check
+PY
+}
+# near_quality FIXES X Y: the mean fix quality (per mille) of each pass of the camera within 60 mm
+# of (X, Y) mm, one line.
+near_quality() {
+  python3 - "$@" <<'PY'
+import csv, math, sys
+path, x0, y0 = sys.argv[1], float(sys.argv[2]), float(sys.argv[3])
+passes, last = [], None
+for row in csv.DictReader(l for l in open(path) if not l.startswith('#') or l.startswith('#timestamp')):
+    t = int(row['#timestamp_ns']) * 1e-9
+    x, y, yaw = float(row['x_mm']), float(row['y_mm']), float(row['yaw_rad'])
+    if math.hypot(x + 200 * math.cos(yaw) - x0, y + 200 * math.sin(yaw) - y0) > 60: continue
+    if last is None or t - last > 2.0: passes.append([])
+    last = t
+    passes[-1].append(float(row['quality'] or 0))
+print(' '.join('%.1f' % (sum(p) / len(p)) for p in passes))
+PY
+}
+printf 'route: {loop_width_m: 2.5, loop_height_m: 1.5}\n' > "$SCRATCH/site.yaml"
+cat "$SCRATCH/site.yaml" - > "$SCRATCH/changed.yaml" <<'YAML'
+changes: {replaced_tile: {x_mm: 700.0, y_mm: 0.0, size_mm: 60.0}}
+YAML
+expect_exit 0 "$MOSAICLOC" --quiet simulate --out "$SCRATCH/lap" --floor procedural --route loop --laps 1 \
+  --speed-mps 1.0 --seed 71 --config "$SCRATCH/site.yaml"
+expect_exit 0 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/lap" --out "$SCRATCH/site.mosaic" --poses groundtruth
+for floor in same changed; do
+  config="$SCRATCH/site.yaml"
+  [ "$floor" = changed ] && config="$SCRATCH/changed.yaml"
+  expect_exit 0 "$MOSAICLOC" --quiet simulate --out "$SCRATCH/$floor" --floor procedural --route loop --laps 3 \
+    --speed-mps 1.5 --seed 72 --config "$config"
+done
+expect_exit 0 "$MOSAICLOC" --quiet replay --dataset "$SCRATCH/same" --map "$SCRATCH/site.mosaic" --out "$SCRATCH/r_same" \
+  --revisit-places 0
+
+# The changed tile is rewritten on the second pass, from a pose right to 0.05 mm, and the fix
+# quality over it on the third pass is that of the unchanged floor.
+cp "$SCRATCH/site.mosaic" "$SCRATCH/updated.mosaic"
+expect_exit 0 "$MOSAICLOC" --quiet replay --dataset "$SCRATCH/changed" --map "$SCRATCH/updated.mosaic" --mapping \
+  --out "$SCRATCH/r_updated" --revisit-places 0
+json_check "$SCRATCH/r_updated/metrics.json" 'd["map_updates"] >= 1' 'd["map_update_cells"] >= 4' \
+  'd["map_update_pose_max_mm"] < 0.05' 'd["wrong_fixes"] == 0' 'd["lock_losses"] == 0' 'd["fix_rate"] >= 0.99'
+same=$(near_quality "$SCRATCH/r_same/fixes.csv" 700 0)
+updated=$(near_quality "$SCRATCH/r_updated/fixes.csv" 700 0)
+echo "fix quality near the replaced tile, per pass: unchanged floor $same; changed floor, updated $updated"
+python3 -c "
+same, updated = [float(v) for v in '$same'.split()], [float(v) for v in '$updated'.split()]
+assert len(same) == 3 and len(updated) == 3, (same, updated)
+assert updated[0] < same[0] - 10, 'the first pass sees the change'
+assert updated[2] >= 0.995 * same[2], 'the third pass sees the floor as mapped'
+" || fail "fix quality near the replaced tile: unchanged $same, updated $updated"
+
+# The history lists the updates; reverting them, newest first, gives back the map as it was.
+expect_exit 0 "$MOSAICLOC" --quiet map history "$SCRATCH/updated.mosaic"
+expect_in "$SCRATCH/out" "seen changed on 2 passes"
+expect_exit 0 "$MOSAICLOC" --quiet --json map info "$SCRATCH/updated.mosaic"
+json_check "$SCRATCH/out" 'd["updates"] >= 1' 'd["updates_in_force"] == d["updates"]'
+updates=$(python3 -c "import json; print(json.load(open('$SCRATCH/out'))['updates'])")
+for id in $(seq "$updates" -1 1); do
+  expect_exit 0 "$MOSAICLOC" --quiet map revert "$SCRATCH/updated.mosaic" "$id"
+  expect_in "$SCRATCH/out" "update $id reverted"
+done
+expect_exit 2 "$MOSAICLOC" --quiet map revert "$SCRATCH/updated.mosaic" 1
+expect_in "$SCRATCH/err" "already reverted"
+expect_exit 2 "$MOSAICLOC" --quiet map revert "$SCRATCH/updated.mosaic" 99
+expect_in "$SCRATCH/err" "update 99: no such update"
+expect_exit 0 "$MOSAICLOC" --quiet map check "$SCRATCH/updated.mosaic"
+expect_exit 0 "$MOSAICLOC" --quiet map export "$SCRATCH/updated.mosaic" --out "$SCRATCH/reverted.png" --level 0
+expect_exit 0 "$MOSAICLOC" --quiet map export "$SCRATCH/site.mosaic" --out "$SCRATCH/original.png" --level 0
+cmp -s "$SCRATCH/reverted.png" "$SCRATCH/original.png" || fail "the reverted map differs from the original"
+
+# A kidnapped vehicle over the unchanged floor: whatever it sees until it is found again, it
+# writes nothing.
+cp "$SCRATCH/site.mosaic" "$SCRATCH/kidnap.mosaic"
+expect_exit 0 "$MOSAICLOC" --quiet replay --dataset "$SCRATCH/same" --map "$SCRATCH/kidnap.mosaic" --mapping \
+  --out "$SCRATCH/r_kidnap" --revisit-places 0 --kidnap-at-s 4 --kidnap-offset 0,40,0
+json_check "$SCRATCH/r_kidnap/metrics.json" 'd["map_updates"] == 0' 'd["wrong_fixes"] == 0'
+
+# Killed with SIGKILL after its first update: the map checks clean and holds it.
+cp "$SCRATCH/site.mosaic" "$SCRATCH/killed.mosaic"
+"$MOSAICLOC" replay --dataset "$SCRATCH/changed" --map "$SCRATCH/killed.mosaic" --mapping --out "$SCRATCH/r_killed" \
+  --revisit-places 0 > "$SCRATCH/killed.log" 2>&1 &
+pid=$!
+for _ in $(seq 1 1000); do
+  grep -q '(update 1)' "$SCRATCH/killed.log" && break
+  sleep 0.01
+done
+kill -9 "$pid" 2>/dev/null
+wait "$pid" 2>/dev/null
+grep -q '(update 1)' "$SCRATCH/killed.log" || fail "no update before the kill: $(tail -c 600 "$SCRATCH/killed.log")"
+expect_exit 0 "$MOSAICLOC" --quiet map check "$SCRATCH/killed.mosaic"
+expect_exit 0 "$MOSAICLOC" --quiet --json map info "$SCRATCH/killed.mosaic"
+json_check "$SCRATCH/out" 'd["updates"] >= 1'
+finish
