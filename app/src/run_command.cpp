@@ -39,11 +39,13 @@ struct RunArgs {
   std::filesystem::path record;
   double duration_s = 0.0;
   std::optional<double> start_unix_s;
+  bool mapping = false;
 };
 
 void Run(const RunArgs& args, const GlobalOptions& global) {
   runtime::RunConfig config = runtime::LoadRunConfig(args.config);
   if (args.start_unix_s) config.dataset_start_unix_s = *args.start_unix_s;
+  if (args.mapping) config.mapping = true;
   if (!args.record.empty() && std::filesystem::exists(args.record)) {
     core::ThrowInvalidInput("run: --record " + args.record.string() + " exists; give a new directory");
   }
@@ -66,6 +68,12 @@ void Run(const RunArgs& args, const GlobalOptions& global) {
       std::printf("per frame: processing %.2f ms p50, %.2f ms p99; capture to fix %.2f ms p50, %.2f ms p99\n",
                   summary["processing_p50_ms"].get<double>(), summary["processing_p99_ms"].get<double>(),
                   summary["latency_p50_ms"].get<double>(), summary["latency_p99_ms"].get<double>());
+    }
+    if (summary.contains("map_extension_tiles")) {
+      std::printf("map kept: %lld stretches added (%lld tiles), %lld updates (%lld cells); %lld frames not mapped\n",
+                  summary["map_extension_segments"].get<long long>(), summary["map_extension_tiles"].get<long long>(),
+                  summary["map_updates"].get<long long>(), summary["map_update_cells"].get<long long>(),
+                  summary["map_keeping_dropped"].get<long long>());
     }
     std::printf("PLC: %lld requests, %lld answered, %lld fix writes, %lld read errors, %lld timeouts, "
                 "%lld odometry outages\n",
@@ -95,6 +103,9 @@ Action AddRunCommand(CLI::App& app, const GlobalOptions& global) {
                       "camera source dataset: start playing at this wall-clock time (seconds since the Unix "
                       "epoch), in step with a plc-sim given the same time (overrides camera.dataset.start_unix_s)")
       ->check(CLI::NonNegativeNumber);
+  command->add_flag("--mapping", args->mapping,
+                   "Keep the map as the vehicle drives: floor off the map added, floor that changed rewritten "
+                   "(the configuration's mapping: true); the map is created empty when it does not exist");
   return [args, &global] { Run(*args, global); };
 }
 

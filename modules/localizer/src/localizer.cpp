@@ -5,6 +5,7 @@
 #include <numbers>
 #include <utility>
 
+#include <fmt/format.h>
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <opencv2/core.hpp>
@@ -399,6 +400,7 @@ void Localizer::KeepKeyframe(core::Timestamp time, const cv::Mat& frame) {
   frame.copyTo(keyframe_->image);  // reuses the buffer: one copy per kept frame
   keyframe_->world_from_vehicle = filter_->PoseAt(time);
   keyframe_->covariance = filter_->CovarianceAt(time);
+  last_vo_camera_ = keyframe_->world_from_vehicle * options_.vehicle_from_camera;
 }
 
 bool Localizer::VisualOdometry(core::Timestamp time, const cv::Mat& frame, const core::Pose2& predicted,
@@ -406,19 +408,31 @@ bool Localizer::VisualOdometry(core::Timestamp time, const cv::Mat& frame, const
   const VisualOdometryOptions& vo = options_.visual_odometry;
   const core::Pose2& vehicle_from_camera = options_.vehicle_from_camera;
   const core::Pose2 predicted_camera = predicted * vehicle_from_camera;
-  if (!keyframe_ || keyframe_->image.size() != frame.size() || time <= keyframe_->time ||
-      ViewShift(camera_, keyframe_->world_from_vehicle * vehicle_from_camera, predicted_camera) > vo.max_fraction) {
+  // The encoder samples' time-stamp error puts the wheels' pose at the keyframe and now each
+  // v sigma_t off along the heading (LocalizerOptions::odometry_timing_sigma_ms): the predicted
+  // shift may be that much more than the true one.
+  const double timing_mm = std::sqrt(2.0) * std::abs(filter_->Latest().forward_speed_mm_per_s) *
+                           options_.odometry_timing_sigma_ms * 1e-3;
+  const double reach = vo.max_fraction + 3.0 * timing_mm / std::min(camera_.width_mm(), camera_.height_mm());
+  const double shift =
+      keyframe_ ? ViewShift(camera_, keyframe_->world_from_vehicle * vehicle_from_camera, predicted_camera) : 0.0;
+  if (!keyframe_ || keyframe_->image.size() != frame.size() || time <= keyframe_->time || shift > reach) {
     // Nothing to register against (no frame kept yet, or too far to overlap): this frame
     // starts the chain where the wheels put it.
+    outcome->reason += !keyframe_ || shift <= reach
+                           ? std::string("; visual odometry: a new keyframe")
+                           : fmt::format("; visual odometry: a new keyframe (the view moved {:.2f} of its size from "
+                                         "the last, over {:.3f} s)",
+                                         shift, core::ToSeconds(time - keyframe_->time));
     KeepKeyframe(time, frame);
     outcome->keyframe = true;
-    outcome->reason += "; visual odometry: a new keyframe";
     return false;
   }
   const core::Pose2 keyframe_camera = keyframe_->world_from_vehicle * vehicle_from_camera;
   // The wheels' motion since the keyframe, as the camera saw it, with its uncertainty.
   const core::Pose2 prior_motion = Between(keyframe_camera, predicted_camera);
-  const double sigma_mm = vo.prior_sigma_mm + vo.prior_sigma_fraction * prior_motion.translation_mm().norm();
+  const double base_mm = vo.prior_sigma_mm + vo.prior_sigma_fraction * prior_motion.translation_mm().norm();
+  const double sigma_mm = std::sqrt(base_mm * base_mm + timing_mm * timing_mm);
   const double sigma_rad = vo.prior_sigma_deg * std::numbers::pi / 180.0;
   const Eigen::Matrix3d prior =
       Eigen::Vector3d(sigma_mm * sigma_mm, sigma_mm * sigma_mm, sigma_rad * sigma_rad).asDiagonal();
@@ -448,7 +462,13 @@ bool Localizer::VisualOdometry(core::Timestamp time, const cv::Mat& frame, const
   outcome->fix_world_from_vehicle = pose;
   outcome->fix_quality = std::clamp(link.mean_zncc, 0.0, 1.0);
   outcome->link = tracking::FrameLink{keyframe_->time, link.world_from_camera, link_covariance};
-  if (ViewShift(camera_, keyframe_camera, camera_pose) >= vo.keyframe_fraction ||
+  // A keyframe once the view has moved or turned far enough from the last, or when the next
+  // frame, at this frame's pace, would lie beyond what registers against the last (a frame
+  // just short of keyframe_fraction must not leave the next one beyond max_fraction).
+  const double moved = ViewShift(camera_, keyframe_camera, camera_pose);
+  const double step = last_vo_camera_ ? ViewShift(camera_, *last_vo_camera_, camera_pose) : 0.0;
+  last_vo_camera_ = camera_pose;
+  if (moved >= vo.keyframe_fraction || moved + step > 0.9 * vo.max_fraction ||
       std::abs(link.world_from_camera.yaw_rad()) >= vo.keyframe_turn_deg * std::numbers::pi / 180.0) {
     outcome->keyframe = true;
     keyframe_->time = time;

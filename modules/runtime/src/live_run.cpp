@@ -1,4 +1,5 @@
 #include "mosaicloc/runtime/live_run.hpp"
+#include "mosaicloc/runtime/map_keeping.hpp"
 
 // The live run (mosaicloc run). Four threads share the work (design.md section 1):
 //   camera    - takes frames from the source into a short queue (oldest dropped when full);
@@ -212,11 +213,18 @@ class LiveRun::Impl {
     map_options.cache_budget_bytes = config.localizer.cache_budget_mib << 20;
     map_options.camera_mm_per_px = camera.mm_per_px;
     if (config.localizer.prefetch_horizon_s > 0.0) map_options.prefetch = runtime::PrefetchOptionsFor(config.localizer, camera);
+    map_options.writable = config.mapping;
     map_ = std::make_unique<runtime::MapSession>(config.map, map_options);
-    localizer_ = std::make_unique<localizer::Localizer>(
-        camera::IdealCamera(camera::IdealCameraOptions{camera.width_px, camera.height_px, camera.mm_per_px}),
-        runtime::LocalizerOptionsFor(config.localizer.localizer, camera, vehicle, config.encoder_timing_sigma_ms),
-        map_->reference(), &map_->places());
+    const camera::IdealCamera ideal(camera::IdealCameraOptions{camera.width_px, camera.height_px, camera.mm_per_px});
+    const localizer::LocalizerOptions localizer_options =
+        runtime::LocalizerOptionsFor(config.localizer.localizer, camera, vehicle, config.encoder_timing_sigma_ms);
+    localizer_ = std::make_unique<localizer::Localizer>(ideal, localizer_options, map_->reference(), &map_->places());
+    if (config.mapping) {
+      if (map_->created()) core::Log().info("run: {} created empty, to be mapped as the vehicle drives", config.map.string());
+      empty_map_ = map_->store().Count(0) == 0;
+      keeper_ = std::make_unique<runtime::MapKeeper>(*map_, ideal, localizer_options.tracker, config.localizer,
+                                                     camera.vehicle_from_camera, /*background=*/true);
+    }
     if (config.start_unknown && !map_->places().usable()) {
       core::ThrowInvalidInput("run: start.unknown needs a map with a place index: " + map_->places().problem());
     }
@@ -247,6 +255,11 @@ class LiveRun::Impl {
     if (config_.start_unknown) {
       localizer_->InitializeUnknown(started_);
       core::Log().info("run: the start is unknown: searching the whole map");
+    } else if (empty_map_) {
+      // A map with no floor yet is mapped from where the vehicle stands: the start is its
+      // origin, exact by definition.
+      localizer_->Initialize(started_, config_.start, runtime::StartCovariance(1e-3, 1e-4));
+      core::Log().info("run: the map has no floor yet: the start is its origin");
     } else {
       localizer_->Initialize(started_, config_.start,
                              runtime::StartCovariance(config_.start_sigma_mm, config_.start_sigma_deg));
@@ -298,7 +311,22 @@ class LiveRun::Impl {
     if (console_) console_->Stop();
     if (error_) std::rethrow_exception(error_);
     if (recorder_) recorder_->Commit();
-    return Summary(why);
+    nlohmann::json summary = Summary(why);
+    if (keeper_) {
+      // What waits is mapped and the open stretch committed before the run says it is done.
+      const runtime::MapKeepingSummary kept = keeper_->Finish();
+      summary["map_extension_segments"] = kept.extension.segments;
+      summary["map_extension_closed"] = kept.extension.closed;
+      summary["map_extension_keyframes"] = kept.extension.keyframes;
+      summary["map_extension_tiles"] = kept.extension.tiles_written;
+      summary["map_extension_unanchored"] = kept.extension.unanchored;
+      summary["map_updates"] = kept.updates.updates;
+      summary["map_update_cells"] = kept.updates.cells_updated;
+      summary["map_update_pending_cells"] = kept.updates.cells_pending;
+      summary["map_keeping_dropped"] = kept.dropped;
+      summary["map_reindexed"] = kept.reindexed;
+    }
+    return summary;
   }
 
  private:
@@ -535,6 +563,7 @@ class LiveRun::Impl {
       if (relocalize_pending_.exchange(false)) localizer_->RequestRelocalization();
       const auto processing_start = io::MonotonicNow();
       const localizer::FrameOutcome outcome = localizer_->ProcessFrame(frame->time, frame->image);
+      if (keeper_) keeper_->Frame(frame->time, frame->image, outcome, !localizer_->pose_unknown());
       ++stats_.processed;
       ++stats_.frames_by_mode[static_cast<std::size_t>(outcome.mode)];
       if (recorder_) recorder_->Report(runtime::FrameReportOf(frame->time, outcome));
@@ -697,8 +726,10 @@ class LiveRun::Impl {
   std::unique_ptr<io::FrameSource> source_;
   dataset::CameraInfo camera_info_;
   std::unique_ptr<runtime::MapSession> map_;  // before the localizer, which renders from it
+  bool empty_map_ = false;  ///< mapping from a map with no floor yet
   Clock::time_point last_prediction_{};  // of the prefetcher; Publish runs on the tracking thread
   std::unique_ptr<localizer::Localizer> localizer_;
+  std::unique_ptr<runtime::MapKeeper> keeper_;  ///< with mapping; after the map, which it writes
   std::unique_ptr<io::PlcLink> link_;
   std::unique_ptr<Recorder> recorder_;
   std::unique_ptr<console::Console> console_;

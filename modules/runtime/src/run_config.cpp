@@ -95,6 +95,7 @@ RunConfig LoadRunConfig(const std::filesystem::path& file) {
   std::string map;
   root.Required("map", &map);
   config.map = resolve(map);
+  root.Optional("mapping", &config.mapping);
   std::string localizer;
   root.Optional("localizer", &localizer);
 

@@ -299,6 +299,7 @@ class Localizer {
     Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
   };
   std::optional<Keyframe> keyframe_;
+  std::optional<core::Pose2> last_vo_camera_;  ///< the camera pose of the last frame visual odometry registered
   Mode mode_ = Mode::kTrack;
   std::int64_t mode_switches_ = 0;
   // The image scale's estimate, its variance, and the time it was last brought to.

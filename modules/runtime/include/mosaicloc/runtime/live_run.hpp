@@ -22,6 +22,9 @@ namespace mosaicloc::runtime {
 /// The live run's settings (config/default/run.yaml gives every key, its unit and default).
 struct LiveRunOptions {
   std::filesystem::path map;                 ///< resolved against the config file's folder
+  /// Automatic mapping and map updates as the vehicle drives (design.md sections 7d, 7e), on a
+  /// thread of their own; the map is opened for writing, and created empty when it does not exist.
+  bool mapping = false;
   std::string camera_source = "v4l2";        ///< "v4l2", "dataset" or "simulator"
   dataset::CameraInfo camera;                ///< ideal image geometry and mounting
   dataset::VehicleInfo vehicle;
