@@ -4,7 +4,7 @@
 # its history holds the stretches, and a faster lap replayed on it tracks it.
 source "$(dirname "$0")/lib.sh"
 require_peers
-printf 'route: {loop_width_m: 2.5, loop_height_m: 1.5, stop_s: 0.7}\n' > "$SCRATCH/site.yaml"
+printf 'route: {loop_width_m: 2.0, loop_height_m: 1.2, stop_s: 0.7}\n' > "$SCRATCH/site.yaml"
 "$MOSAICLOC" --quiet simulate --out "$SCRATCH/site-run" --config "$SCRATCH/site.yaml" --floor procedural \
   --route loop --laps 1 --speed-mps 0.5 --seed 71 >/dev/null || fail "simulate the mapping lap"
 "$MOSAICLOC" --quiet simulate --out "$SCRATCH/later" --config "$SCRATCH/site.yaml" --floor procedural \
