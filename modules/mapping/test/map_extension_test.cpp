@@ -12,6 +12,7 @@
 #include "mosaicloc/sim/floor.hpp"
 #include "mosaicloc/test/test_support.hpp"
 #include "mosaicloc/tracking/reference.hpp"
+#include "floor_view.hpp"
 
 namespace mosaicloc::mapping {
 namespace {
@@ -42,14 +43,7 @@ class ExtensionDrive : public ::testing::Test {
   }
 
   cv::Mat Frame(const core::Pose2& world_from_camera) const {
-    const Eigen::Matrix<double, 2, 3> world = camera_.PixelToWorldAffine(world_from_camera);
-    const cv::Mat texel_from_pixel = (cv::Mat_<double>(2, 3) << world(0, 0) / kExtensionMmPerPx, world(0, 1) / kExtensionMmPerPx,
-                                      world(0, 2) / kExtensionMmPerPx, world(1, 0) / kExtensionMmPerPx, world(1, 1) / kExtensionMmPerPx,
-                                      world(1, 2) / kExtensionMmPerPx);
-    cv::Mat frame;
-    cv::warpAffine(floor_image_, frame, texel_from_pixel, cv::Size(camera_.width_px(), camera_.height_px()),
-                   cv::INTER_CUBIC | cv::WARP_INVERSE_MAP);
-    return frame;
+    return test_views::FloorView(floor_image_, kExtensionMmPerPx, camera_, world_from_camera);
   }
 
   // The drive as the localizer would report it: a fix at the first frame, then visual

@@ -11,6 +11,7 @@
 #include "mosaicloc/mosaic/renderer.hpp"
 #include "mosaicloc/sim/floor.hpp"
 #include "mosaicloc/test/test_support.hpp"
+#include "floor_view.hpp"
 
 namespace mosaicloc::mapping {
 namespace {
@@ -40,15 +41,7 @@ class ChangedLane : public ::testing::Test {
   }
 
   cv::Mat Frame(const cv::Mat& floor, const core::Pose2& world_from_camera) const {
-    const Eigen::Matrix<double, 2, 3> world = camera_.PixelToWorldAffine(world_from_camera);
-    cv::Mat texel_from_pixel(2, 3, CV_64F);
-    for (int r = 0; r < 2; ++r) {
-      for (int c = 0; c < 3; ++c) texel_from_pixel.at<double>(r, c) = world(r, c) / kUpdateMmPerPx;
-    }
-    cv::Mat frame;
-    cv::warpAffine(floor, frame, texel_from_pixel, cv::Size(camera_.width_px(), camera_.height_px()),
-                   cv::INTER_CUBIC | cv::WARP_INVERSE_MAP);
-    return frame;
+    return test_views::FloorView(floor, kUpdateMmPerPx, camera_, world_from_camera);
   }
 
   // One pass along the lane over the changed floor, `start_s` seconds into the drive, frames
