@@ -74,6 +74,11 @@ void Run(const RunArgs& args, const GlobalOptions& global) {
                   summary["map_extension_segments"].get<long long>(), summary["map_extension_tiles"].get<long long>(),
                   summary["map_updates"].get<long long>(), summary["map_update_cells"].get<long long>(),
                   summary["map_keeping_dropped"].get<long long>());
+      if (summary["map_extension_overspeed_frames"].get<long long>() > 0) {
+        std::printf("map kept: %lld frames off the map faster than the overlap speed limit (up to %.2f m/s)\n",
+                    summary["map_extension_overspeed_frames"].get<long long>(),
+                    summary["map_extension_speed_max_mps"].get<double>());
+      }
     }
     std::printf("PLC: %lld requests, %lld answered, %lld fix writes, %lld read errors, %lld timeouts, "
                 "%lld odometry outages\n",

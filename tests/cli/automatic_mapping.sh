@@ -32,7 +32,8 @@ expect_exit 0 "$MOSAICLOC" --quiet --json replay --dataset "$SCRATCH/lap" --map 
 [ -f "$SCRATCH/mapped/mapped.tum" ] && [ -f "$SCRATCH/mapped/map_mode.png" ] || fail "mapped.tum or map_mode.png missing"
 json_check "$SCRATCH/mapped/metrics.json" 'd["map_extension_keyframes"] > 100' 'd["map_extension_closed"] >= 1' \
   'd["map_extension_unanchored"] <= d["frames"] // 50' 'd["map_extension_pose_max_mm"] < 5.0' \
-  'd["frames_by_mode"]["visual-odometry"] > d["frames"] // 2' 'd["lock_losses"] == 0'
+  'd["frames_by_mode"]["visual-odometry"] > d["frames"] // 2' 'd["lock_losses"] == 0' \
+  'd["map_extension_overspeed_frames"] == 0' '0.9 < d["map_extension_speed_max_mps"] < d["overlap_speed_limit_mps"]'
 expect_exit 0 "$MOSAICLOC" --quiet map check "$SCRATCH/site.mosaic"
 # The map it made has a place index and a quality layer over the new floor, as map build's has.
 expect_exit 0 "$MOSAICLOC" --quiet --json map info "$SCRATCH/site.mosaic"
@@ -43,6 +44,16 @@ expect_exit 0 "$MOSAICLOC" --quiet --json replay --dataset "$SCRATCH/drive" --ma
   --out "$SCRATCH/tracked" --revisit-places 0
 json_check "$SCRATCH/tracked/metrics.json" 'd["fix_rate"] >= 0.97' 'd["lock_losses"] == 0' \
   'd["repeatability_camera_mm"] <= 0.01' 'd["frames_by_mode"]["track"] >= 0.97 * d["frames"]'
+
+# Mapping faster than the overlap speed limit (2.4 m/s along the view's long side at 30 Hz) is
+# warned of, once for the episode, and counted.
+expect_exit 0 "$MOSAICLOC" --quiet simulate --out "$SCRATCH/fast" --floor procedural --route straight --frames 150 \
+  --speed-mps 3.0 --seed 64
+expect_exit 0 "$MOSAICLOC" --json replay --dataset "$SCRATCH/fast" --map "$SCRATCH/fast.mosaic" --mapping \
+  --out "$SCRATCH/fast_report" --revisit-places 0
+[ "$(grep -c 'above the overlap speed limit' "$SCRATCH/err")" -eq 1 ] || fail "no single overspeed warning"
+json_check "$SCRATCH/fast_report/metrics.json" 'd["map_extension_overspeed_frames"] >= 30' \
+  'd["map_extension_speed_max_mps"] > d["overlap_speed_limit_mps"]'
 
 # Killed while mapping in stretches of 0.3 m: every stretch it logged as committed is in the map.
 printf 'map_extension: {max_segment_m: 0.3}\n' > "$SCRATCH/short.yaml"

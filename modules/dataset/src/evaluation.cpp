@@ -360,6 +360,8 @@ void WriteMetricsJson(const std::filesystem::path& file, const Metrics& metrics)
     json["map_extension_closure_max_mm"] = ToJson(metrics.map_extension_closure_max_mm);
     json["map_extension_pose_rms_mm"] = ToJson(metrics.map_extension_pose_rms_mm);
     json["map_extension_pose_max_mm"] = ToJson(metrics.map_extension_pose_max_mm);
+    json["map_extension_overspeed_frames"] = ToJson(metrics.map_extension_overspeed_frames);
+    json["map_extension_speed_max_mps"] = ToJson(metrics.map_extension_speed_max_mps);
   }
   if (const auto& u = metrics.map_update) {
     json["map_updates"] = u->updates;

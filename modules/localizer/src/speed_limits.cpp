@@ -40,6 +40,38 @@ bool SpeedLimitOptions::Check(std::string* why) const {
   return true;
 }
 
+OverlapSpeedWatch::OverlapSpeedWatch(const camera::IdealCamera& camera, double required_overlap)
+    : camera_(camera), required_overlap_(required_overlap) {
+  if (!(required_overlap >= 0.0 && required_overlap < 1.0)) {
+    core::ThrowInvalidInput("overlap speed watch: required_overlap must be in [0, 1)");
+  }
+}
+
+std::optional<OverlapSpeedWatch::Excess> OverlapSpeedWatch::Frame(core::Timestamp time,
+                                                                 const core::Pose2& world_from_camera, bool mapping) {
+  std::optional<Excess> excess;
+  if (last_time_ && time > *last_time_ && mapping) {
+    const double dt_s = core::ToSeconds(time - *last_time_);
+    // The step in the camera frame at the earlier frame: its direction there is what the
+    // footprint is measured along.
+    const Eigen::Vector2d step = (last_pose_.Inverse() * world_from_camera).translation_mm();
+    const double step_mm = step.norm();
+    const double speed_mps = 1e-3 * step_mm / dt_s;
+    max_speed_mps_ = std::max(max_speed_mps_, speed_mps);
+    const double allowed_mm =
+        camera_.FootprintLengthAlong(std::atan2(step.y(), step.x())) * (1.0 - required_overlap_);
+    if (step_mm > allowed_mm) {
+      ++frames_over_;
+      const bool first = !last_over_ || core::ToSeconds(time - *last_over_) >= kQuietS;
+      last_over_ = time;
+      excess = Excess{speed_mps, 1e-3 * allowed_mm / dt_s, first};
+    }
+  }
+  last_time_ = time;
+  last_pose_ = world_from_camera;
+  return excess;
+}
+
 SpeedLimits AnalyseSpeedLimits(const SpeedLimitOptions& options) {
   std::string why;
   if (!options.Check(&why)) core::ThrowInvalidInput("speed limits: " + why);

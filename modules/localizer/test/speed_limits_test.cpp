@@ -103,6 +103,54 @@ TEST(SpeedLimits, DistortionLimitMatchesAPinholeCamera) {
   EXPECT_NEAR((*p1 - *p0).norm(), options.distortion_tolerance_px, 0.01 * options.distortion_tolerance_px);
 }
 
+// The watch agrees with the analysis: a drive along the view's long side (160 mm at 0.25 mm
+// per pixel) at 30 frames/s is over the limit (1.2 m/s for beta 0.5) only above it; it says
+// so once per episode, and frames on the map are not judged.
+TEST(OverlapSpeedWatch, JudgesEachStepAgainstTheLimitAlongItsDirection) {
+  const camera::IdealCamera camera({640, 480, 0.25});
+  SpeedLimitOptions setup;
+  setup.frame_rate_hz = 30.0;
+  const double limit_mps = AnalyseSpeedLimits(setup).overlap_limit_mps;
+  ASSERT_NEAR(limit_mps, 2.4, 1e-9);  // 160 mm x 0.5 per 1/30 s
+  OverlapSpeedWatch watch(camera, 0.5);
+  const core::Duration period = core::FromSeconds(1.0 / 30.0);
+  core::Timestamp time{};
+  double x_mm = 0.0;
+  int said = 0;
+  auto drive = [&](double speed_mps, int frames, bool mapping) {
+    int over = 0;
+    for (int i = 0; i < frames; ++i) {
+      time = time + period;
+      x_mm += 1e3 * speed_mps / 30.0;
+      const auto excess = watch.Frame(time, core::Pose2(x_mm, 0.0, 0.0), mapping);
+      if (excess) {
+        ++over;
+        said += excess->first ? 1 : 0;
+        EXPECT_NEAR(excess->speed_mps, speed_mps, 1e-6);  // the period rounded to ns
+        EXPECT_NEAR(excess->limit_mps, limit_mps, 1e-6);
+      }
+    }
+    return over;
+  };
+  EXPECT_EQ(drive(2.3, 30, true), 0);
+  EXPECT_EQ(drive(2.5, 30, true), 30);
+  EXPECT_EQ(said, 1);
+  EXPECT_EQ(drive(3.0, 30, false), 0);  // on the map: not judged
+  EXPECT_EQ(drive(2.5, 10, true), 10);
+  EXPECT_EQ(said, 1);  // within kQuietS of the last excess
+  EXPECT_EQ(watch.frames_over(), 40);
+  EXPECT_NEAR(watch.max_speed_mps(), 2.5, 1e-6);  // the 3 m/s on the map not counted
+  // Along the short side (120 mm), 2.0 m/s is over: 1.8 m/s is the limit there.
+  OverlapSpeedWatch across(camera, 0.5);
+  const auto first = across.Frame(core::Timestamp{}, core::Pose2(0.0, 0.0, 0.0), true);
+  const auto second = across.Frame(core::Timestamp{} + period, core::Pose2(0.0, 2000.0 / 30.0, 0.0), true);
+  EXPECT_FALSE(first);
+  ASSERT_TRUE(second);
+  EXPECT_NEAR(second->limit_mps, 1.8, 1e-6);
+  EXPECT_TRUE(second->first);
+  EXPECT_THROW(OverlapSpeedWatch(camera, 1.0), core::Error);
+}
+
 TEST(SpeedLimits, BadOptionsAreRejected) {
   SpeedLimitOptions options;
   options.required_overlap = 1.0;

@@ -13,6 +13,7 @@ MapKeeper::MapKeeper(MapSession& map, const camera::IdealCamera& camera, const t
     : map_(map),
       extender_(map.store(), map.cache(), camera, tracker, settings.map_extension),
       vehicle_from_camera_(vehicle_from_camera),
+      overspeed_(camera, settings.required_overlap),
       background_(background),
       queue_frames_(queue_frames) {
   if (settings.map_update.enabled) updater_.emplace(map.store(), map.cache(), camera, settings.map_update);
@@ -37,6 +38,14 @@ void MapKeeper::Frame(core::Timestamp time, const cv::Mat& image, const localize
   // The localizer's estimate after the frame (a fix fused, or visual odometry's chain) as the
   // camera's pose.
   const core::Pose2 world_from_camera = outcome.world_from_vehicle * vehicle_from_camera_;
+  const bool off_map = outcome.mode == localizer::Mode::kVisualOdometry || outcome.mode == localizer::Mode::kDeadReckoning;
+  if (const auto excess = overspeed_.Frame(time, world_from_camera, off_map); excess && excess->first) {
+    core::Log().warn(
+        "automatic mapping at {:.2f} m/s, above the overlap speed limit of {:.2f} m/s at this frame interval: "
+        "consecutive frames share less than {:.0f} % of the view, so the floor off the map may not be chained "
+        "and is left unmapped where it breaks; map at a lower speed",
+        excess->speed_mps, excess->limit_mps, 100.0 * overspeed_.required_overlap());
+  }
   const Eigen::Matrix3d covariance =
       localizer::CameraCovariance(outcome.world_from_vehicle, vehicle_from_camera_, outcome.covariance);
   // Automatic mapping keeps the keyframes' and the fixes' images, map updates look at fixes'.
@@ -118,6 +127,8 @@ MapKeepingSummary MapKeeper::Finish() {
   summary.extension = extender_.summary();
   if (updater_) summary.updates = updater_->summary();
   summary.dropped = dropped_;
+  summary.overspeed_frames = overspeed_.frames_over();
+  summary.mapping_speed_max_mps = overspeed_.max_speed_mps();
   if (summary.extension.tiles_written > 0 || summary.updates.updates > 0) {
     // The new and the rewritten floor join the place index (global relocalization) and the
     // quality layer, as `map build` makes them.
@@ -130,6 +141,10 @@ MapKeepingSummary MapKeeper::Finish() {
   const mapping::ExtensionSummary& e = summary.extension;
   core::Log().info("map extension: {} stretches ({} closed onto the map), {} frames painted, {} tiles written, {:.1f} s",
                    e.segments, e.closed, e.keyframes, e.tiles_written, e.seconds);
+  if (summary.overspeed_frames > 0) {
+    core::Log().warn("automatic mapping: {} frames off the map came faster than the overlap speed limit (up to {:.2f} m/s)",
+                     summary.overspeed_frames, summary.mapping_speed_max_mps);
+  }
   if (updater_) {
     const mapping::UpdateSummary& u = summary.updates;
     core::Log().info("map updates: {} written ({} cells, {} tiles), {} cells seen changed not yet rewritten; {} frames "

@@ -140,6 +140,8 @@ class ReplayRecord {
     metrics.map_extension_closure_max_mm = known_.map_extension_closure_max_mm;
     metrics.map_extension_pose_rms_mm = known_.map_extension_pose_rms_mm;
     metrics.map_extension_pose_max_mm = known_.map_extension_pose_max_mm;
+    metrics.map_extension_overspeed_frames = known_.map_extension_overspeed_frames;
+    metrics.map_extension_speed_max_mps = known_.map_extension_speed_max_mps;
     metrics.map_update = known_.map_update;
     metrics.revisit_repeatability_mm = known_.revisit_repeatability_mm;
     metrics.revisit_places = known_.revisit_places;
@@ -346,9 +348,12 @@ double EncoderTimingSigmaOf(const dataset::DatasetInfo& info, double otherwise) 
 
 // Records what automatic mapping did: the figures, and the painted frames' vehicle poses
 // (mapped.tum) with their error against the truth.
-void RecordExtension(const MapKeeper& keeper, const mapping::ExtensionSummary& s,
+void RecordExtension(const MapKeeper& keeper, const MapKeepingSummary& kept,
                      const std::optional<dataset::Trajectory>& groundtruth, const dataset::DatasetInfo& info,
                      const std::filesystem::path& out, dataset::Metrics* known) {
+  const mapping::ExtensionSummary& s = kept.extension;
+  known->map_extension_overspeed_frames = kept.overspeed_frames;
+  known->map_extension_speed_max_mps = kept.mapping_speed_max_mps;
   known->map_extension_segments = s.segments;
   known->map_extension_closed = s.closed;
   known->map_extension_keyframes = s.keyframes;
@@ -562,7 +567,7 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
   }
   if (keeper) {
     const MapKeepingSummary kept = keeper->Finish();
-    RecordExtension(*keeper, kept.extension, groundtruth, info, options.out, &record.known());
+    RecordExtension(*keeper, kept, groundtruth, info, options.out, &record.known());
     if (settings.map_update.enabled) RecordUpdates(kept.updates, groundtruth, info, &record.known());
   }
   summary.tiles_loaded = map.cache().stats().misses;

@@ -49,6 +49,8 @@ dataset::Metrics WriteReport(const std::filesystem::path& directory, const datas
     keep(merged.map_extension_closure_max_mm, metrics.map_extension_closure_max_mm);
     keep(merged.map_extension_pose_rms_mm, metrics.map_extension_pose_rms_mm);
     keep(merged.map_extension_pose_max_mm, metrics.map_extension_pose_max_mm);
+    keep(merged.map_extension_overspeed_frames, metrics.map_extension_overspeed_frames);
+    keep(merged.map_extension_speed_max_mps, metrics.map_extension_speed_max_mps);
     keep(merged.map_update, metrics.map_update);
     keep(merged.processing_fps, metrics.processing_fps);
     keep(merged.latency_p50_ms, metrics.latency_p50_ms);

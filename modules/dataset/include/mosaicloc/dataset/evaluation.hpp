@@ -95,6 +95,9 @@ struct Metrics {
   std::optional<double> map_extension_closure_max_mm;
   std::optional<double> map_extension_pose_rms_mm;
   std::optional<double> map_extension_pose_max_mm;
+  /// Frames off the map faster than the overlap speed limit, and the fastest speed off it, m/s.
+  std::optional<std::int64_t> map_extension_overspeed_frames;
+  std::optional<double> map_extension_speed_max_mps;
   /// Automatic map updates (replay --mapping; caller, design.md section 7e).
   struct MapUpdateFigures {
     std::int64_t updates = 0;         ///< written, each one transaction in the map's history

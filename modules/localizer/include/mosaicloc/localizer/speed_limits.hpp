@@ -1,8 +1,13 @@
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
-
+#include <optional>
 #include <string>
+
+#include "mosaicloc/camera/ideal_camera.hpp"
+#include "mosaicloc/core/pose2.hpp"
+#include "mosaicloc/core/timestamp.hpp"
 
 namespace mosaicloc::localizer {
 
@@ -129,6 +134,42 @@ struct SpeedLimits {
 
 /// Throws core::Error (invalid input) when the options fail Check().
 SpeedLimits AnalyseSpeedLimits(const SpeedLimitOptions& options);
+
+/// The overlap speed limit watched while the floor is mapped by chaining frames (automatic
+/// mapping off the map, design.md section 7d): each step between consecutive frames is compared
+/// with what the view allows along the step's own direction, Lambda (1 - beta), so the verdict
+/// holds at the frame interval the camera actually delivers (dropped frames included).
+class OverlapSpeedWatch {
+ public:
+  /// Throws core::Error (invalid input) when required_overlap is not in [0, 1).
+  OverlapSpeedWatch(const camera::IdealCamera& camera, double required_overlap);
+
+  /// A frame over the limit: the speed and the limit at this frame's interval, m/s.
+  struct Excess {
+    double speed_mps = 0.0;
+    double limit_mps = 0.0;
+    bool first = false;  ///< the first frame over the limit after at least `quiet_s` below it: say it
+  };
+  /// The camera's pose at a frame; `mapping` whether the frame is off the map (chained). Steps
+  /// are measured between consecutive frames whatever their mode, judged only when mapping.
+  std::optional<Excess> Frame(core::Timestamp time, const core::Pose2& world_from_camera, bool mapping);
+
+  double required_overlap() const { return required_overlap_; }
+  std::int64_t frames_over() const { return frames_over_; }
+  /// The fastest step while mapping, m/s (0 before the second frame).
+  double max_speed_mps() const { return max_speed_mps_; }
+  /// How long the speed must stay under the limit before the next excess is said again, s.
+  static constexpr double kQuietS = 2.0;
+
+ private:
+  camera::IdealCamera camera_;
+  double required_overlap_ = 0.5;
+  std::optional<core::Timestamp> last_time_;
+  core::Pose2 last_pose_;
+  std::optional<core::Timestamp> last_over_;
+  std::int64_t frames_over_ = 0;
+  double max_speed_mps_ = 0.0;
+};
 
 /// Reads a camera setup (`mosaicloc limits --config`, config/default/limits.yaml) over the
 /// defaults; every problem is reported at once as core::Error naming file, line and key.

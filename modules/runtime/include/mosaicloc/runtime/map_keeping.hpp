@@ -16,6 +16,7 @@
 #include "mosaicloc/core/pose2.hpp"
 #include "mosaicloc/core/timestamp.hpp"
 #include "mosaicloc/localizer/localizer.hpp"
+#include "mosaicloc/localizer/speed_limits.hpp"
 #include "mosaicloc/mapping/map_extension.hpp"
 #include "mosaicloc/mapping/map_update.hpp"
 #include "mosaicloc/runtime/map_session.hpp"
@@ -29,6 +30,10 @@ struct MapKeepingSummary {
   mapping::UpdateSummary updates;
   std::int64_t dropped = 0;        ///< frames the background thread could not keep up with (not mapped)
   bool reindexed = false;          ///< the place index and the quality layer were rebuilt at the end
+  /// Frames off the map that came more than the overlap speed limit after the one before
+  /// (localizer::OverlapSpeedWatch), and the fastest speed off the map, m/s.
+  std::int64_t overspeed_frames = 0;
+  double mapping_speed_max_mps = 0.0;
 };
 
 /// The map kept up to date as a drive goes (design.md sections 7d and 7e): automatic mapping
@@ -70,6 +75,7 @@ class MapKeeper {
   mapping::MapExtender extender_;
   std::optional<mapping::MapUpdater> updater_;
   core::Pose2 vehicle_from_camera_;
+  localizer::OverlapSpeedWatch overspeed_;  // on the calling thread
   bool background_ = false;
   std::size_t queue_frames_ = 120;
   std::mutex mutex_;
