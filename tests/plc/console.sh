@@ -116,6 +116,29 @@ share = grey / ((height // 2) * ((width - 300) // 2))
 print(f"floor texture in {share:.1%} of the map area")
 assert share > 0.05, share
 PY
+
+# The map written while it is served: a drive half a metre past the mapped straight maps the
+# new floor (automatic mapping, a recorded update); the console reads the map anew and the
+# page draws the update's tiles; after `map revert` the update shows as reverted.
+printf 'route: {straight_length_m: 2.5, stop_s: 0.7}\n' > "$SCRATCH/longer.yaml"
+"$MOSAICLOC" --quiet simulate --out "$SCRATCH/longer" --config "$SCRATCH/longer.yaml" --floor procedural \
+  --route straight --laps 1 --speed-mps 1.0 --seed 33 >/dev/null || fail "simulate the longer drive"
+"$MOSAICLOC" --quiet replay --dataset "$SCRATCH/longer" --map "$SCRATCH/site.mosaic" --mapping \
+  --out "$SCRATCH/longer-report" --revisit-places 0 >/dev/null || fail "replay --mapping"
+sleep 0.6
+curl -sf "$URL/api/history" > "$SCRATCH/history.json" || fail "GET /api/history"
+json_check "$SCRATCH/history.json" 'd["count"] == 1' 'd["in_force"] == 1' 'd["updates"][0]["kind"] == "mapping"' \
+  'len(d["updates"][0]["cells"]) == d["updates"][0]["tiles"] > 0' \
+  "d['map_version'] > $($PYTHON -c 'import json,sys; print(json.load(open(sys.argv[1]))["map_version"])' "$SCRATCH/map.json")"
+curl -sf "$URL/api/map" > "$SCRATCH/map2.json" || fail "GET /api/map after mapping"
+json_check "$SCRATCH/map2.json" 'd["bounds_mm"][2] > 2300'
+browse "$URL/#2300,0,-1" > "$SCRATCH/dom2.html"
+dom_check "$SCRATCH/dom2.html" 'data.get("ready") == "yes"' 'data.get("history-updates") == "1"' \
+  'dom.count("history-mapping") >= 1' 're.search(r"id=\"map-history\">1 update, 1 in force", dom)'
+expect_exit 0 "$MOSAICLOC" --quiet map revert "$SCRATCH/site.mosaic" 1
+sleep 0.6
+curl -sf "$URL/api/history" > "$SCRATCH/history.json" || fail "GET /api/history after the revert"
+json_check "$SCRATCH/history.json" 'd["in_force"] == 0' 'd["updates"][0]["reverted"] is not None'
 kill -INT $SERVE
 wait $SERVE || fail "serve did not stop cleanly on SIGINT"
 expect_in "$SCRATCH/serve.out" "console stopped"

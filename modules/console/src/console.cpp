@@ -157,6 +157,12 @@ class EncodedTileCache {
     order_.splice(order_.begin(), order_, it->second);
     return it->second->second;
   }
+  void Clear() {
+    const std::lock_guard lock(mutex_);
+    order_.clear();
+    index_.clear();
+    bytes_ = 0;
+  }
   void Put(const mosaic::TileKey& key, std::shared_ptr<const std::string> png) {
     const auto size = static_cast<std::int64_t>(png->size());
     if (size > max_bytes_) return;
@@ -228,8 +234,8 @@ class Console::Impl {
     std::string why;
     if (!options.Check(&why)) core::ThrowInvalidInput("console: " + why);
     store_ = mosaic::TileStore::Open(map, false);
-    map_info_ = MapInfo();
-    quality_ = QualityLayer();
+    data_version_ = store_->DataVersion();
+    ReadMap();
     nlohmann::json reports = nlohmann::json::array();
     for (std::size_t i = 0; i < options.reports.size(); ++i) {
       internal::ReportLayer report = internal::ReadReportLayer(options.reports[i]);
@@ -316,6 +322,10 @@ class Console::Impl {
   }
 
  private:
+  // What is read from the map, read again when another connection has written to it.
+  struct MapState {
+    std::string map_info, quality, history;
+  };
   static constexpr std::size_t kPathPoints = 4096;
   static constexpr std::string_view kTokenCookie = "mosaicloc_token=";
   static constexpr double kPathStepMm = 5.0;
@@ -364,6 +374,7 @@ class Console::Impl {
                           {"origin_y_mm", grid.origin_y_mm},
                           {"tile_size_px", grid.tile_size_px},
                           {"live_run", options_.live_run},
+                          {"map_version", map_version_},
                           {"levels", levels},
                           {"bounds_mm", bounds},
                           {"mapped_tiles", {{"level", lanes_level}, {"tiles", lanes}}},
@@ -396,6 +407,71 @@ class Console::Impl {
                           {"columns", {"col", "row", "mapped", "texture", "ambiguity", "verdict"}},
                           {"cells", cells}}
         .dump();
+  }
+
+  // The map's recorded updates (automatic mapping, map updates, reverts; design.md section 4)
+  // with the level-0 tiles each wrote, the newest kMaxHistory of them.
+  std::string HistoryLayer() const {
+    static constexpr std::size_t kMaxHistory = 2000;
+    const std::vector<mosaic::MapUpdate> updates = store_->History();
+    std::map<std::int64_t, nlohmann::json> tiles;
+    for (const auto& [id, key] : store_->UpdatedTiles()) {
+      if (key.level == 0) tiles[id].push_back({key.col, key.row});
+    }
+    nlohmann::json list = nlohmann::json::array();
+    std::int64_t in_force = 0;
+    for (std::size_t i = updates.size() > kMaxHistory ? updates.size() - kMaxHistory : 0; i < updates.size(); ++i) {
+      const mosaic::MapUpdate& u = updates[i];
+      in_force += u.reverted.empty() ? 1 : 0;
+      const auto t = tiles.find(u.id);
+      list.push_back({{"id", u.id},
+                      {"time", u.time},
+                      {"kind", u.reason.starts_with("automatic mapping") ? "mapping"
+                               : u.reason.starts_with("map update")      ? "update"
+                                                                         : "other"},
+                      {"reason", u.reason},
+                      {"tiles", u.tiles},
+                      {"reverted", u.reverted.empty() ? nlohmann::json(nullptr) : nlohmann::json(u.reverted)},
+                      {"cells", t == tiles.end() ? nlohmann::json::array() : t->second}});
+    }
+    const mosaic::MapGrid& grid = store_->grid();
+    return nlohmann::json{{"map_version", map_version_},
+                          {"tile_mm", grid.mm_per_px * grid.tile_size_px},
+                          {"count", updates.size()},
+                          {"in_force", in_force},
+                          {"updates", list}}
+        .dump();
+  }
+
+  // Called with map_mutex_ held (or before the server starts).
+  void ReadMap() {
+    map_state_.map_info = MapInfo();
+    map_state_.quality = QualityLayer();
+    map_state_.history = HistoryLayer();
+  }
+
+  // What the map holds now: checked at most every kCheckS against SQLite's data_version, and
+  // read again (the tile cache emptied) when another connection wrote to the map, as a live
+  // run's automatic mapping and map updates, `map revert` or another process do.
+  void Refresh() {
+    static constexpr double kCheckS = 0.5;
+    const std::lock_guard lock(map_mutex_);
+    const auto now = std::chrono::steady_clock::now();
+    if (std::chrono::duration<double>(now - last_check_).count() >= kCheckS) {
+      last_check_ = now;
+      const std::int64_t version = store_->DataVersion();
+      if (version != data_version_) {
+        data_version_ = version;
+        ++map_version_;
+        cache_.Clear();
+        ReadMap();
+      }
+    }
+  }
+  std::string Current(std::string MapState::*part) {
+    Refresh();
+    const std::lock_guard lock(map_mutex_);
+    return map_state_.*part;
   }
 
   nlohmann::json LiveJson(bool with_path) {
@@ -556,10 +632,17 @@ class Console::Impl {
       response.set_header("Cache-Control", "max-age=86400");
       response.set_content(it->second.body, it->second.content_type);
     });
-    server_.Get("/api/map", [this](const httplib::Request&, httplib::Response& response) { SendJson(response, map_info_); });
+    server_.Get("/api/map", [this](const httplib::Request&, httplib::Response& response) {
+      SendJson(response, Current(&MapState::map_info));
+    });
     server_.Get(R"(/api/tiles/(\d{1,2})/(-?\d{1,12})/(-?\d{1,12})\.png)",
                 [this](const httplib::Request& request, httplib::Response& response) { Tile(request, response); });
-    server_.Get("/api/quality", [this](const httplib::Request&, httplib::Response& response) { SendJson(response, quality_); });
+    server_.Get("/api/quality", [this](const httplib::Request&, httplib::Response& response) {
+      SendJson(response, Current(&MapState::quality));
+    });
+    server_.Get("/api/history", [this](const httplib::Request&, httplib::Response& response) {
+      SendJson(response, Current(&MapState::history));
+    });
     server_.Get("/api/reports", [this](const httplib::Request&, httplib::Response& response) { SendJson(response, reports_); });
     server_.Get(R"(/api/reports/(\d{1,4}))", [this](const httplib::Request& request, httplib::Response& response) {
       const std::size_t id = std::stoul(request.matches[1]);
@@ -573,6 +656,7 @@ class Console::Impl {
   }
 
   void Tile(const httplib::Request& request, httplib::Response& response) {
+    Refresh();  // a map written since is read anew: the cache holds no tile it replaced
     const mosaic::MapGrid& grid = store_->grid();
     const int level = std::stoi(request.matches[1]);
     if (level >= grid.levels) return SendError(response, 404, "no level " + std::to_string(level));
@@ -615,8 +699,11 @@ class Console::Impl {
   ConsoleOptions options_;
   ListenAddress address_;
   std::unique_ptr<mosaic::TileStore> store_;
-  std::string map_info_;
-  std::string quality_;
+  std::mutex map_mutex_;
+  MapState map_state_;
+  std::int64_t data_version_ = 0;
+  std::int64_t map_version_ = 1;
+  std::chrono::steady_clock::time_point last_check_ = std::chrono::steady_clock::now();
   std::string reports_;
   std::vector<std::string> report_layers_;
   std::map<std::string, internal::StaticFile> viewer_files_;

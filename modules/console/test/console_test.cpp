@@ -9,6 +9,7 @@
 
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/dataset/fixes.hpp"
+#include "mosaicloc/mosaic/builder.hpp"
 #include "mosaicloc/mosaic/tile_store.hpp"
 #include "mosaicloc/test/test_support.hpp"
 
@@ -259,6 +260,52 @@ TEST_F(ConsoleTest, ReportsAreServedAsLayers) {
   } catch (const core::Error& error) {
     EXPECT_NE(std::string(error.what()).find("fixes.csv:2"), std::string::npos) << error.what();
   }
+}
+
+// The map's history as a layer, and a map written by another connection while the console
+// serves it (a live run's automatic mapping, `map revert`): after at most half a second the
+// console serves the new tiles, the new layout and the new history.
+TEST_F(ConsoleTest, TheMapsHistoryIsServedAndAMapWrittenSinceIsReadAnew) {
+  Console console(Options(), map_);
+  httplib::Client client("127.0.0.1", console.Start());
+  nlohmann::json history = nlohmann::json::parse(client.Get("/api/history")->body);
+  EXPECT_EQ(history["count"], 0);
+  EXPECT_EQ(history["updates"].size(), 0u);
+  EXPECT_DOUBLE_EQ(history["tile_mm"].get<double>(), 16.0);
+  const std::int64_t version = history["map_version"];
+  const std::string old_tile = client.Get("/api/tiles/0/1/0.png")->body;  // now in the cache
+
+  cv::Mat floor(64, 64, CV_8UC1);
+  cv::randu(floor, 1, 255);
+  auto writer = mosaic::TileStore::Open(map_, true);
+  const auto mapped = mosaic::WriteWithPyramid(*writer, {{{0, 2, 0}, floor}}, "automatic mapping: 3 frames");
+  const auto updated = mosaic::WriteWithPyramid(*writer, {{{0, 1, 0}, floor}}, "map update: 4 cells");
+  ASSERT_TRUE(mapped && updated);
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  const std::string new_tile = client.Get("/api/tiles/0/1/0.png")->body;  // not the cached one
+  EXPECT_NE(new_tile, old_tile);
+  EXPECT_EQ(new_tile, client.Get("/api/tiles/0/2/0.png")->body);  // the same floor
+  mosaic::RevertUpdate(*writer, *updated);
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  history = nlohmann::json::parse(client.Get("/api/history")->body);
+  EXPECT_GT(history["map_version"].get<std::int64_t>(), version);
+  EXPECT_EQ(history["count"], 2);
+  EXPECT_EQ(history["in_force"], 1);
+  ASSERT_EQ(history["updates"].size(), 2u);
+  EXPECT_EQ(history["updates"][0]["kind"], "mapping");
+  EXPECT_EQ(history["updates"][0]["cells"], nlohmann::json::parse("[[2, 0]]"));
+  EXPECT_TRUE(history["updates"][0]["reverted"].is_null());
+  EXPECT_EQ(history["updates"][1]["kind"], "update");
+  EXPECT_EQ(history["updates"][1]["reason"], "map update: 4 cells");
+  EXPECT_FALSE(history["updates"][1]["reverted"].is_null());
+  const nlohmann::json map = nlohmann::json::parse(client.Get("/api/map")->body);
+  EXPECT_EQ(map["levels"][0]["tiles"], 3);
+  EXPECT_EQ(map["map_version"], history["map_version"]);
+  // The new tile is served; the reverted one is as it was before the update.
+  auto added = client.Get("/api/tiles/0/2/0.png");
+  ASSERT_TRUE(added);
+  EXPECT_EQ(added->status, 200);
+  EXPECT_EQ(client.Get("/api/tiles/0/1/0.png")->body, old_tile);
 }
 
 TEST_F(ConsoleTest, TheLiveStateIsServedAndStreamed) {

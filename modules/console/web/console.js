@@ -103,8 +103,11 @@
     const map = L.map('map', {crs, minZoom: -top - 2, maxZoom: 4, zoomSnap: 1, attributionControl: false});
     const b = info.bounds_mm || [-1000, -1000, 1000, 1000];
     const bounds = L.latLngBounds([latLng(b[0], b[1]), latLng(b[2], b[3])]);
+    // The map's version is in every tile's address: when the map is written (a live run's
+    // automatic mapping and map updates, a revert), the page asks for the tiles anew.
+    let mapVersion = info.map_version;
     const MapTiles = L.TileLayer.extend({
-      getTileUrl: (coords) => withToken(`/api/tiles/${-coords.z}/${coords.x}/${coords.y}.png`),
+      getTileUrl: (coords) => withToken(`/api/tiles/${-coords.z}/${coords.x}/${coords.y}.png?v=${mapVersion}`),
     });
     let tilesLoaded = 0;
     const tiles = new MapTiles('', {
@@ -162,6 +165,52 @@
     } else {
       $('map-quality').textContent = 'none (mosaicloc map quality MAP --out DIR)';
     }
+    // The map's history (design.md section 4): the level-0 tiles each recorded write replaced
+    // or added, blue for automatic mapping, orange for map updates, grey dashed once reverted.
+    const tileMm = tileSize * r;
+    const historyLayer = L.featureGroup();
+    function showHistory(history) {
+      historyLayer.clearLayers();
+      for (const u of history.updates) {
+        const kind = u.reverted ? 'reverted' : u.kind;
+        const style = {mapping: ['#2b83ba', null], update: ['#e66101', null], other: ['#7b3294', null],
+                       reverted: ['#9e9e9e', '4 4']}[kind];
+        const text = `#${u.id} ${u.time}: ${u.reason}` + (u.reverted ? ` (reverted ${u.reverted})` : '');
+        for (const [col, row] of u.cells) {
+          historyLayer.addLayer(L.rectangle(
+            [latLng(x0 + col * tileMm, y0 - (row + 1) * tileMm), latLng(x0 + (col + 1) * tileMm, y0 - row * tileMm)],
+            {color: style[0], dashArray: style[1], weight: 1, fillOpacity: 0.15, className: 'history-tile history-' + kind})
+            .bindTooltip(text));
+        }
+      }
+      const last = history.updates[history.updates.length - 1];
+      $('map-history').textContent = history.count
+        ? `${history.count} update${history.count === 1 ? '' : 's'}, ${history.in_force} in force; ` +
+          `last #${last.id} ${last.time}` : 'none';
+      document.body.dataset.historyUpdates = history.count;
+      document.body.dataset.historyTiles = historyLayer.getLayers().length;
+    }
+    const history = await api('/api/history');
+    showHistory(history);
+    overlays['map history'] = historyLayer;
+    if (history.count > 0) historyLayer.addTo(map);
+    // A map written while the page is open: new tiles, layout and history, checked every 2 s.
+    setInterval(async () => {
+      try {
+        const now = await api('/api/history');
+        if (now.map_version === mapVersion) return;
+        mapVersion = now.map_version;
+        document.body.dataset.mapVersion = mapVersion;
+        tiles.redraw();
+        showHistory(now);
+        const fresh = await api('/api/map');
+        $('map-tiles').textContent = fresh.levels.map((l) => l.tiles).join(' / ');
+      } catch (error) {
+        fail(String(error));
+      }
+    }, 2000);
+    document.body.dataset.mapVersion = mapVersion;
+
     const layerControl = L.control.layers(null, overlays, {collapsed: false}).addTo(map);
     const legendControl = L.control({position: 'bottomright'});
     legendControl.onAdd = () => {

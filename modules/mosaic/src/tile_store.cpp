@@ -419,6 +419,25 @@ std::vector<ReplacedTile> TileStore::Replaced(std::int64_t id) const {
   return tiles;
 }
 
+std::vector<std::pair<std::int64_t, TileKey>> TileStore::UpdatedTiles() const {
+  const std::lock_guard lock(mutex_);
+  std::vector<std::pair<std::int64_t, TileKey>> tiles;
+  if (!HasTable(db_, "replaced")) return tiles;
+  const Statement statement(db_, "SELECT update_id, level, col, row FROM replaced ORDER BY update_id, row, col", file_);
+  while (sqlite3_step(statement.get()) == SQLITE_ROW) {
+    tiles.emplace_back(sqlite3_column_int64(statement.get(), 0),
+                       TileKey{sqlite3_column_int(statement.get(), 1), sqlite3_column_int64(statement.get(), 2),
+                               sqlite3_column_int64(statement.get(), 3)});
+  }
+  return tiles;
+}
+
+std::int64_t TileStore::DataVersion() const {
+  const std::lock_guard lock(mutex_);
+  const Statement statement(db_, "PRAGMA data_version", file_);
+  return sqlite3_step(statement.get()) == SQLITE_ROW ? sqlite3_column_int64(statement.get(), 0) : 0;
+}
+
 void TileStore::WriteRevert(std::int64_t id, const std::vector<TileWrite>& tiles, const std::vector<TileKey>& removed) {
   const std::vector<std::vector<unsigned char>> encoded = EncodeAll(tiles);
   const std::lock_guard lock(mutex_);

@@ -7,6 +7,7 @@
 #include <mutex>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <opencv2/core/mat.hpp>
@@ -152,6 +153,13 @@ class TileStore {
   /// CRC32. Throws core::Error (invalid input) naming the map and update when there is no such
   /// update, and naming the tile when a kept one is damaged.
   std::vector<ReplacedTile> Replaced(std::int64_t id) const;
+  /// Which level-0 tiles each update replaced or added, as (update id, tile), by id (for
+  /// drawing the history; none for a map never updated so).
+  std::vector<std::pair<std::int64_t, TileKey>> UpdatedTiles() const;
+  /// Changes whenever another connection (another process, or another store open on the same
+  /// file) has committed to the map since the last call (SQLite's data_version): a reader's cue
+  /// to read what it keeps again.
+  std::int64_t DataVersion() const;
   /// Undoes update `id` in one transaction: writes `tiles`, removes `removed` and marks the
   /// update reverted now (mosaic::RevertUpdate computes them). Throws core::Error when the
   /// update is not in force.
