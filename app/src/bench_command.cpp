@@ -47,7 +47,7 @@ Action AddBenchCommand(CLI::App& app, const GlobalOptions& global) {
       ->capture_default_str()
       ->check(CLI::Range(0.0, 50.0));
   registration->add_option("--methods", args->methods,
-                           "Only these: ours, ours-9x128, ours-tiled, ours-visp, ours-tilt, ecc, ecc-homography, phase, "
+                           "Only these: ours, ours-9x128, ours-tiled, ours-visp, ours-tilt, ours-observer, ecc, ecc-homography, phase, "
                            "visp (default all)")
       ->delimiter(',')
       ->check(CLI::IsMember(runtime::RegistrationBenchMethods()));

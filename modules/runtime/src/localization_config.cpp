@@ -58,6 +58,10 @@ void ReadLocalizerConfig(const YAML::Node& node, const std::string& file_name, L
   refine.Finish();
 
   core::YamlMap solver = root.OptionalMap("solver");
+  solver.OptionalEnum("method", &t.solver.method, tracking::kPoseMethods);
+  solver.Optional("observer_prior_sigma_mm", &t.solver.observer_prior_sigma_mm);
+  solver.Optional("observer_prior_sigma_deg", &t.solver.observer_prior_sigma_deg);
+  solver.Optional("observer_prior_sigma_scale", &t.solver.observer_prior_sigma_scale);
   solver.OptionalEnum("loss", &t.solver.loss, tracking::kRobustLosses);
   solver.Optional("loss_scale_mm", &t.solver.loss_scale_mm);
   solver.Optional("outlier_threshold_mm", &t.solver.outlier_threshold_mm);

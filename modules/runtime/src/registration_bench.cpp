@@ -258,6 +258,9 @@ std::vector<Method> MakeMethods(const camera::IdealCamera& camera) {
   tilt.templates.count = 12;
   tilt.solver.estimate_tilt = true;
   methods.push_back({"ours-tilt", "mosaicloc 12x96, scale and tilt estimated", ours(tilt), {}, {}, {}, 0});
+  tracking::TrackerOptions observer = defaults;
+  observer.solver.method = tracking::PoseMethod::kKalmanObserver;
+  methods.push_back({"ours-observer", "mosaicloc 4x96, the paper's Kalman observer", ours(observer), {}, {}, {}, 0});
   tracking::TrackerOptions visp = defaults;
   visp.refine.method = tracking::RefineMethod::kVispZncc;
   visp.refine.warp = tracking::RefineWarp::kSrt;
@@ -338,8 +341,9 @@ bool RegistrationBenchOptions::Check(std::string* why) const {
 }
 
 const std::vector<std::string>& RegistrationBenchMethods() {
-  static const std::vector<std::string> keys = {"ours", "ours-9x128", "ours-tiled", "ours-visp", "ours-tilt",
-                                                "ecc",  "ecc-homography", "phase", "visp"};
+  static const std::vector<std::string> keys = {"ours",          "ours-9x128", "ours-tiled",     "ours-visp",
+                                                "ours-tilt",     "ours-observer", "ecc", "ecc-homography",
+                                                "phase",         "visp"};
   return keys;
 }
 

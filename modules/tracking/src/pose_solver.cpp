@@ -313,7 +313,21 @@ bool PoseSolverOptions::Check(std::string* why) const {
   if (max_iterations < 1) return fail("max_iterations must be >= 1");
   if (min_tilt_points < 6) return fail("min_tilt_points must be >= 6");
   if (!(camera_height_mm > 0.0)) return fail("camera_height_mm must be > 0");
+  if (!(observer_prior_sigma_mm > 0.0) || !(observer_prior_sigma_deg > 0.0) || !(observer_prior_sigma_scale > 0.0)) {
+    return fail("observer_prior_sigma_mm, _deg and _scale must be > 0");
+  }
+  if (method == PoseMethod::kKalmanObserver && estimate_tilt) {
+    return fail("method kalman-observer estimates x, y, yaw and the scale, not the tilt: estimate_tilt must be false");
+  }
   return true;
+}
+
+const char* ToString(PoseMethod method) {
+  switch (method) {
+    case PoseMethod::kLeastSquares: return "least-squares";
+    case PoseMethod::kKalmanObserver: return "kalman-observer";
+  }
+  return "unknown";
 }
 
 const char* ToString(RobustLoss loss) {
@@ -336,6 +350,7 @@ const char* ToString(PoseFailure failure) {
 
 PoseSolution SolvePlanarPose(const std::vector<Correspondence>& correspondences, const core::Pose2& initial,
                              const PoseSolverOptions& options) {
+  if (options.method == PoseMethod::kKalmanObserver) return ObservePlanarPose(correspondences, initial, options);
   PoseSolution solution;
   solution.world_from_camera = initial;
   const std::size_t n = correspondences.size();

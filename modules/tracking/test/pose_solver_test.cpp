@@ -1,5 +1,6 @@
 #include <algorithm>
 #include <cstdint>
+#include <numbers>
 #include <random>
 #include <vector>
 
@@ -399,6 +400,96 @@ TEST(PoseSolver, SaysWhyItFailed) {
   scattered[0].world_mm.x() += 3.0;
   scattered[1].world_mm.y() -= 3.0;
   EXPECT_EQ(SolvePlanarPose(scattered, Pose2(), PoseSolverOptions{}).failure, PoseFailure::kTooFewInliers);
+}
+
+// The founding paper's Kalman observer and the solver on clean data: with the solver's loss off
+// (both then minimise the same squares) the same pose, scale and covariance, the observer's weak
+// prior moving neither measurably; against the default Cauchy loss, which weighs residuals of a
+// fifth of its scale a little less, within half a standard deviation and 15 % in variance.
+TEST(KalmanObserver, AgreesWithTheSolverOnCleanData) {
+  std::mt19937 rng(21);
+  PoseSolverOptions observer;
+  observer.method = PoseMethod::kKalmanObserver;
+  for (const bool scale : {false, true}) {
+    for (int trial = 0; trial < 20; ++trial) {
+      const Pose2 truth(500.0 + 10.0 * trial, -300.0, 0.05 * trial);
+      std::vector<Correspondence> cs = MakeCorrespondences(truth, 20, 0.01, &rng);
+      if (scale) {
+        for (Correspondence& c : cs) c.camera_mm /= 1.004;  // the camera 0.4 % higher than calibrated
+      }
+      const Pose2 start = truth * Pose2(0.8, -0.6, 0.004);
+      PoseSolverOptions solver;
+      solver.estimate_scale = observer.estimate_scale = scale;
+      const PoseSolution robust = SolvePlanarPose(cs, start, solver);
+      solver.loss = RobustLoss::kNone;
+      const PoseSolution a = SolvePlanarPose(cs, start, solver);
+      const PoseSolution b = SolvePlanarPose(cs, start, observer);
+      ASSERT_TRUE(a.ok() && b.ok() && robust.ok()) << ToString(a.failure) << " / " << ToString(b.failure);
+      EXPECT_LT(Distance(robust.world_from_camera, b.world_from_camera),
+                0.5 * std::sqrt(robust.covariance(0, 0) + robust.covariance(1, 1)));
+      EXPECT_NEAR(b.covariance(0, 0) / robust.covariance(0, 0), 1.0, 0.15);
+      EXPECT_EQ(b.inliers, 20);
+      EXPECT_LT(Distance(a.world_from_camera, b.world_from_camera), 1e-5);
+      EXPECT_LT(std::abs(YawDifference(a.world_from_camera, b.world_from_camera)), 1e-7);
+      EXPECT_EQ(b.scale_estimated, scale);
+      EXPECT_NEAR(a.scale, b.scale, 1e-7);
+      if (scale) {
+        EXPECT_NEAR(b.scale_sigma / a.scale_sigma, 1.0, 0.01);
+      }
+      EXPECT_LT(Distance(b.world_from_camera, truth), 0.02);
+      for (int k = 0; k < 3; ++k) EXPECT_NEAR(b.covariance(k, k) / a.covariance(k, k), 1.0, 0.01) << k;
+    }
+  }
+}
+
+// A false match among 20 (a template that matched 0.5 to 3 mm away): the observer finds it and
+// leaves it out, as the robust solver does, and the pose is the clean one's.
+TEST(KalmanObserver, LeavesAFalseMatchAmongTwentyOut) {
+  std::mt19937 rng(22);
+  std::uniform_real_distribution<double> away(0.5, 3.0), direction(-std::numbers::pi, std::numbers::pi);
+  PoseSolverOptions observer;
+  observer.method = PoseMethod::kKalmanObserver;
+  for (int trial = 0; trial < 50; ++trial) {
+    const Pose2 truth(100.0, 200.0, 0.3);
+    std::vector<Correspondence> cs = MakeCorrespondences(truth, 20, 0.01, &rng);
+    const PoseSolution clean = SolvePlanarPose(cs, truth, observer);
+    const std::size_t bad = static_cast<std::size_t>(trial % 20);
+    const double a = direction(rng);
+    cs[bad].world_mm += away(rng) * Eigen::Vector2d(std::cos(a), std::sin(a));
+    const PoseSolution b = SolvePlanarPose(cs, truth * Pose2(0.5, 0.5, 0.002), observer);
+    const PoseSolution solver = SolvePlanarPose(cs, truth * Pose2(0.5, 0.5, 0.002), PoseSolverOptions{});
+    ASSERT_TRUE(b.ok() && solver.ok());
+    EXPECT_FALSE(b.inlier[bad]);
+    EXPECT_EQ(b.inliers, 19);
+    EXPECT_FALSE(solver.inlier[bad]);
+    EXPECT_LT(Distance(b.world_from_camera, truth), 0.02);
+    EXPECT_LT(Distance(b.world_from_camera, solver.world_from_camera),
+              0.5 * std::sqrt(solver.covariance(0, 0) + solver.covariance(1, 1)));
+    EXPECT_GT(Distance(b.world_from_camera, clean.world_from_camera), 0.0);  // one fewer measurement
+  }
+}
+
+TEST(KalmanObserver, SaysWhyItFailedAndRefusesTheTilt) {
+  std::mt19937 rng(23);
+  PoseSolverOptions observer;
+  observer.method = PoseMethod::kKalmanObserver;
+  std::vector<Correspondence> scattered = MakeCorrespondences(Pose2(), 3, 0.0, &rng);
+  scattered[0].world_mm.x() += 3.0;
+  scattered[1].world_mm.y() -= 3.0;
+  EXPECT_EQ(SolvePlanarPose(scattered, Pose2(), observer).failure, PoseFailure::kTooFewInliers);
+  // Every correspondence at one point: the translation, the yaw undetermined.
+  std::vector<Correspondence> one = MakeCorrespondences(Pose2(5.0, 6.0, 0.1), 1, 0.0, &rng);
+  one.push_back(one[0]);
+  one.push_back(one[0]);
+  const PoseSolution at_one = SolvePlanarPose(one, Pose2(5.2, 5.9, 0.1), observer);
+  ASSERT_TRUE(at_one.ok());
+  EXPECT_LT((at_one.world_from_camera * one[0].camera_mm - one[0].world_mm).norm(), 1e-6);
+  EXPECT_TRUE(std::isinf(at_one.covariance(2, 2)));
+  std::string why;
+  observer.estimate_tilt = true;
+  EXPECT_FALSE(observer.Check(&why));
+  EXPECT_NE(why.find("not the tilt"), std::string::npos) << why;
+  EXPECT_STREQ(ToString(PoseMethod::kKalmanObserver), "kalman-observer");
 }
 
 }  // namespace

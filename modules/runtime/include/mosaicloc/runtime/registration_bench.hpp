@@ -33,7 +33,8 @@ struct RegistrationBenchOptions {
 };
 
 /// The methods' keys: ours, ours-9x128, ours-tiled, ours-visp, ours-tilt (twelve templates,
-/// scale and tilt estimated), ecc, ecc-homography, phase, visp.
+/// scale and tilt estimated), ours-observer (the pose by the founding paper's Kalman observer),
+/// ecc, ecc-homography, phase, visp.
 const std::vector<std::string>& RegistrationBenchMethods();
 
 /// One method's figures over all pairs (NaN where nothing was measured).

@@ -25,7 +25,22 @@ enum class RobustLoss { kNone, kHuber, kCauchy };
 const char* ToString(RobustLoss loss);
 inline constexpr RobustLoss kRobustLosses[] = {RobustLoss::kNone, RobustLoss::kHuber, RobustLoss::kCauchy};
 
+/// How the pose is refined from the correspondences: the robust least-squares solve, or the
+/// founding paper's iterated Kalman observer (Kelly, section 3: state (x, y, yaw), measurement
+/// the world positions of the template centres z = h(x)).
+enum class PoseMethod { kLeastSquares, kKalmanObserver };
+/// "least-squares" or "kalman-observer", as the localizer configuration names them.
+const char* ToString(PoseMethod method);
+inline constexpr PoseMethod kPoseMethods[] = {PoseMethod::kLeastSquares, PoseMethod::kKalmanObserver};
+
 struct PoseSolverOptions {
+  PoseMethod method = PoseMethod::kLeastSquares;
+  /// The Kalman observer's prior around the initial pose, one standard deviation: weak, so the
+  /// pose it gives is the measurements' (the localizer's filter fuses it with the prediction,
+  /// which must not count twice).
+  double observer_prior_sigma_mm = 10.0;
+  double observer_prior_sigma_deg = 5.0;
+  double observer_prior_sigma_scale = 0.2;
   RobustLoss loss = RobustLoss::kCauchy;
   /// Scale of the robust loss, mm: residuals well below it count fully.
   double loss_scale_mm = 0.05;
@@ -95,6 +110,18 @@ struct PoseSolution {
 /// the covariance's yaw variance is then infinite. Never throws for bad data.
 PoseSolution SolvePlanarPose(const std::vector<Correspondence>& correspondences, const core::Pose2& initial,
                              const PoseSolverOptions& options);
+
+/// The founding paper's pose observer: an iterated extended Kalman filter update (Gauss-Newton
+/// iterations of the measurement update about the latest estimate, Bell and Cathey 1993) of the
+/// state (x, y, yaw) (with the image scale k where options.estimate_scale and four distinct
+/// points allow) from the prior `initial` (options.observer_prior_*) and the measurements
+/// z_i = k R(yaw) camera_i + t with covariance sigma_i^2 I. Outliers by data snooping: the
+/// correspondence with the largest residual beyond options.outlier_threshold_mm is dropped and
+/// the update run again, one at a time. The covariance is the posterior's. No robust loss, no
+/// tilt (options.estimate_tilt is refused by Check). Never throws for bad data.
+/// SolvePlanarPose calls it when options.method is kKalmanObserver.
+PoseSolution ObservePlanarPose(const std::vector<Correspondence>& correspondences, const core::Pose2& initial,
+                               const PoseSolverOptions& options);
 
 /// The residual of one correspondence and its Jacobian with respect to (x, y, yaw); exposed
 /// for the Jacobian test. residual = R(yaw) camera + t - world, mm, divided by `scale`.
