@@ -45,6 +45,24 @@ expect_exit 0 "$MOSAICLOC" --quiet --json replay --dataset "$SCRATCH/drive" --ma
 json_check "$SCRATCH/tracked/metrics.json" 'd["fix_rate"] >= 0.97' 'd["lock_losses"] == 0' \
   'd["repeatability_camera_mm"] <= 0.01' 'd["frames_by_mode"]["track"] >= 0.97 * d["frames"]'
 
+# The map's self-test (made with its place index when the mapping ended): the procedural floor
+# does not repeat. So a vehicle carried unseen to where its estimate lies off the map (400 mm
+# aside, held there confidently) searches the whole map from off it and finds itself again
+# within lock.off_map_global_every (10) frames, without a wrong fix; with that search off, it
+# takes longer (until its estimate drifts back onto the map, if ever).
+expect_exit 0 "$MOSAICLOC" map info "$SCRATCH/site.mosaic"
+expect_in "$SCRATCH/out" "floor: does not repeat"
+expect_exit 0 "$MOSAICLOC" --quiet --json replay --dataset "$SCRATCH/drive" --map "$SCRATCH/site.mosaic" \
+  --out "$SCRATCH/carried" --revisit-places 0 --kidnap-at-s 5 --kidnap-offset 0,-400,0
+json_check "$SCRATCH/carried/metrics.json" 'd["wrong_fixes"] == 0' 'd["kidnap_frames_to_fix"] <= 12' \
+  'd["off_map_frames"] <= 12'
+printf 'lock: {off_map_global_every: 0}\n' > "$SCRATCH/no_search.yaml"
+expect_exit 0 "$MOSAICLOC" --quiet --json replay --dataset "$SCRATCH/drive" --map "$SCRATCH/site.mosaic" \
+  --out "$SCRATCH/carried_no_search" --revisit-places 0 --kidnap-at-s 5 --kidnap-offset 0,-400,0 \
+  --config "$SCRATCH/no_search.yaml"
+json_check "$SCRATCH/carried_no_search/metrics.json" 'd["wrong_fixes"] == 0' \
+  'd["kidnap_frames_to_fix"] is None or d["kidnap_frames_to_fix"] > 20'
+
 # Mapping faster than the overlap speed limit (2.4 m/s along the view's long side at 30 Hz) is
 # warned of, once for the episode, and counted.
 expect_exit 0 "$MOSAICLOC" --quiet simulate --out "$SCRATCH/fast" --floor procedural --route straight --frames 150 \

@@ -114,6 +114,7 @@ bool LocalizerOptions::Check(std::string* why) const {
   }
   if (relocalize_after_misses < 0) return fail("relocalize_after_misses must be >= 0");
   if (lost_global_every < 0) return fail("lost_global_every must be >= 0");
+  if (off_map_global_every < 0) return fail("off_map_global_every must be >= 0");
   if (edge_templates < 0 || edge_templates > 64) return fail("edge_templates must be in [0, 64]");
   if (!(on_map_coverage > 0.0 && on_map_coverage <= 1.0)) return fail("on_map_coverage must be in (0, 1]");
   if (on_map_coverage < relocalize.min_coverage) {
@@ -295,6 +296,17 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
       relocalize = true;
     }
   }
+  // Off the map, on a floor known not to repeat: the vehicle may have been carried unseen to
+  // mapped floor its estimate does not put it on; a copy cannot be taken for the place there.
+  if (!outcome.track.ok() && !pose_unknown_ && lock_.state() == estimation::LockState::kOffMap &&
+      options_.off_map_global_every > 0 && places_ != nullptr && places_->floor_repeats() == false &&
+      places_->usable() && ++off_map_frames_ % options_.off_map_global_every == 0) {
+    tracking::TrackResult everywhere = relocalizer_.SearchEverywhere(frame, *places_, scale_);
+    if (everywhere.ok()) {
+      outcome.track = std::move(everywhere);
+      relocalize = true;
+    }
+  }
   if (outcome.track.ok() && options_.edge_templates > 0 && PartlyOffTheMap(outcome.track)) {
     outcome.track = AtTheEdge(frame, std::move(outcome.track));
   }
@@ -359,6 +371,7 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   if (outcome.fixed) {
     unmatched_run_ = 0;
     lost_frames_ = 0;
+    off_map_frames_ = 0;
     kidnapped_ = false;
     pose_unknown_ = false;
   } else if (pose_unknown_) {

@@ -474,6 +474,8 @@ namespace {
 
 // Metadata keys of the place index; the table `places` holds its cells.
 constexpr const char* kPlacesKeys[] = {"places_format_version", "places_method", "places_level"};
+constexpr const char* kRepeatTestKeys[] = {"places_repeat_test_views", "places_repeat_test_own",
+                                           "places_repeat_test_elsewhere"};
 
 bool HasTable(sqlite3* db, const char* name) {
   sqlite3_stmt* raw = nullptr;
@@ -532,12 +534,48 @@ std::optional<PlaceIndexInfo> TileStore::Places() const {
   const auto method = values.find(kPlacesKeys[1]);
   if (method == values.end()) core::ThrowInvalidInput(file_.string() + ": metadata key 'places_method' is missing");
   info.method = method->second;
+  const auto optional_count = [&](const char* key) -> std::int64_t {
+    const auto it = values.find(key);
+    if (it == values.end()) return -1;
+    std::int64_t value = 0;
+    const char* end = it->second.data() + it->second.size();
+    const auto result = std::from_chars(it->second.data(), end, value);
+    if (result.ec != std::errc() || result.ptr != end || value < 0) {
+      core::ThrowInvalidInput(file_.string() + ": metadata key '" + key + "' is not a count: '" + it->second + "'");
+    }
+    return value;
+  };
+  info.repeat_test_views = optional_count(kRepeatTestKeys[0]);
+  info.repeat_test_own = optional_count(kRepeatTestKeys[1]);
+  info.repeat_test_elsewhere = optional_count(kRepeatTestKeys[2]);
   const Statement count(db_, "SELECT COUNT(*), COALESCE(SUM(LENGTH(data)), 0) FROM places", file_);
   if (sqlite3_step(count.get()) == SQLITE_ROW) {
     info.cells = sqlite3_column_int64(count.get(), 0);
     info.bytes = sqlite3_column_int64(count.get(), 1);
   }
   return info;
+}
+
+void TileStore::WritePlaceRepeatTest(std::int64_t views, std::int64_t own, std::int64_t elsewhere) {
+  const std::lock_guard lock(mutex_);
+  Execute("BEGIN IMMEDIATE;");
+  try {
+    const Statement meta(db_, "INSERT OR REPLACE INTO metadata VALUES (?, ?)", file_);
+    const std::int64_t values[] = {views, own, elsewhere};
+    for (int i = 0; i < 3; ++i) {
+      sqlite3_reset(meta.get());
+      sqlite3_bind_text(meta.get(), 1, kRepeatTestKeys[i], -1, SQLITE_STATIC);
+      const std::string value = std::to_string(values[i]);
+      sqlite3_bind_text(meta.get(), 2, value.c_str(), -1, SQLITE_TRANSIENT);
+      if (sqlite3_step(meta.get()) != SQLITE_DONE) {
+        core::ThrowRuntime(file_.string() + ": cannot write the floor's self-test: " + sqlite3_errmsg(db_));
+      }
+    }
+    Execute("COMMIT;");
+  } catch (...) {
+    sqlite3_exec(db_, "ROLLBACK;", nullptr, nullptr, nullptr);
+    throw;
+  }
 }
 
 std::vector<PlaceCell> TileStore::ReadPlaces() const {
@@ -570,6 +608,7 @@ void TileStore::WritePlaces(const PlaceIndexInfo& info, const std::vector<PlaceC
   try {
     Execute(
         "DROP TABLE IF EXISTS places;"
+        "DELETE FROM metadata WHERE name LIKE 'places_repeat_test_%';"
         "CREATE TABLE places (col INTEGER, row INTEGER, data BLOB, crc32 INTEGER, PRIMARY KEY (col, row));");
     {
       const Statement meta(db_, "INSERT OR REPLACE INTO metadata VALUES (?, ?)", file_);

@@ -101,6 +101,7 @@ void ReadLocalizerConfig(const YAML::Node& node, const std::string& file_name, L
   lock.Optional("lost_above_sigma_mm", &o.lock.lost_above_sigma_mm);
   lock.Optional("relocalize_after_misses", &o.relocalize_after_misses);
   lock.Optional("lost_global_every", &o.lost_global_every);
+  lock.Optional("off_map_global_every", &o.off_map_global_every);
   lock.Optional("on_map_coverage", &o.on_map_coverage);
   lock.Check(o.lock);
   lock.CheckOwnKeys(o);

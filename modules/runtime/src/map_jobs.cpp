@@ -1,5 +1,6 @@
 #include "mosaicloc/runtime/map_jobs.hpp"
 #include "mosaicloc/runtime/map_quality.hpp"
+#include "mosaicloc/runtime/settings.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -9,6 +10,9 @@
 #include <iterator>
 #include <map>
 #include <memory>
+#include <optional>
+#include <numbers>
+#include <numeric>
 #include <limits>
 #include <sstream>
 
@@ -21,6 +25,10 @@
 #include "mosaicloc/mosaic/builder.hpp"
 #include "mosaicloc/mosaic/renderer.hpp"
 #include "mosaicloc/tracking/place_index.hpp"
+#include "mosaicloc/tracking/reference.hpp"
+#include "mosaicloc/tracking/relocalize.hpp"
+#include "mosaicloc/tracking/render_window.hpp"
+#include "mosaicloc/tracking/tracker.hpp"
 
 namespace mosaicloc::runtime {
 namespace {
@@ -258,6 +266,64 @@ MapRevertSummary RevertMapUpdate(const std::filesystem::path& map, std::int64_t 
   return summary;
 }
 
+std::string FloorRepeatTest::Verdict() const {
+  if (elsewhere > 0) return "repeats";
+  return own > 0 ? "does not repeat" : "unknown";
+}
+
+FloorRepeatTest TestFloorRepeats(mosaic::TileStore& store, int views) {
+  constexpr double kMappedShare = 0.8;  // of a view that must be mapped floor to be searched for
+  const auto start = std::chrono::steady_clock::now();
+  FloorRepeatTest test;
+  const mosaic::MapGrid& grid = store.grid();
+  mosaic::TileCache cache(store, std::size_t{64} << 20);
+  const mosaic::MapRenderer renderer(cache);
+  const tracking::MapReference reference(renderer, 0);
+  const tracking::PlaceIndex places(store);
+  if (places.usable() && places.Load()) {
+    // The default camera at the map's resolution, and the localizer's default tracker and
+    // relocalization: what a vehicle's global search does.
+    const camera::IdealCamera camera(camera::IdealCameraOptions{640, 480, grid.mm_per_px});
+    const LocalizationSettings settings;
+    const tracking::Tracker tracker(camera, settings.localizer.tracker);
+    const tracking::Relocalizer relocalizer(tracker, reference, settings.localizer.relocalize);
+    const std::vector<mosaic::TileKey> tiles = store.List(0);
+    const double tile_mm = grid.mm_per_px * grid.tile_size_px;
+    // The tiles in a spread order (a stride coprime to their count walks all of them, far apart
+    // first), each tried with the view along x and along y (lanes run either way).
+    std::size_t stride = std::max<std::size_t>(1, tiles.size() / static_cast<std::size_t>(std::max(views, 1)));
+    while (std::gcd(stride, tiles.size()) != 1) ++stride;
+    for (std::size_t k = 0; k < tiles.size() && test.views < views; ++k) {
+      const mosaic::TileKey& tile = tiles[(stride / 2 + k * stride) % tiles.size()];
+      const Eigen::Vector2d centre(grid.origin_x_mm + (static_cast<double>(tile.col) + 0.5) * tile_mm,
+                                   grid.origin_y_mm - (static_cast<double>(tile.row) + 0.5) * tile_mm);
+      // Near the tile's centre (a lane a view wide is seldom centred on a tile).
+      std::optional<core::Pose2> place;
+      cv::Mat view;
+      for (int candidate = 0; candidate < 18 && !place; ++candidate) {
+        const double yaw = candidate % 2 == 0 ? 0.0 : 0.5 * std::numbers::pi;
+        const Eigen::Vector2d shift(32.0 * ((candidate / 2) % 3 - 1), 32.0 * ((candidate / 6) - 1));
+        cv::Mat mask;
+        view = tracking::RenderCameraView(reference, camera, core::Pose2(centre + shift, yaw), &mask);
+        if (mask.empty() || cv::countNonZero(mask) >= kMappedShare * static_cast<double>(mask.total())) {
+          place = core::Pose2(centre + shift, yaw);
+        }
+      }
+      if (!place) continue;
+      ++test.views;
+      const tracking::TrackResult found = relocalizer.SearchEverywhere(view, places);
+      if (found.ok() && core::Distance(found.world_from_camera, *place) <= 2.0) {
+        ++test.own;
+      } else if (found.ok() || found.failure == tracking::TrackFailure::kAmbiguous) {
+        ++test.elsewhere;
+      }
+    }
+  }
+  store.WritePlaceRepeatTest(test.views, test.own, test.elsewhere);
+  test.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return test;
+}
+
 MapIndexSummary IndexStore(mosaic::TileStore& store, const std::function<void(double)>& progress) {
   const auto start = std::chrono::steady_clock::now();
   const tracking::PlaceIndexOptions options;
@@ -269,6 +335,7 @@ MapIndexSummary IndexStore(mosaic::TileStore& store, const std::function<void(do
     summary.bytes += static_cast<std::int64_t>(cell.data.size());
     summary.features += static_cast<std::int64_t>(cell.data.size() / tracking::kPlaceRecordBytes);
   }
+  summary.repeat_test = TestFloorRepeats(store);
   summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return summary;
 }

@@ -279,6 +279,13 @@ PlaceIndex::PlaceIndex(const mosaic::TileStore& store, const PlaceIndexOptions& 
                  std::to_string(info->format_version) + ", " + info->method + "): rebuild it with `mosaicloc map index`";
     } else {
       options_.level = info->level;
+      // The floor's self-test: copies found elsewhere say it repeats; views all found at their
+      // own place say it does not; no test, or nothing placed, leaves it unknown.
+      if (info->repeat_test_elsewhere > 0) {
+        floor_repeats_ = true;
+      } else if (info->repeat_test_elsewhere == 0 && info->repeat_test_own > 0) {
+        floor_repeats_ = false;
+      }
     }
   } catch (const core::Error& e) {
     problem_ = e.what();

@@ -99,6 +99,12 @@ struct LocalizerOptions {
   /// many frames the whole map is searched through its place index (when the map has one), and
   /// a place taken if it is the only one the frame matches (design.md section 7b). 0: never.
   int lost_global_every = 5;
+  /// Off the map, every this many frames the whole map is searched too, but only on a map whose
+  /// floor is known not to repeat (tracking::PlaceIndex::floor_repeats false, the self-test
+  /// `map build` and `map index` record): there no copy of the floor can be taken for the
+  /// place, and a vehicle carried unseen to where its estimate is off the map finds itself
+  /// again. On a floor that repeats, or one not tested, never (design.md section 7b). 0: never.
+  int off_map_global_every = 10;
   /// A view partly off the map (a template's place was unmapped: at a lane's edge, coming back
   /// onto the map) is registered from templates that all lie on one side of it, where the yaw,
   /// and with it the vehicle's origin a lever arm away, is less well held; the first fix back
@@ -288,6 +294,7 @@ class Localizer {
   /// (frames without texture neither count nor break the run).
   int unmatched_run_ = 0;
   std::int64_t lost_frames_ = 0;  ///< frames without a fix while lost
+  std::int64_t off_map_frames_ = 0;  ///< frames without a fix while off the map
   bool kidnapped_ = false;
   bool pose_unknown_ = false;
   // Visual odometry's keyframe: its time, image (owned: the caller's buffer may be reused),

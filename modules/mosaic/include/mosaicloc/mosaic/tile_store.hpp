@@ -62,6 +62,12 @@ struct PlaceIndexInfo {
   int level = 0;       ///< the map level the records describe
   std::int64_t cells = 0;
   std::int64_t bytes = 0;  ///< of the cells' data
+  /// The floor's self-test over the index (runtime::TestFloorRepeats), when it was run on this
+  /// index: views of the map searched for everywhere, found at their own place, found (or
+  /// ambiguous) elsewhere too. -1 when not run.
+  std::int64_t repeat_test_views = -1;
+  std::int64_t repeat_test_own = -1;
+  std::int64_t repeat_test_elsewhere = -1;
 };
 
 /// One cell of the map's quality layer (design.md section 4): what a fix can expect over the
@@ -178,6 +184,9 @@ class TileStore {
   /// Replaces the whole place index (table and metadata) in one transaction: a crash leaves
   /// the old index or the new one. Throws core::Error on failure.
   void WritePlaces(const PlaceIndexInfo& info, const std::vector<PlaceCell>& cells);
+  /// Records the floor's self-test over the index (PlaceIndexInfo::repeat_test_*); WritePlaces
+  /// forgets it, since a new index is of a floor that may have changed.
+  void WritePlaceRepeatTest(std::int64_t views, std::int64_t own, std::int64_t elsewhere);
 
   /// The quality layer, when the map has one (nullopt otherwise). Throws core::Error naming
   /// the file when its metadata is damaged.

@@ -83,11 +83,28 @@ MapInfo InspectMap(const std::filesystem::path& map);
 
 /// `mosaicloc map index`: builds (or rebuilds) a map's place index, which global
 /// relocalization looks frames up in, and stores it in the map in one transaction.
+/// The floor's self-test over a map's place index (design.md section 7b): views of the map,
+/// rendered at up to `views` places spread over it (each at least 80 % mapped), searched for
+/// everywhere as a frame without a prior is. A view found at its own place (within 2 mm) says
+/// nothing against the floor; one found elsewhere, or ambiguous, is a copy: the floor repeats.
+struct FloorRepeatTest {
+  std::int64_t views = 0;
+  std::int64_t own = 0;        ///< found at its own place
+  std::int64_t elsewhere = 0;  ///< found elsewhere, or ambiguous
+  double seconds = 0.0;
+  /// "repeats", "does not repeat", or "unknown" (nothing placed).
+  std::string Verdict() const;
+};
+/// Runs the self-test on an open store with a place index and records it with the index
+/// (TileStore::WritePlaceRepeatTest). Every index build (IndexStore) runs it.
+FloorRepeatTest TestFloorRepeats(mosaic::TileStore& store, int views = 24);
+
 struct MapIndexSummary {
   std::int64_t cells = 0;
   std::int64_t features = 0;
   std::int64_t bytes = 0;
   double seconds = 0.0;
+  FloorRepeatTest repeat_test;
 };
 MapIndexSummary IndexMap(const std::filesystem::path& map, const std::function<void(double)>& progress = {});
 /// The same into an open, writable store.

@@ -4,6 +4,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -86,6 +87,10 @@ class PlaceIndex {
   /// A damaged cell is found only when the index is loaded.
   std::string problem() const;
   bool usable() const { return problem().empty(); }
+  /// Whether the map's floor repeats anywhere, by the self-test recorded with the index
+  /// (runtime::TestFloorRepeats): unknown (nullopt) when it was not run or placed nothing. Only
+  /// a floor known not to repeat may be searched from off the map (design.md section 7b).
+  std::optional<bool> floor_repeats() const { return floor_repeats_; }
   /// Loads the index now (it is loaded by the first Lookup otherwise); false with problem().
   bool Load() const;
   /// Features and bytes in memory once loaded (0 before).
@@ -102,6 +107,7 @@ class PlaceIndex {
   static Eigen::Vector2d World(const Loaded& index, int feature);
   const mosaic::TileStore& store_;
   PlaceIndexOptions options_;
+  std::optional<bool> floor_repeats_;
   mutable std::mutex mutex_;
   mutable bool tried_ = false;
   mutable std::string problem_;
