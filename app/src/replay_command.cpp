@@ -25,6 +25,7 @@ struct ReplayArgs {
   bool relocalize = false;           // the start is not to be trusted: relocalize without it
   bool unknown_start = false;
   double kidnap_at_s = -1.0;
+  double until_s = -1.0;
   std::vector<double> kidnap_offset;  // dx_mm, dy_mm, dyaw_deg in the vehicle's frame
   bool kidnap_told = false;
   std::int64_t revisit_places = 200;
@@ -60,6 +61,10 @@ void Run(const ReplayArgs& args, const GlobalOptions& global) {
     options.kidnap_offset = core::Pose2(args.kidnap_offset[0], args.kidnap_offset[1],
                                         args.kidnap_offset[2] * std::numbers::pi / 180.0);
     options.kidnap_told = args.kidnap_told;
+  }
+  if (args.until_s >= 0.0) {
+    if (mode != "mosaic") core::ThrowInvalidInput("replay: --until-s is for the mosaic mode");
+    options.until_s = args.until_s;
   }
   options.prefetch = args.prefetch;
   options.revisit_places = args.revisit_places;
@@ -110,6 +115,9 @@ Action AddReplayCommand(CLI::App& app, const GlobalOptions& global) {
   command->add_option("--kidnap-at-s", args->kidnap_at_s,
                       "mosaic mode: this many seconds into the drive the vehicle is carried away unseen: the "
                       "estimate is moved by --kidnap-offset and held there confidently")
+      ->check(CLI::NonNegativeNumber);
+  command->add_option("--until-s", args->until_s,
+                      "mosaic mode: localize only the frames up to this many seconds into the drive")
       ->check(CLI::NonNegativeNumber);
   command->add_option("--kidnap-offset", args->kidnap_offset,
                       "dx_mm,dy_mm,dyaw_deg of the kidnap in the vehicle's frame")

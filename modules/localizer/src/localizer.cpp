@@ -351,7 +351,7 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
         if (!gated) {
           rejected_run_ = 0;
         } else if (RejectedAgain(time, offset, fix_covariance + timing)) {
-          Restart(time, fix, fix_covariance, &outcome);
+      Restart(time, fix, fix_covariance, &outcome);
         }
       }
     }
@@ -625,8 +625,15 @@ tracking::TrackResult Localizer::Relocalize(const cv::Mat& frame, const core::Po
                           tracking::RelocalizeGate{options_.filter.gate_chi2, options_.fix_covariance_scale}, scale_);
   // A gate wider than the search (a long dead reckoning) holds places the search did not see:
   // the nearest of those it saw may be a copy of the floor. Checked against the whole map, as
-  // for a kidnap.
+  // for a kidnap. So is a place found while the lock is lost on a floor not known to be free of
+  // copies: the prediction has failed frame after frame, and a prediction wrong by more than
+  // its covariance says (a vehicle moved unseen) puts a copy inside the gate as readily as the
+  // true place.
   if (found.ok() && gate_mm > radius_mm) return CheckedAgainstTheMap(frame, std::move(found));
+  if (found.ok() && lock_.state() == estimation::LockState::kLost && places_ != nullptr &&
+      places_->floor_repeats() != false) {
+    return CheckedAgainstTheMap(frame, std::move(found));
+  }
   return found;
 }
 
@@ -634,7 +641,14 @@ tracking::TrackResult Localizer::CheckedAgainstTheMap(const cv::Mat& frame, trac
   if (places_ == nullptr || !places_->usable()) return found;
   tracking::TrackResult everywhere = relocalizer_.SearchEverywhere(frame, *places_, scale_);
   if (everywhere.ok() || everywhere.failure == tracking::TrackFailure::kAmbiguous) return everywhere;
-  return found;  // the index did not see the frame at all: it has no say
+  if (places_->floor_repeats() == false) return found;  // the index did not see the frame: no copy to fear
+  // On a floor that repeats (or one never tested), the place nearest a prior that is not to be
+  // trusted is no better than any copy of it, and the whole map could not say which it is.
+  tracking::TrackResult refused;
+  refused.failure = tracking::TrackFailure::kAmbiguous;
+  refused.reason = "the floor repeats (the map's self-test) and the whole map could not place the frame: the place "
+                   "nearest an untrusted prior may be a copy";
+  return refused;
 }
 
 double MapCoverage(const tracking::ReferenceRaster& reference, const camera::IdealCamera& camera,

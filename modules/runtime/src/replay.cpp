@@ -516,6 +516,7 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
     while (pending && pending->time <= frame->time) feed();
     if (pending) feed();  // one sample past the frame: the fix arrives late
     if (!first_frame) first_frame = frame->time;
+    if (options.until_s && core::ToSeconds(frame->time - *first_frame) > *options.until_s) break;
     if (options.kidnap_at_s && !kidnapped_at && core::ToSeconds(frame->time - *first_frame) >= *options.kidnap_at_s) {
       // Carried away unseen: the estimate stays confident where the vehicle no longer is.
       // The filter restarts at the newest odometry it has taken, so that none is lost.

@@ -45,6 +45,9 @@ struct ReplayOptions {
   /// unseen; with `kidnap_told` the localizer is also told (RequestRelocalization), as the
   /// PLC's relocalize request tells it.
   std::optional<double> kidnap_at_s;
+  /// kMosaic: only the frames up to this many seconds into the drive are localized (the first
+  /// stretch of a long recording); the report covers those.
+  std::optional<double> until_s;
   core::Pose2 kidnap_offset;
   bool kidnap_told = false;
   /// kMosaic: load the map's tiles ahead on the prefetcher's threads, as a live run does;
