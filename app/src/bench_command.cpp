@@ -1,5 +1,5 @@
 // mosaicloc bench registration: our registration against its peers on the same pairs, in one
-// run, on one core.
+// run, on one core. mosaicloc bench soak: a long simulated drive localized in one process.
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -7,11 +7,16 @@
 #include <string>
 #include <vector>
 
+#include <unistd.h>
+
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
 #include "report.hpp"
+#include "mosaicloc/runtime/localization_config.hpp"
 #include "mosaicloc/runtime/registration_bench.hpp"
+#include "mosaicloc/runtime/soak.hpp"
+#include "mosaicloc/sim/config.hpp"
 #include "progress.hpp"
 
 namespace mosaicloc::app {
@@ -56,7 +61,83 @@ Action AddBenchCommand(CLI::App& app, const GlobalOptions& global) {
   registration->add_option("--failure-deg", args->failure_deg, "A rotation error above this is a failure")
       ->capture_default_str();
 
-  return [args, &global] {
+  struct SoakArgs {
+    std::filesystem::path config, localizer_config, work;
+    std::string floor = "procedural", route = "network";
+    std::int64_t frames = 100000;
+    double speed_mps = 1.5;
+    std::int64_t seed = 7;
+    int threads = 2;
+  };
+  auto soak_args = std::make_shared<SoakArgs>();
+  CLI::App* soak = bench->add_subcommand(
+      "soak", "A long simulated drive localized in one process (frames rendered as they are needed, none stored): "
+              "lock losses, wrong fixes, latency, and memory, file descriptors and threads over time");
+  soak->add_option("--frames", soak_args->frames, "Frames to localize")->capture_default_str()->check(CLI::PositiveNumber);
+  soak->add_option("--floor", soak_args->floor, "'procedural' or a texture image")->capture_default_str();
+  soak->add_option("--route", soak_args->route, "straight, loop, network or serpentine")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"straight", "loop", "network", "serpentine"}));
+  soak->add_option("--speed-mps", soak_args->speed_mps, "Cruise speed, m/s")->capture_default_str();
+  soak->add_option("--seed", soak_args->seed, "Seed of the drive")->capture_default_str();
+  soak->add_option("--config", soak_args->config, "Simulator configuration (simulator.yaml) of the drive: its conditions")
+      ->check(CLI::ExistingFile);
+  soak->add_option("--localizer", soak_args->localizer_config, "Localizer configuration")->check(CLI::ExistingFile);
+  soak->add_option("--work", soak_args->work, "Where the mapping lap and the map are made (default: a new temporary folder)");
+  soak->add_option("--threads", soak_args->threads, "Rendering threads")->capture_default_str()->check(CLI::Range(1, 64));
+
+  return [args, soak_args, soak, &global] {
+    if (soak->parsed()) {
+      runtime::SoakOptions options;
+      options.drive = soak_args->config.empty() ? sim::SimulatorOptions{} : sim::LoadSimulatorConfig(soak_args->config);
+      options.drive.floor = sim::FloorChoice::Named(soak_args->floor, options.drive.floor);
+      options.drive.route.name = soak_args->route;
+      options.drive.route.speed_mps = soak_args->speed_mps;
+      options.drive.frames = soak_args->frames;
+      options.drive.laps = 0;
+      options.drive.seed = static_cast<std::uint64_t>(soak_args->seed);
+      options.drive.threads = soak_args->threads;
+      if (!soak_args->localizer_config.empty()) options.settings = runtime::LoadLocalizerConfig(soak_args->localizer_config);
+      options.work = soak_args->work.empty()
+                         ? std::filesystem::temp_directory_path() / ("mosaicloc-soak-" + std::to_string(::getpid()))
+                         : soak_args->work;
+      ProgressBar progress("soak", global.quiet || global.json);
+      const runtime::SoakSummary r = runtime::RunSoak(options, progress.Callback());
+      progress.Finish();
+      const runtime::SoakSample& first = r.samples.front();
+      const runtime::SoakSample& last = r.samples.back();
+      if (global.json) {
+        nlohmann::json samples = nlohmann::json::array();
+        for (const runtime::SoakSample& s : r.samples) samples.push_back({s.wall_s, s.frames, s.rss_mib, s.fds, s.threads});
+        PrintJson({{"frames", r.frames}, {"fixes", r.fixes}, {"fix_rate", r.fix_rate}, {"lock_losses", r.lock_losses},
+                   {"wrong_fixes", r.wrong_fixes}, {"relocalizations", r.relocalizations},
+                   {"encoder_samples_rejected", r.encoder_samples_rejected}, {"error_rms_mm", r.error_rms_mm},
+                   {"error_max_mm", r.error_max_mm}, {"driven_s", r.driven_s}, {"driven_km", r.driven_km},
+                   {"seconds", r.seconds}, {"frames_per_s", r.frames_per_s},
+                   {"processing_p50_ms", r.processing_p50_ms}, {"processing_p99_ms", r.processing_p99_ms},
+                   {"processing_p9999_ms", r.processing_p9999_ms}, {"processing_max_ms", r.processing_max_ms},
+                   {"rss_slope_mib_per_h", r.rss_slope_mib_per_h},
+                   {"rss_slope_mib_per_100k_frames", r.rss_slope_mib_per_100k_frames},
+                   {"samples_columns", {"wall_s", "frames", "rss_mib", "fds", "threads"}}, {"samples", samples},
+                   {"work", options.work.string()}});
+        return;
+      }
+      std::printf("soak: %lld frames (%.2f h driven, %.2f km) in %.0f s (%.0f frames/s, rendering included)\n",
+                  static_cast<long long>(r.frames), r.driven_s / 3600.0, r.driven_km, r.seconds, r.frames_per_s);
+      std::printf("  fixes %.3f %%, lock losses %lld, wrong fixes (> 1 mm) %lld, relocalizations %lld; fix error RMS "
+                  "%.4f mm, max %.4f mm\n",
+                  100.0 * r.fix_rate, static_cast<long long>(r.lock_losses), static_cast<long long>(r.wrong_fixes),
+                  static_cast<long long>(r.relocalizations), r.error_rms_mm, r.error_max_mm);
+      std::printf("  processing per frame: p50 %.3f ms, p99 %.3f ms, p99.99 %.3f ms, max %.3f ms\n", r.processing_p50_ms,
+                  r.processing_p99_ms, r.processing_p9999_ms, r.processing_max_ms);
+      std::printf("  resident memory %.1f -> %.1f MiB, slope after warm-up %+.2f MiB/h (%+.3f MiB per 10^5 frames); "
+                  "file descriptors %lld -> %lld; threads %lld -> %lld\n",
+                  first.rss_mib, last.rss_mib, r.rss_slope_mib_per_h, r.rss_slope_mib_per_100k_frames,
+                  static_cast<long long>(first.fds), static_cast<long long>(last.fds),
+                  static_cast<long long>(first.threads), static_cast<long long>(last.threads));
+      std::printf("  map and mapping lap in %s\n", options.work.string().c_str());
+      return;
+    }
     ProgressBar progress("registering pairs", global.quiet || global.json);
     const std::vector<runtime::RegistrationBenchRow> rows =
         runtime::RunRegistrationBench(*args, progress.Callback());

@@ -204,27 +204,60 @@ CameraPlacement MakeCameraPlacement(const SimulatorOptions& options) {
   return CameraPlacement(placement, camera.mm_per_px(), camera.cx(), camera.cy());
 }
 
+FrameRenderer::FrameRenderer(const SimulatorOptions& options, const Drive& drive)
+    : options_(options), drive_(drive), placement_(MakeCameraPlacement(options)) {
+  floor_ = MakeFloor(options.floor);
+  // The relief is the floor's own, not its changes' (grime lies on the tops and in the joints).
+  const Floor* base = floor_.get();  // kept alive by `floor_`, which may wrap it
+  relief_ = MakeRelief(*base, options.relief);
+  if (options.changes.any()) floor_ = ChangedFloor(std::move(floor_), options.changes, WheelPaths(drive, options));
+  surface_ = Surface{relief_.get(), options.light, options.camera_height_mm};
+  // The frames as the camera really sees them: straight down from its true height, or
+  // through the rays of its 3-D pose (into the relief, under the camera's light).
+  rays_ = !placement_.straight_down() || surface_.any();
+  const camera::IdealCamera camera(options.camera);
+  const camera::IdealCamera seen =
+      rays_ ? camera : camera.Scaled((options.camera_height_mm + options.height_offset_mm) / options.camera_height_mm);
+  imager_ = std::make_unique<Imager>(*floor_, seen, options.imaging, options.seed, surface_);
+}
+
+FrameRenderer::~FrameRenderer() = default;
+
+std::string FrameRenderer::DescribeFloor() const { return floor_->Describe(); }
+
+cv::Mat FrameRenderer::Render(double t, std::uint64_t frame_seed, dataset::CameraTruth* truth) const {
+  const core::Pose2 world_from_vehicle = drive_.At(t).world_from_vehicle;
+  const core::Pose2 world_from_camera = world_from_vehicle * options_.vehicle_from_camera;
+  constexpr double kHalfStepS = 5e-4;
+  const core::Pose2 before = drive_.At(t - kHalfStepS).world_from_vehicle * options_.vehicle_from_camera;
+  const core::Pose2 after = drive_.At(t + kHalfStepS).world_from_vehicle * options_.vehicle_from_camera;
+  const Eigen::Vector2d velocity_camera =
+      world_from_camera.Rotation().transpose() * (after.translation_mm() - before.translation_mm()) / (2 * kHalfStepS);
+  const CameraView view = placement_.At(world_from_vehicle, Acceleration(drive_, t), t);
+  if (truth != nullptr) *truth = placement_.Truth(view, world_from_vehicle);
+  const auto to_floor = [&](const Eigen::Vector2d& pixel) { return placement_.PixelToWorld(view, pixel); };
+  if (surface_.any()) {
+    SurfaceView surface_view{view.lens_mm, view.world_from_camera, {}};
+    if (!placement_.floor().flat()) {
+      surface_view.floor_height_mm = [&](const Eigen::Vector2d& xy) { return placement_.floor().HeightMm(xy); };
+    }
+    return imager_->Render(to_floor, surface_view, velocity_camera, t, frame_seed);
+  }
+  if (rays_) return imager_->Render(to_floor, velocity_camera, t, frame_seed);
+  return imager_->Render(world_from_camera, velocity_camera, t, frame_seed);
+}
+
+std::uint64_t FrameSeed(std::uint64_t seed, std::uint64_t k) { return Mix(seed, k + 1); }
+
 SimulationSummary Simulate(const SimulatorOptions& options, const std::filesystem::path& out, bool overwrite,
                            const ProgressCallback& progress) {
   std::string why;
   if (!options.Check(&why)) core::ThrowInvalidInput("simulate: " + why);
-  const camera::IdealCamera camera(options.camera);
   const int laps = options.laps > 0 ? options.laps
                                     : Drive::LapsForFrames(options.route, options.frames, options.frame_rate_hz);
   const Drive drive(options.route, laps, options.seed);
-  std::unique_ptr<Floor> floor = MakeFloor(options.floor);
-  // The relief is the floor's own, not its changes' (grime lies on the tops and in the joints).
-  const Floor* base = floor.get();  // kept alive by `floor`, which may wrap it
-  if (options.changes.any()) floor = ChangedFloor(std::move(floor), options.changes, WheelPaths(drive, options));
-  const CameraPlacement placement = MakeCameraPlacement(options);
-  const std::unique_ptr<Relief> relief = MakeRelief(*base, options.relief);
-  const Surface surface{relief.get(), options.light, options.camera_height_mm};
-  // The frames as the camera really sees them: straight down from its true height, or
-  // through the rays of its 3-D pose (into the relief, under the camera's light).
-  const bool rays = !placement.straight_down() || surface.any();
-  const camera::IdealCamera seen =
-      rays ? camera : camera.Scaled((options.camera_height_mm + options.height_offset_mm) / options.camera_height_mm);
-  const Imager imager(*floor, seen, options.imaging, options.seed, surface);
+  const FrameRenderer renderer(options, drive);
+  const CameraPlacement& placement = renderer.placement();
   EncoderModel encoders(options.encoders, options.seed);
 
   const double period_s = 1.0 / options.frame_rate_hz;
@@ -259,7 +292,7 @@ SimulationSummary Simulate(const SimulatorOptions& options, const std::filesyste
   info.vehicle = options.encoders.nominal;
   auto& p = info.provenance;
   p["source"] = "mosaicloc simulate";
-  p["floor"] = floor->Describe();
+  p["floor"] = renderer.DescribeFloor();
   p["route"] = options.route.name;
   p["laps"] = std::to_string(laps);
   p["speed_mps"] = Number(options.route.speed_mps);
@@ -323,30 +356,7 @@ SimulationSummary Simulate(const SimulatorOptions& options, const std::filesyste
   for (std::size_t first = 0; first < capture_s.size(); first += batch) {
     const std::size_t count = std::min(batch, capture_s.size() - first);
     const auto render = [&](std::size_t i) {
-      const double t = capture_s[first + i];
-      const core::Pose2 world_from_vehicle = drive.At(t).world_from_vehicle;
-      const core::Pose2 world_from_camera = world_from_vehicle * options.vehicle_from_camera;
-      constexpr double kHalfStepS = 5e-4;
-      const core::Pose2 before = drive.At(t - kHalfStepS).world_from_vehicle * options.vehicle_from_camera;
-      const core::Pose2 after = drive.At(t + kHalfStepS).world_from_vehicle * options.vehicle_from_camera;
-      const Eigen::Vector2d velocity_camera =
-          world_from_camera.Rotation().transpose() * (after.translation_mm() - before.translation_mm()) / (2 * kHalfStepS);
-      const std::uint64_t frame_seed = Mix(options.seed, first + i + 1);
-      const CameraView view = placement.At(world_from_vehicle, Acceleration(drive, t), t);
-      camera_truth[i] = placement.Truth(view, world_from_vehicle);
-      const auto to_floor = [&](const Eigen::Vector2d& pixel) { return placement.PixelToWorld(view, pixel); };
-      cv::Mat image;
-      if (surface.any()) {
-        SurfaceView surface_view{view.lens_mm, view.world_from_camera, {}};
-        if (!placement.floor().flat()) {
-          surface_view.floor_height_mm = [&](const Eigen::Vector2d& xy) { return placement.floor().HeightMm(xy); };
-        }
-        image = imager.Render(to_floor, surface_view, velocity_camera, t, frame_seed);
-      } else if (rays) {
-        image = imager.Render(to_floor, velocity_camera, t, frame_seed);
-      } else {
-        image = imager.Render(world_from_camera, velocity_camera, t, frame_seed);
-      }
+      const cv::Mat image = renderer.Render(capture_s[first + i], FrameSeed(options.seed, first + i), &camera_truth[i]);
       encoded[i] = dataset::DatasetWriter::EncodeFrame(image);
     };
     std::vector<std::future<void>> workers;

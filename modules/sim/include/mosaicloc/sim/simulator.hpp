@@ -6,8 +6,11 @@
 #include <memory>
 #include <string>
 
+#include <opencv2/core/mat.hpp>
+
 #include "mosaicloc/camera/ideal_camera.hpp"
 #include "mosaicloc/core/pose2.hpp"
+#include "mosaicloc/dataset/camera_truth.hpp"
 #include "mosaicloc/sim/encoders.hpp"
 #include "mosaicloc/sim/floor.hpp"
 #include "mosaicloc/sim/floor_changes.hpp"
@@ -92,6 +95,39 @@ struct SimulationSummary {
 
 /// The camera of the simulated vehicle on its floor (throws core::Error for bad options).
 CameraPlacement MakeCameraPlacement(const SimulatorOptions& options);
+
+/// The frames of a drive as the simulated camera takes them (what Simulate writes), rendered
+/// one at a time for a consumer that takes them as they come (the soak: no dataset on disk).
+/// Builds the floor (with its changes along `drive`'s lanes), its relief, the camera's
+/// placement and the imager once. Render is const and may run on several threads at once.
+class FrameRenderer {
+ public:
+  /// `drive` must outlive the renderer. Throws core::Error (invalid input) for bad options.
+  FrameRenderer(const SimulatorOptions& options, const Drive& drive);
+  ~FrameRenderer();
+  FrameRenderer(const FrameRenderer&) = delete;
+  FrameRenderer& operator=(const FrameRenderer&) = delete;
+
+  /// The ideal frame captured `t_s` into the drive (noise seeded by `frame_seed`), and what a
+  /// tracker could recover of the view (may be null).
+  cv::Mat Render(double t_s, std::uint64_t frame_seed, dataset::CameraTruth* truth = nullptr) const;
+  /// The floor as dataset.yaml's provenance names it.
+  std::string DescribeFloor() const;
+  const CameraPlacement& placement() const { return placement_; }
+
+ private:
+  const SimulatorOptions& options_;
+  const Drive& drive_;
+  std::unique_ptr<Floor> floor_;
+  CameraPlacement placement_;
+  std::unique_ptr<Relief> relief_;
+  Surface surface_;
+  bool rays_ = false;
+  std::unique_ptr<Imager> imager_;
+};
+
+/// Seeds for frame k of a drive seeded `seed` (SplitMix64), as Simulate draws them.
+std::uint64_t FrameSeed(std::uint64_t seed, std::uint64_t k);
 
 /// Progress in [0, 1]; called from the calling thread.
 using ProgressCallback = std::function<void(double fraction)>;
