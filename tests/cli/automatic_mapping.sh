@@ -56,6 +56,12 @@ expect_exit 0 "$MOSAICLOC" --quiet --json replay --dataset "$SCRATCH/drive" --ma
   --out "$SCRATCH/carried" --revisit-places 0 --kidnap-at-s 5 --kidnap-offset 0,-400,0
 json_check "$SCRATCH/carried/metrics.json" 'd["wrong_fixes"] == 0' 'd["kidnap_frames_to_fix"] <= 12' \
   'd["off_map_frames"] <= 12'
+# Carried 1.5 m back along its lane: the view half matches where the estimate puts it, which
+# on this floor without copies is evidence of the move; the search without the prior finds it.
+expect_exit 0 "$MOSAICLOC" --quiet --json replay --dataset "$SCRATCH/drive" --map "$SCRATCH/site.mosaic" \
+  --out "$SCRATCH/carried_back" --revisit-places 0 --kidnap-at-s 5 --kidnap-offset -1500,0,0
+json_check "$SCRATCH/carried_back/metrics.json" 'd["wrong_fixes"] == 0' 'd["kidnap_frames_to_fix"] <= 8' \
+  'd["lock_losses"] == 0'
 printf 'lock: {off_map_global_every: 0}\n' > "$SCRATCH/no_search.yaml"
 expect_exit 0 "$MOSAICLOC" --quiet --json replay --dataset "$SCRATCH/drive" --map "$SCRATCH/site.mosaic" \
   --out "$SCRATCH/carried_no_search" --revisit-places 0 --kidnap-at-s 5 --kidnap-offset 0,-400,0 \

@@ -531,8 +531,12 @@ estimation::FrameVerdict Localizer::ClassifyMiss(const FrameOutcome& outcome, co
   // or there was none: no evidence against the prior. A map that no longer fits the floor
   // well (changed, or painted at another height) does that; a search without the prior would
   // then find a copy of a repeating floor a period away where the map fits better.
-  const bool found_some = outcome.track.ok() || outcome.track.failure == tracking::TrackFailure::kTooFewInliers ||
-                          outcome.track.failure == tracking::TrackFailure::kNotConverged;
+  // On a floor the map's self-test found free of copies, a partial match is no reason to keep
+  // the prior: a search without it finds the place or nothing, never a copy (design.md 7b).
+  const bool partial = outcome.track.failure == tracking::TrackFailure::kTooFewInliers ||
+                       outcome.track.failure == tracking::TrackFailure::kNotConverged;
+  const bool no_copies = places_ != nullptr && places_->floor_repeats() == false;
+  const bool found_some = outcome.track.ok() || (partial && !no_copies);
   if (found_some && !kidnapped_) {
     unmatched_run_ = 0;
     if (!outcome.track.ok() && options_.visual_odometry.enabled) {
