@@ -68,6 +68,7 @@ Action AddBenchCommand(CLI::App& app, const GlobalOptions& global) {
     double speed_mps = 1.5;
     std::int64_t seed = 7;
     int threads = 2;
+    int map_laps = 1;
   };
   auto soak_args = std::make_shared<SoakArgs>();
   CLI::App* soak = bench->add_subcommand(
@@ -84,6 +85,11 @@ Action AddBenchCommand(CLI::App& app, const GlobalOptions& global) {
       ->check(CLI::ExistingFile);
   soak->add_option("--localizer", soak_args->localizer_config, "Localizer configuration")->check(CLI::ExistingFile);
   soak->add_option("--work", soak_args->work, "Where the mapping lap and the map are made (default: a new temporary folder)");
+  soak->add_option("--map-laps", soak_args->map_laps,
+                   "Laps of the route mapped (the network's second lap takes other lanes: with 1 the drive leaves "
+                   "the map every other lap)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 100));
   soak->add_option("--threads", soak_args->threads, "Rendering threads")->capture_default_str()->check(CLI::Range(1, 64));
 
   return [args, soak_args, soak, &global] {
@@ -97,6 +103,7 @@ Action AddBenchCommand(CLI::App& app, const GlobalOptions& global) {
       options.drive.laps = 0;
       options.drive.seed = static_cast<std::uint64_t>(soak_args->seed);
       options.drive.threads = soak_args->threads;
+      options.map_laps = soak_args->map_laps;
       if (!soak_args->localizer_config.empty()) options.settings = runtime::LoadLocalizerConfig(soak_args->localizer_config);
       options.work = soak_args->work.empty()
                          ? std::filesystem::temp_directory_path() / ("mosaicloc-soak-" + std::to_string(::getpid()))

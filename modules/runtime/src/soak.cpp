@@ -46,7 +46,7 @@ double Slope(const std::vector<double>& x, const std::vector<double>& y) {
 // measures the localizer over time, not the mapping).
 fs::path MakeSoakMap(const SoakOptions& options) {
   sim::SimulatorOptions lap = options.drive;
-  lap.laps = 1;
+  lap.laps = options.map_laps;
   lap.route.speed_mps = options.map_speed_mps;
   lap.seed = options.drive.seed + 1000;
   lap.drop_probability = 0.0;
@@ -73,6 +73,7 @@ bool SoakOptions::Check(std::string* why) const {
   if (!drive.Check(why)) return false;
   if (drive.frames < 1) return fail("soak: frames must be >= 1");
   if (!(map_speed_mps > 0.0)) return fail("soak: map_speed_mps must be > 0");
+  if (map_laps < 1) return fail("soak: map_laps must be >= 1");
   if (segment_laps < 1) return fail("soak: segment_laps must be >= 1");
   if (!(wrong_mm > 0.0)) return fail("soak: wrong_mm must be > 0");
   if (!(sample_every_s > 0.0)) return fail("soak: sample_every_s must be > 0");

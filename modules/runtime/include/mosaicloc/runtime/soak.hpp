@@ -19,6 +19,9 @@ struct SoakOptions {
   /// and `frames`, how many frames to localize (laps is ignored).
   sim::SimulatorOptions drive;
   double map_speed_mps = 0.5;  ///< the mapping lap's speed
+  /// Laps mapped. The network route's second lap takes lanes its first does not: with one lap
+  /// mapped the drive leaves the map every other lap (visual odometry off it, the returns).
+  int map_laps = 1;
   LocalizationSettings settings;
   std::filesystem::path work;  ///< the mapping lap and the map are made here
   /// Laps per simulated segment: each segment is a new drive of the route (its own lateral
