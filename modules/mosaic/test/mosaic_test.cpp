@@ -180,6 +180,40 @@ TEST(TileStore, PlaceIndexCells) {
   }
 }
 
+// The floor's self-test is kept with the index: absent until written, read back, forgotten when
+// the index is rebuilt (the floor may have changed), and a damaged value is named.
+TEST(TileStore, TheFloorsSelfTestIsKeptWithTheIndex) {
+  test::ScratchDir dir;
+  PlaceIndexInfo info;
+  info.format_version = 1;
+  info.method = "orb256";
+  info.level = 1;
+  {
+    auto store = TileStore::Create(dir / "r.mosaic", MapGrid{});
+    store->WritePlaces(info, {{0, 0, {1, 2, 3}}});
+    EXPECT_EQ(store->Places()->repeat_test_views, -1);
+    store->WritePlaceRepeatTest(24, 1, 23);
+  }
+  {
+    auto store = TileStore::Open(dir / "r.mosaic", true);
+    const auto read = store->Places();
+    ASSERT_TRUE(read.has_value());
+    EXPECT_EQ(read->repeat_test_views, 24);
+    EXPECT_EQ(read->repeat_test_own, 1);
+    EXPECT_EQ(read->repeat_test_elsewhere, 23);
+    store->WritePlaces(info, {{0, 0, {4, 5}}});
+    EXPECT_EQ(store->Places()->repeat_test_elsewhere, -1);
+    store->WritePlaceRepeatTest(24, 24, 0);
+  }
+  SqlOn(dir / "r.mosaic", "UPDATE metadata SET value = '-3' WHERE name = 'places_repeat_test_own'");
+  try {
+    TileStore::Open(dir / "r.mosaic", false)->Places();
+    ADD_FAILURE() << "a bad self-test value was read";
+  } catch (const core::Error& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("metadata key 'places_repeat_test_own' is not a count: '-3'"));
+  }
+}
+
 TEST(TileStore, QualityCellsAndTheirVerdicts) {
   test::ScratchDir dir;
   {
