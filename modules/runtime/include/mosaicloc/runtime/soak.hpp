@@ -48,7 +48,7 @@ struct SoakSummary {
   double error_rms_mm = 0.0, error_max_mm = 0.0;  ///< of the fixes against the truth
   double driven_s = 0.0, driven_km = 0.0;          ///< simulated
   double seconds = 0.0, frames_per_s = 0.0;        ///< wall clock (rendering included)
-  /// Per-frame processing (the localizer alone), ms.
+  /// Per-frame processing (the localizer alone), ms, to 10 us.
   double processing_p50_ms = 0.0, processing_p99_ms = 0.0, processing_p9999_ms = 0.0, processing_max_ms = 0.0;
   /// Resident memory's least-squares slope over the samples after the first 10 % of the frames
   /// (the caches fill first), MiB per hour of wall clock and per 10^5 frames.
