@@ -521,6 +521,11 @@ class Console::Impl {
         live["path"] = std::move(points);
       }
     }
+    Refresh();
+    {
+      const std::lock_guard lock(map_mutex_);
+      live["map_version"] = map_version_;  // the page redraws the map when it changes
+    }
     const std::lock_guard lock(status_mutex_);
     live["status"] = status_;
     return live;

@@ -190,25 +190,29 @@
       document.body.dataset.historyUpdates = history.count;
       document.body.dataset.historyTiles = historyLayer.getLayers().length;
     }
-    const history = await api('/api/history');
-    showHistory(history);
     overlays['map history'] = historyLayer;
-    if (history.count > 0) historyLayer.addTo(map);
-    // A map written while the page is open: new tiles, layout and history, checked every 2 s.
-    setInterval(async () => {
-      try {
-        const now = await api('/api/history');
-        if (now.map_version === mapVersion) return;
-        mapVersion = now.map_version;
-        document.body.dataset.mapVersion = mapVersion;
-        tiles.redraw();
-        showHistory(now);
-        const fresh = await api('/api/map');
-        $('map-tiles').textContent = fresh.levels.map((l) => l.tiles).join(' / ');
-      } catch (error) {
-        fail(String(error));
-      }
-    }, 2000);
+    // Not waited for: the live vehicle must not wait behind it.
+    api('/api/history').then((history) => {
+      showHistory(history);
+      if (history.count > 0) historyLayer.addTo(map);
+    }).catch((error) => fail(String(error)));
+    // A map written while the page is open: new tiles, layout and history. A live run's stream
+    // says when (its map_version); without one the page asks every 2 s.
+    async function refreshMap(version) {
+      if (version === undefined || version === mapVersion) return;
+      mapVersion = version;
+      document.body.dataset.mapVersion = mapVersion;
+      tiles.redraw();
+      const now = await api('/api/history');
+      showHistory(now);
+      if (now.count > 0 && !map.hasLayer(historyLayer)) historyLayer.addTo(map);
+      const fresh = await api('/api/map');
+      $('map-tiles').textContent = fresh.levels.map((l) => l.tiles).join(' / ');
+    }
+    if (!info.live_run) {
+      setInterval(() => api('/api/history').then((now) => refreshMap(now.map_version)).catch((error) => fail(String(error))),
+                  2000);
+    }
     document.body.dataset.mapVersion = mapVersion;
 
     const layerControl = L.control.layers(null, overlays, {collapsed: false}).addTo(map);
@@ -221,7 +225,7 @@
     legendControl.addTo(map);
 
     await loadReports(map, layerControl);
-    if (info.live_run) startLive(map, layerControl, r);
+    if (info.live_run) startLive(map, layerControl, r, refreshMap);
     else $('live-link').textContent = 'no live run (mosaicloc run with console.enabled shows one)';
     document.body.dataset.ready = 'yes';
   }
@@ -275,7 +279,7 @@
     document.body.dataset.reports = reports.length;
   }
 
-  function startLive(map, layerControl, mmPerPx) {
+  function startLive(map, layerControl, mmPerPx, refreshMap) {
     const live = L.featureGroup();
     const path = L.polyline([], {color: '#ffffff', weight: 2, opacity: 0.8, className: 'live-path', interactive: false});
     const ellipse = L.polygon([], {color: '#ff00ff', weight: 1, fillOpacity: 0.2, className: 'live-ellipse'});
@@ -293,6 +297,7 @@
         $('live-fix-rate').textContent = status.frames_per_s ? (100 * status.fixes_per_s / status.frames_per_s).toFixed(1) + ' %' : '–';
         $('live-latency').textContent = (status.latency_p50_ms ?? '–') + ' ms p50';
       }
+      if (state.map_version !== undefined) refreshMap(state.map_version).catch((error) => fail(String(error)));
       if (!state.live) return;
       updates += 1;
       document.body.dataset.liveUpdates = updates;
