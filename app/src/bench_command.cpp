@@ -111,38 +111,11 @@ Action AddBenchCommand(CLI::App& app, const GlobalOptions& global) {
       ProgressBar progress("soak", global.quiet || global.json);
       const runtime::SoakSummary r = runtime::RunSoak(options, progress.Callback());
       progress.Finish();
-      const runtime::SoakSample& first = r.samples.front();
-      const runtime::SoakSample& last = r.samples.back();
       if (global.json) {
-        nlohmann::json samples = nlohmann::json::array();
-        for (const runtime::SoakSample& s : r.samples) samples.push_back({s.wall_s, s.frames, s.rss_mib, s.fds, s.threads});
-        PrintJson({{"frames", r.frames}, {"fixes", r.fixes}, {"fix_rate", r.fix_rate}, {"lock_losses", r.lock_losses},
-                   {"wrong_fixes", r.wrong_fixes}, {"relocalizations", r.relocalizations},
-                   {"encoder_samples_rejected", r.encoder_samples_rejected}, {"error_rms_mm", r.error_rms_mm},
-                   {"error_max_mm", r.error_max_mm}, {"driven_s", r.driven_s}, {"driven_km", r.driven_km},
-                   {"seconds", r.seconds}, {"frames_per_s", r.frames_per_s},
-                   {"processing_p50_ms", r.processing_p50_ms}, {"processing_p99_ms", r.processing_p99_ms},
-                   {"processing_p9999_ms", r.processing_p9999_ms}, {"processing_max_ms", r.processing_max_ms},
-                   {"rss_slope_mib_per_h", r.rss_slope_mib_per_h},
-                   {"rss_slope_mib_per_100k_frames", r.rss_slope_mib_per_100k_frames},
-                   {"samples_columns", {"wall_s", "frames", "rss_mib", "fds", "threads"}}, {"samples", samples},
-                   {"work", options.work.string()}});
-        return;
+        PrintJson(runtime::SoakJson(r, options.work));
+      } else {
+        std::fputs(runtime::SoakText(r, options.work).c_str(), stdout);
       }
-      std::printf("soak: %lld frames (%.2f h driven, %.2f km) in %.0f s (%.0f frames/s, rendering included)\n",
-                  static_cast<long long>(r.frames), r.driven_s / 3600.0, r.driven_km, r.seconds, r.frames_per_s);
-      std::printf("  fixes %.3f %%, lock losses %lld, wrong fixes (> 1 mm) %lld, relocalizations %lld; fix error RMS "
-                  "%.4f mm, max %.4f mm\n",
-                  100.0 * r.fix_rate, static_cast<long long>(r.lock_losses), static_cast<long long>(r.wrong_fixes),
-                  static_cast<long long>(r.relocalizations), r.error_rms_mm, r.error_max_mm);
-      std::printf("  processing per frame: p50 %.3f ms, p99 %.3f ms, p99.99 %.3f ms, max %.3f ms\n", r.processing_p50_ms,
-                  r.processing_p99_ms, r.processing_p9999_ms, r.processing_max_ms);
-      std::printf("  resident memory %.1f -> %.1f MiB, slope after warm-up %+.2f MiB/h (%+.3f MiB per 10^5 frames); "
-                  "file descriptors %lld -> %lld; threads %lld -> %lld\n",
-                  first.rss_mib, last.rss_mib, r.rss_slope_mib_per_h, r.rss_slope_mib_per_100k_frames,
-                  static_cast<long long>(first.fds), static_cast<long long>(last.fds),
-                  static_cast<long long>(first.threads), static_cast<long long>(last.threads));
-      std::printf("  map and mapping lap in %s\n", options.work.string().c_str());
       return;
     }
     ProgressBar progress("registering pairs", global.quiet || global.json);

@@ -138,11 +138,8 @@ void Info(const MapArgs& args, const GlobalOptions& global) {
                                {"level", info.places->level}, {"cells", info.places->cells},
                                {"features", info.places->bytes / static_cast<std::int64_t>(tracking::kPlaceRecordBytes)},
                                {"bytes", info.places->bytes},
-                               {"repeat_test", info.places->repeat_test_views < 0
-                                                   ? nlohmann::json(nullptr)
-                                                   : nlohmann::json{{"views", info.places->repeat_test_views},
-                                                                    {"own", info.places->repeat_test_own},
-                                                                    {"elsewhere", info.places->repeat_test_elsewhere}}}};
+                               {"repeat_test", nullptr}};
+      if (const auto test = runtime::FloorRepeatTest::Of(*info.places)) result["place_index"]["repeat_test"] = test->ToJson();
     } else {
       result["place_index"] = nullptr;
     }
@@ -169,16 +166,7 @@ void Info(const MapArgs& args, const GlobalOptions& global) {
                 static_cast<long long>(info.places->bytes / static_cast<std::int64_t>(tracking::kPlaceRecordBytes)),
                 info.places->method.c_str(), info.places->level, static_cast<long long>(info.places->cells),
                 static_cast<double>(info.places->bytes) / (1 << 20));
-    if (info.places->repeat_test_views >= 0) {
-      runtime::FloorRepeatTest test;
-      test.views = info.places->repeat_test_views;
-      test.own = info.places->repeat_test_own;
-      test.elsewhere = info.places->repeat_test_elsewhere;
-      std::printf("  floor: %s (of %lld views of the map searched for everywhere, %lld found at their own place, %lld "
-                  "elsewhere too)\n",
-                  test.Verdict().c_str(), static_cast<long long>(test.views), static_cast<long long>(test.own),
-                  static_cast<long long>(test.elsewhere));
-    }
+    if (const auto test = runtime::FloorRepeatTest::Of(*info.places)) std::printf("  floor: %s\n", test->Describe().c_str());
   } else {
     std::printf("  place index: none (global relocalization needs one: mosaicloc map index %s)\n",
                 args.map.string().c_str());
@@ -203,19 +191,13 @@ void Index(const MapArgs& args, const GlobalOptions& global) {
   if (global.json) {
     PrintJson({{"map", args.map.string()}, {"cells", r.cells}, {"features", r.features}, {"bytes", r.bytes},
                {"seconds", r.seconds},
-               {"repeat_test", {{"views", r.repeat_test.views}, {"own", r.repeat_test.own},
-                                {"elsewhere", r.repeat_test.elsewhere}, {"verdict", r.repeat_test.Verdict()},
-                                {"seconds", r.repeat_test.seconds}}}});
+               {"repeat_test", r.repeat_test.ToJson()}});
     return;
   }
   std::printf("%s: place index of %lld features in %lld cells, %.1f MiB, built in %.1f s\n", args.map.string().c_str(),
               static_cast<long long>(r.features), static_cast<long long>(r.cells),
               static_cast<double>(r.bytes) / (1 << 20), r.seconds);
-  std::printf("  floor: %s (%lld views searched for everywhere: %lld found at their own place, %lld elsewhere too; "
-              "%.1f s)\n",
-              r.repeat_test.Verdict().c_str(), static_cast<long long>(r.repeat_test.views),
-              static_cast<long long>(r.repeat_test.own), static_cast<long long>(r.repeat_test.elsewhere),
-              r.repeat_test.seconds);
+  std::printf("  floor: %s; %.1f s\n", r.repeat_test.Describe().c_str(), r.repeat_test.seconds);
 }
 
 void Quality(const runtime::MapQualityJob& job, const GlobalOptions& global) {

@@ -271,6 +271,24 @@ std::string FloorRepeatTest::Verdict() const {
   return own > 0 ? "does not repeat" : "unknown";
 }
 
+std::string FloorRepeatTest::Describe() const {
+  return Verdict() + " (" + std::to_string(views) + " views searched for everywhere: " + std::to_string(own) +
+         " found at their own place, " + std::to_string(elsewhere) + " elsewhere too)";
+}
+
+nlohmann::json FloorRepeatTest::ToJson() const {
+  return {{"views", views}, {"own", own}, {"elsewhere", elsewhere}, {"verdict", Verdict()}, {"seconds", seconds}};
+}
+
+std::optional<FloorRepeatTest> FloorRepeatTest::Of(const mosaic::PlaceIndexInfo& places) {
+  if (places.repeat_test_views < 0) return std::nullopt;
+  FloorRepeatTest test;
+  test.views = places.repeat_test_views;
+  test.own = places.repeat_test_own;
+  test.elsewhere = places.repeat_test_elsewhere;
+  return test;
+}
+
 FloorRepeatTest TestFloorRepeats(mosaic::TileStore& store, int views) {
   constexpr double kMappedShare = 0.8;  // of a view that must be mapped floor to be searched for
   const auto start = std::chrono::steady_clock::now();

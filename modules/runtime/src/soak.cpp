@@ -10,6 +10,8 @@
 #include <malloc.h>
 #include <unistd.h>
 
+#include <fmt/format.h>
+
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/log.hpp"
 #include "mosaicloc/dataset/dataset.hpp"
@@ -278,6 +280,50 @@ SoakSummary RunSoak(const SoakOptions& options, const std::function<void(double)
   summary.rss_slope_mib_per_h = Slope(hours, rss);
   summary.rss_slope_mib_per_100k_frames = Slope(per_100k, rss);
   return summary;
+}
+
+nlohmann::json SoakJson(const SoakSummary& r, const std::filesystem::path& work) {
+  nlohmann::json samples = nlohmann::json::array();
+  for (const SoakSample& s : r.samples) samples.push_back({s.wall_s, s.frames, s.rss_mib, s.fds, s.threads});
+  return {{"frames", r.frames},
+          {"fixes", r.fixes},
+          {"fix_rate", r.fix_rate},
+          {"lock_losses", r.lock_losses},
+          {"wrong_fixes", r.wrong_fixes},
+          {"relocalizations", r.relocalizations},
+          {"encoder_samples_rejected", r.encoder_samples_rejected},
+          {"error_rms_mm", r.error_rms_mm},
+          {"error_max_mm", r.error_max_mm},
+          {"driven_s", r.driven_s},
+          {"driven_km", r.driven_km},
+          {"seconds", r.seconds},
+          {"frames_per_s", r.frames_per_s},
+          {"processing_p50_ms", r.processing_p50_ms},
+          {"processing_p99_ms", r.processing_p99_ms},
+          {"processing_p9999_ms", r.processing_p9999_ms},
+          {"processing_max_ms", r.processing_max_ms},
+          {"rss_slope_mib_per_h", r.rss_slope_mib_per_h},
+          {"rss_slope_mib_per_100k_frames", r.rss_slope_mib_per_100k_frames},
+          {"samples_columns", {"wall_s", "frames", "rss_mib", "fds", "threads"}},
+          {"samples", samples},
+          {"work", work.string()}};
+}
+
+std::string SoakText(const SoakSummary& r, const std::filesystem::path& work) {
+  const SoakSample& first = r.samples.front();
+  const SoakSample& last = r.samples.back();
+  return fmt::format(
+      "soak: {} frames ({:.2f} h driven, {:.2f} km) in {:.0f} s ({:.0f} frames/s, rendering included)\n"
+      "  fixes {:.3f} %, lock losses {}, wrong fixes (> 1 mm) {}, relocalizations {}; fix error RMS {:.4f} mm, max "
+      "{:.4f} mm\n"
+      "  processing per frame: p50 {:.3f} ms, p99 {:.3f} ms, p99.99 {:.3f} ms, max {:.3f} ms\n"
+      "  resident memory {:.1f} -> {:.1f} MiB, slope after warm-up {:+.2f} MiB/h ({:+.3f} MiB per 10^5 frames); file "
+      "descriptors {} -> {}; threads {} -> {}\n"
+      "  map and mapping lap in {}\n",
+      r.frames, r.driven_s / 3600.0, r.driven_km, r.seconds, r.frames_per_s, 100.0 * r.fix_rate, r.lock_losses,
+      r.wrong_fixes, r.relocalizations, r.error_rms_mm, r.error_max_mm, r.processing_p50_ms, r.processing_p99_ms,
+      r.processing_p9999_ms, r.processing_max_ms, first.rss_mib, last.rss_mib, r.rss_slope_mib_per_h,
+      r.rss_slope_mib_per_100k_frames, first.fds, last.fds, first.threads, last.threads, work.string());
 }
 
 }  // namespace mosaicloc::runtime

@@ -23,22 +23,10 @@
 #include <Eigen/Core>
 
 #include "mosaicloc/tracking/pose_solver.hpp"
+#include "pose_solver_internal.hpp"
 
 namespace mosaicloc::tracking {
 namespace {
-
-// How many distinct template positions the used correspondences have, up to `enough`.
-int DistinctObservedPoints(const std::vector<Correspondence>& cs, const std::vector<bool>& use, int enough) {
-  std::vector<Eigen::Vector2d> distinct;
-  for (std::size_t i = 0; i < cs.size() && static_cast<int>(distinct.size()) < enough; ++i) {
-    if (!use[i]) continue;
-    const bool seen = std::any_of(distinct.begin(), distinct.end(), [&](const Eigen::Vector2d& p) {
-      return (cs[i].camera_mm - p).squaredNorm() <= 1e-12;
-    });
-    if (!seen) distinct.push_back(cs[i].camera_mm);
-  }
-  return static_cast<int>(distinct.size());
-}
 
 struct ObserverUpdate {
   Eigen::Vector4d x = Eigen::Vector4d::Zero();  ///< (x, y, yaw, k); what is not estimated keeps x0's
@@ -98,15 +86,9 @@ ObserverUpdate IteratedUpdate(const std::vector<Correspondence>& cs, const std::
 
 PoseSolution ObservePlanarPose(const std::vector<Correspondence>& correspondences, const core::Pose2& initial,
                                const PoseSolverOptions& options) {
-  PoseSolution solution;
-  solution.world_from_camera = initial;
+  PoseSolution solution = internal::StartSolution(correspondences, initial, options.min_inliers);
+  if (!solution.ok()) return solution;
   const std::size_t n = correspondences.size();
-  solution.inlier.assign(n, false);
-  solution.residual_mm.assign(n, 0.0);
-  if (n == 0 || static_cast<int>(n) < options.min_inliers) {
-    solution.failure = PoseFailure::kTooFewInliers;
-    return solution;
-  }
   const Eigen::Vector4d x0(initial.x_mm(), initial.y_mm(), initial.yaw_rad(), 1.0);
   const Eigen::Vector4d prior_sigma(options.observer_prior_sigma_mm, options.observer_prior_sigma_mm,
                                     options.observer_prior_sigma_deg * std::numbers::pi / 180.0,
@@ -121,7 +103,7 @@ PoseSolution ObservePlanarPose(const std::vector<Correspondence>& correspondence
   ObserverUpdate update;
   int p = 3;
   while (true) {
-    const int distinct = DistinctObservedPoints(correspondences, use, 4);
+    const int distinct = internal::DistinctPoints(correspondences, use, 4);
     p = options.estimate_scale && distinct >= 4 ? 4 : distinct >= 2 ? 3 : 2;
     update = IteratedUpdate(correspondences, use, x0, prior_sigma, p, options.max_iterations);
     // Data snooping: the worst correspondence beyond the threshold goes, and the update is run

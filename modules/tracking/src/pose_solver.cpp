@@ -1,4 +1,5 @@
 #include "mosaicloc/tracking/pose_solver.hpp"
+#include "pose_solver_internal.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -175,17 +176,10 @@ int FreeParameters(const std::vector<Correspondence>& cs, const std::vector<bool
                    const PoseSolverOptions& options) {
   const std::size_t wanted =
       options.estimate_scale && options.estimate_tilt ? static_cast<std::size_t>(std::max(4, options.min_tilt_points)) : 4;
-  std::vector<Eigen::Vector2d> distinct;
-  for (std::size_t i = 0; i < cs.size() && distinct.size() < wanted; ++i) {
-    if (!use[i]) continue;
-    const bool seen = std::any_of(distinct.begin(), distinct.end(), [&](const Eigen::Vector2d& p) {
-      return (cs[i].camera_mm - p).squaredNorm() <= 1e-12;
-    });
-    if (!seen) distinct.push_back(cs[i].camera_mm);
-  }
-  if (options.estimate_scale && options.estimate_tilt && distinct.size() >= wanted) return 6;
-  if (options.estimate_scale && distinct.size() >= 4) return 4;
-  return distinct.size() >= 2 ? 3 : 2;
+  const auto distinct = static_cast<std::size_t>(internal::DistinctPoints(cs, use, wanted));
+  if (options.estimate_scale && options.estimate_tilt && distinct >= wanted) return 6;
+  if (options.estimate_scale && distinct >= 4) return 4;
+  return distinct >= 2 ? 3 : 2;
 }
 
 // The covariance of the pose at the solution, (J^T J)^-1 of the used residuals, as
@@ -348,18 +342,35 @@ const char* ToString(PoseFailure failure) {
   return "unknown";
 }
 
-PoseSolution SolvePlanarPose(const std::vector<Correspondence>& correspondences, const core::Pose2& initial,
-                             const PoseSolverOptions& options) {
-  if (options.method == PoseMethod::kKalmanObserver) return ObservePlanarPose(correspondences, initial, options);
+int internal::DistinctPoints(const std::vector<Correspondence>& cs, const std::vector<bool>& use, std::size_t enough) {
+  std::vector<Eigen::Vector2d> distinct;
+  for (std::size_t i = 0; i < cs.size() && distinct.size() < enough; ++i) {
+    if (!use[i]) continue;
+    const bool seen = std::any_of(distinct.begin(), distinct.end(), [&](const Eigen::Vector2d& p) {
+      return (cs[i].camera_mm - p).squaredNorm() <= 1e-12;
+    });
+    if (!seen) distinct.push_back(cs[i].camera_mm);
+  }
+  return static_cast<int>(distinct.size());
+}
+
+PoseSolution internal::StartSolution(const std::vector<Correspondence>& correspondences, const core::Pose2& initial,
+                                     int min_inliers) {
   PoseSolution solution;
   solution.world_from_camera = initial;
   const std::size_t n = correspondences.size();
   solution.inlier.assign(n, false);
   solution.residual_mm.assign(n, 0.0);
-  if (n == 0 || static_cast<int>(n) < options.min_inliers) {
-    solution.failure = PoseFailure::kTooFewInliers;
-    return solution;
-  }
+  if (n == 0 || static_cast<int>(n) < min_inliers) solution.failure = PoseFailure::kTooFewInliers;
+  return solution;
+}
+
+PoseSolution SolvePlanarPose(const std::vector<Correspondence>& correspondences, const core::Pose2& initial,
+                             const PoseSolverOptions& options) {
+  if (options.method == PoseMethod::kKalmanObserver) return ObservePlanarPose(correspondences, initial, options);
+  PoseSolution solution = internal::StartSolution(correspondences, initial, options.min_inliers);
+  if (!solution.ok()) return solution;
+  const std::size_t n = correspondences.size();
   std::vector<double> sigmas;
   sigmas.reserve(n);
   for (const Correspondence& c : correspondences) sigmas.push_back(std::max(c.sigma_mm, 1e-9));

@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "mosaicloc/mosaic/builder.hpp"
 #include "mosaicloc/mosaic/tile_store.hpp"
 #include "mosaicloc/runtime/map_poses.hpp"
@@ -94,6 +96,12 @@ struct FloorRepeatTest {
   double seconds = 0.0;
   /// "repeats", "does not repeat", or "unknown" (nothing placed).
   std::string Verdict() const;
+  /// "VERDICT (N views searched for everywhere: K found at their own place, E elsewhere too)".
+  std::string Describe() const;
+  /// views, own, elsewhere, verdict, seconds.
+  nlohmann::json ToJson() const;
+  /// The test recorded with a map's index; nullopt when it was never run on that index.
+  static std::optional<FloorRepeatTest> Of(const mosaic::PlaceIndexInfo& places);
 };
 /// Runs the self-test on an open store with a place index and records it with the index
 /// (TileStore::WritePlaceRepeatTest). Every index build (IndexStore) runs it.

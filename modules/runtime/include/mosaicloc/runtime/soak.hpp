@@ -3,7 +3,10 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <string>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "mosaicloc/runtime/settings.hpp"
 #include "mosaicloc/sim/simulator.hpp"
@@ -59,6 +62,11 @@ struct SoakSummary {
 /// Throws core::Error (invalid input) for bad options or an unreadable floor image.
 /// `progress` gets the share of frames done.
 SoakSummary RunSoak(const SoakOptions& options, const std::function<void(double)>& progress = {});
+
+/// The summary as `bench soak --json` prints it (samples as rows of wall_s, frames, rss_mib,
+/// fds, threads), and as lines of text; `work` is where the map was made.
+nlohmann::json SoakJson(const SoakSummary& summary, const std::filesystem::path& work);
+std::string SoakText(const SoakSummary& summary, const std::filesystem::path& work);
 
 /// The process's resident memory (MiB), open file descriptors and threads, from /proc/self.
 SoakSample SampleProcess();
