@@ -335,7 +335,7 @@ void PrintDataset(const GlobalOptions& global, const std::filesystem::path& out,
 
 void RunSimulateRaw(const RawArgs& args, const GlobalOptions& global) {
   const sim::SimulatorOptions options = args.config.empty() ? sim::SimulatorOptions{} : sim::LoadSimulatorConfig(args.config);
-  ProgressBar progress("simulate raw", global.quiet);
+  ProgressBar progress("simulate raw", global.quiet, "no recording was written");
   const std::int64_t frames =
       sim::WriteRawDrive(args.dataset, options, args.out, args.overwrite, progress.Callback());
   progress.Finish();

@@ -8,6 +8,7 @@
 #include "commands.hpp"
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/log.hpp"
+#include "mosaicloc/core/stop_signals.hpp"
 
 namespace {
 
@@ -59,6 +60,9 @@ int main(int argc, char** argv) {
   try {
     core::SetLogLevel(global.quiet ? core::LogLevel::kWarning : core::ParseLogLevel(global.log_level));
     for (CLI::App* chosen : app.get_subcommands()) actions.at(chosen)();
+  } catch (const core::Stopped& e) {
+    std::fprintf(stderr, "mosaicloc: %s\n", e.what());
+    return 128 + e.signal();
   } catch (const core::Error& e) {
     std::fprintf(stderr, "mosaicloc: %s\n", e.what());
     return e.kind() == core::ErrorKind::kInvalidInput ? kExitBadInput : kExitRuntime;

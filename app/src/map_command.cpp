@@ -94,7 +94,10 @@ void Poses(const runtime::MapPosesOptions& args, const GlobalOptions& global) {
 }
 
 void Build(const runtime::MapBuildOptions& args, const GlobalOptions& global) {
-  ProgressBar progress("map build", global.quiet);
+  ProgressBar progress("map build", global.quiet,
+                       "the work so far is kept in " + args.out.string() +
+                           ".checkpoint, and the same command with --resume goes on from there; " +
+                           args.out.string() + " is as it was");
   const runtime::MapBuildSummary r = runtime::BuildMap(args, progress.Callback());
   progress.Finish();
   if (global.json) {
@@ -185,7 +188,7 @@ void Info(const MapArgs& args, const GlobalOptions& global) {
 }
 
 void Index(const MapArgs& args, const GlobalOptions& global) {
-  ProgressBar progress("map index", global.quiet);
+  ProgressBar progress("map index", global.quiet, "the map and its place index are as they were");
   const runtime::MapIndexSummary r = runtime::IndexMap(args.map, progress.Callback());
   progress.Finish();
   if (global.json) {
@@ -201,7 +204,7 @@ void Index(const MapArgs& args, const GlobalOptions& global) {
 }
 
 void Quality(const runtime::MapQualityJob& job, const GlobalOptions& global) {
-  ProgressBar progress("map quality", global.quiet);
+  ProgressBar progress("map quality", global.quiet, "the map and its quality layer are as they were; nothing was written");
   const runtime::MapQualitySummary r = runtime::MapQuality(job, progress.Callback());
   progress.Finish();
   if (global.json) {
@@ -226,7 +229,7 @@ void Quality(const runtime::MapQualityJob& job, const GlobalOptions& global) {
 }
 
 void Check(const MapArgs& args, const GlobalOptions& global) {
-  ProgressBar progress("map check", global.quiet);
+  ProgressBar progress("map check", global.quiet, "the tiles checked so far were intact");
   std::size_t tiles = 0;
   const std::vector<std::string> problems = runtime::CheckMap(args.map, &tiles, progress.Callback());
   progress.Finish();

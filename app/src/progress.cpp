@@ -6,13 +6,24 @@
 
 namespace mosaicloc::app {
 
-ProgressBar::ProgressBar(std::string label, bool quiet)
-    : label_(std::move(label)), quiet_(quiet), terminal_(::isatty(STDERR_FILENO) == 1),
+ProgressBar::ProgressBar(std::string label, bool quiet, std::string on_stop)
+    : label_(std::move(label)), quiet_(quiet), on_stop_(std::move(on_stop)), terminal_(::isatty(STDERR_FILENO) == 1),
       start_(std::chrono::steady_clock::now()) {}
 
 ProgressBar::~ProgressBar() { Finish(); }
 
 void ProgressBar::Update(double fraction) {
+  if (const auto reason = core::StopSignals::Reason(); reason && !finished_) {
+    finished_ = true;
+    if (terminal_ && !quiet_ && last_percent_ >= 0) std::fprintf(stderr, "\n");
+    throw core::Stopped(core::StopSignals::Signal(), label_ + ": " + *reason + " at " +
+                                                         std::to_string(static_cast<int>(fraction * 100.0)) +
+                                                         " %: " + on_stop_);
+  }
+  Draw(fraction);
+}
+
+void ProgressBar::Draw(double fraction) {
   if (quiet_ || finished_) return;
   const double elapsed_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
   const int percent = static_cast<int>(fraction * 100.0);
@@ -34,7 +45,7 @@ void ProgressBar::Update(double fraction) {
 
 void ProgressBar::Finish() {
   if (quiet_ || finished_) return;
-  Update(1.0);  // the work may end between two updates: always show completion
+  Draw(1.0);  // the work may end between two updates: always show completion
   finished_ = true;
   if (terminal_ && last_percent_ >= 0) std::fprintf(stderr, "\n");
 }

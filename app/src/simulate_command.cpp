@@ -42,7 +42,7 @@ void Run(const SimulateArgs& args, const GlobalOptions& global) {
   if (args.seed >= 0) options.seed = static_cast<std::uint64_t>(args.seed);
   if (args.threads > 0) options.threads = args.threads;
 
-  ProgressBar progress("simulate", global.quiet);
+  ProgressBar progress("simulate", global.quiet, "no dataset was written");
   const sim::SimulationSummary summary =
       sim::Simulate(options, args.out, args.overwrite, progress.Callback());
   progress.Finish();

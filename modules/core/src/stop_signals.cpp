@@ -7,7 +7,13 @@ namespace mosaicloc::core {
 namespace {
 
 std::atomic<int> g_signal{0};
-extern "C" void OnStopSignal(int signal) { g_signal = signal; }
+// Only async-signal-safe calls here: a second signal restores the default and raises again.
+extern "C" void OnStopSignal(int signal) {
+  if (g_signal.exchange(signal) != 0) {
+    std::signal(signal, SIG_DFL);
+    std::raise(signal);
+  }
+}
 
 }  // namespace
 
@@ -27,5 +33,7 @@ std::optional<std::string> StopSignals::Reason() {
   if (signal == 0) return std::nullopt;
   return signal == SIGINT ? "interrupted (SIGINT)" : "terminated (SIGTERM)";
 }
+
+int StopSignals::Signal() { return g_signal; }
 
 }  // namespace mosaicloc::core
