@@ -71,10 +71,16 @@ void Run(const ReplayArgs& args, const GlobalOptions& global) {
   options.mapping = args.mapping;
   if (args.mapping && mode != "mosaic") core::ThrowInvalidInput("replay: --mapping needs --map MAP (the mosaic mode)");
 
-  ProgressBar progress("replay", global.quiet);
+  ProgressBar progress("replay", global.quiet,
+                       args.mapping ? "the map keeps the floor added so far (map history lists it); no report was written"
+                                    : "no report was written");
   const runtime::ReplaySummary summary = runtime::Replay(options, progress.Callback());
   progress.Finish();
   PrintMetrics(summary.report, summary.metrics, global.json);
+  if (!summary.map_keeping_failure.empty()) {
+    core::ThrowRuntime("replay --mapping: map keeping stopped (" + summary.map_keeping_failure +
+                       "); the report is written, and the map holds what was committed before");
+  }
 }
 
 }  // namespace

@@ -46,6 +46,10 @@ void PrintMetrics(const std::filesystem::path& directory, const dataset::Metrics
     show("off-map frames", metrics.off_map_frames, "");
     show("off-map dead reckoning", metrics.off_map_max_error_mm, "mm max");
   }
+  if (metrics.skipped_frames.value_or(0) + metrics.skipped_encoder_samples.value_or(0) > 0) {
+    show("skipped frames", metrics.skipped_frames, "(time not after the row before)");
+    show("skipped encoder samples", metrics.skipped_encoder_samples, "(the same)");
+  }
   if (metrics.reentries && *metrics.reentries > 0) {
     show("returns onto the map", metrics.reentries, "");
     show("  frames to first fix", metrics.reentry_frames_to_fix_max, "max");

@@ -90,6 +90,10 @@ void Run(const RunArgs& args, const GlobalOptions& global) {
                   args.record.string().c_str(), args.record.string().c_str(), config.map.string().c_str());
     }
   }
+  if (summary.contains("map_keeping_failure")) {
+    core::ThrowRuntime("run: map keeping stopped (" + summary["map_keeping_failure"].get<std::string>() +
+                       "); localization went on to the end, and the map holds what was committed before");
+  }
 }
 
 }  // namespace

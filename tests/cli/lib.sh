@@ -18,6 +18,19 @@ expect_exit() {
 # expect_in FILE TEXT: FILE contains TEXT.
 expect_in() { grep -qF -- "$2" "$1" || fail "'$2' not in $1: $(head -c 600 "$1")"; }
 
+# json_check FILE EXPR...: every Python expression holds for the JSON object d read from FILE
+# (a script may define its own, printing the figures it is about).
+json_check() {
+  local file=$1
+  shift
+  python3 - "$file" "$@" <<'PY' || fail "$file: $*"
+import json, sys
+d = json.load(open(sys.argv[1]))
+for check in sys.argv[2:]:
+    assert eval(check), check + "   with " + json.dumps({k: v for k, v in d.items() if k in check})
+PY
+}
+
 finish() {
   if [ "$FAILURES" -gt 0 ]; then echo "$FAILURES check(s) failed" >&2; exit 1; fi
   echo "all checks passed"

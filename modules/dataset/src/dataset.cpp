@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <cerrno>
 #include <charconv>
 #include <limits>
 #include <sstream>
@@ -12,6 +13,7 @@
 
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/file.hpp"
+#include "mosaicloc/core/log.hpp"
 #include "mosaicloc/core/yaml.hpp"
 #include "text_fields.hpp"
 
@@ -50,16 +52,50 @@ void OpenCsv(const fs::path& csv, const char* header, std::ifstream* in) {
   }
 }
 
-core::Timestamp ParseTime(const fs::path& file, int line, const std::string& text,
-                          const std::optional<core::Timestamp>& last) {
+core::Timestamp ParseTime(const fs::path& file, int line, const std::string& text) {
   std::int64_t ns = 0;
   if (!ParseInt64(text, &ns)) LineError(file, line, "timestamp_ns '" + text + "' is not an integer");
-  const auto time = core::Timestamp::FromNanoseconds(ns);
-  if (last && time <= *last) {
-    LineError(file, line, "timestamp " + std::to_string(ns) + " is not after the previous one (" +
-                              std::to_string(last->nanoseconds()) + ")");
+  return core::Timestamp::FromNanoseconds(ns);
+}
+
+// Whether a row at `time` comes after the last one kept (the streams skip it otherwise).
+bool InOrder(core::Timestamp time, std::optional<core::Timestamp>* last) {
+  if (*last && time <= **last) return false;
+  *last = time;
+  return true;
+}
+
+// Counts the rows of a CSV whose time is not after the row kept before them (`kept`: the
+// others), warning once with the first few lines. Only the time field is read: the streams
+// check the rest.
+std::int64_t SkippedRows(const fs::path& csv, const char* header, std::int64_t* kept = nullptr) {
+  std::ifstream in;
+  OpenCsv(csv, header, &in);
+  int line_number = 1;
+  std::string line;
+  std::optional<core::Timestamp> last;
+  std::int64_t skipped = 0;
+  std::string lines;
+  while (NextLine(in, &line_number, &line)) {
+    const std::string field = line.substr(0, line.find(','));
+    const core::Timestamp time = ParseTime(csv, line_number, Trim(field));
+    const std::optional<core::Timestamp> before = last;
+    if (InOrder(time, &last)) {
+      if (kept) ++*kept;
+      continue;
+    }
+    if (++skipped <= 5) {
+      lines += (skipped > 1 ? ", " : "") + std::to_string(line_number) + " (" + std::to_string(time.nanoseconds()) +
+               " after " + std::to_string(before->nanoseconds()) + ")";
+    }
   }
-  return time;
+  if (skipped > 0) {
+    core::Log().warn("{}: {} row{} skipped: not after the row before in time (recorded twice, out of order, or "
+                     "behind a clock that stepped back): line{} {}{}",
+                     csv.string(), skipped, skipped > 1 ? "s" : "", skipped > 1 ? "s" : "", lines,
+                     skipped > 5 ? " and more" : "");
+  }
+  return skipped;
 }
 
 std::string FrameFileName(core::Timestamp time) { return std::to_string(time.nanoseconds()) + ".png"; }
@@ -122,9 +158,9 @@ DatasetReader::DatasetReader(const fs::path& directory) : directory_(directory) 
   std::error_code ec;
   if (!fs::is_directory(directory_, ec)) core::ThrowInvalidInput(directory_.string() + ": no such dataset directory");
   info_ = ReadDatasetInfo(directory_ / "dataset.yaml");
-  // Fail early on a missing or headless CSV rather than after minutes of processing.
-  Frames();
-  Encoders();
+  // Fail early on a missing or headless CSV, or a bad time, rather than after minutes of processing.
+  skipped_frames_ = SkippedRows(directory_ / kFramesCsv, kFramesHeader, &frame_rows_);
+  skipped_encoder_samples_ = SkippedRows(directory_ / kEncodersCsv, kEncodersHeader);
 }
 
 DatasetReader::FrameStream::FrameStream(fs::path directory, const CameraInfo& camera)
@@ -138,14 +174,16 @@ std::optional<Frame> DatasetReader::FrameStream::Next(bool decode) {
 
 std::optional<Frame> DatasetReader::FrameStream::Next(const std::function<bool(core::Timestamp)>& decode_if) {
   std::string line;
-  if (!NextLine(in_, &line_number_, &line)) return std::nullopt;
-  const auto fields = SplitCsv(line);
-  if (fields.size() != 2) {
-    LineError(csv_, line_number_, "expected 2 fields 'timestamp_ns,filename', got " + std::to_string(fields.size()));
-  }
+  std::vector<std::string> fields;
   Frame frame;
-  frame.time = ParseTime(csv_, line_number_, fields[0], last_time_);
-  last_time_ = frame.time;
+  do {
+    if (!NextLine(in_, &line_number_, &line)) return std::nullopt;
+    fields = SplitCsv(line);
+    if (fields.size() != 2) {
+      LineError(csv_, line_number_, "expected 2 fields 'timestamp_ns,filename', got " + std::to_string(fields.size()));
+    }
+    frame.time = ParseTime(csv_, line_number_, fields[0]);
+  } while (!InOrder(frame.time, &last_time_));
   const std::string& name = fields[1];
   if (name.empty() || name.find('/') != std::string::npos || name == "." || name == "..") {
     LineError(csv_, line_number_, "filename '" + name + "' must be a plain file name inside " + kFramesDir);
@@ -176,15 +214,17 @@ DatasetReader::EncoderStream::EncoderStream(fs::path csv) : csv_(std::move(csv))
 
 std::optional<EncoderSample> DatasetReader::EncoderStream::Next() {
   std::string line;
-  if (!NextLine(in_, &line_number_, &line)) return std::nullopt;
-  const auto fields = SplitCsv(line);
-  if (fields.size() != 3) {
-    LineError(csv_, line_number_,
-              "expected 3 fields 'timestamp_ns,left_ticks,right_ticks', got " + std::to_string(fields.size()));
-  }
+  std::vector<std::string> fields;
   EncoderSample sample;
-  sample.time = ParseTime(csv_, line_number_, fields[0], last_time_);
-  last_time_ = sample.time;
+  do {
+    if (!NextLine(in_, &line_number_, &line)) return std::nullopt;
+    fields = SplitCsv(line);
+    if (fields.size() != 3) {
+      LineError(csv_, line_number_,
+                "expected 3 fields 'timestamp_ns,left_ticks,right_ticks', got " + std::to_string(fields.size()));
+    }
+    sample.time = ParseTime(csv_, line_number_, fields[0]);
+  } while (!InOrder(sample.time, &last_time_));
   std::int32_t* targets[2] = {&sample.left_ticks, &sample.right_ticks};
   const char* names[2] = {"left_ticks", "right_ticks"};
   for (int i = 0; i < 2; ++i) {
@@ -227,6 +267,8 @@ DatasetReader::Summary DatasetReader::Validate() const {
   while (encoders.Next()) ++summary.encoder_samples;
   if (HasGroundTruth()) summary.groundtruth_poses = static_cast<std::int64_t>(GroundTruth().size());
   if (first && last) summary.duration_s = core::ToSeconds(*last - *first);
+  summary.skipped_frames = skipped_frames_;
+  summary.skipped_encoder_samples = skipped_encoder_samples_;
   return summary;
 }
 
@@ -283,9 +325,7 @@ void DatasetWriter::AddEncodedFrame(core::Timestamp time, const std::vector<unsi
   last_frame_time_ = time;
   const std::string name = FrameFileName(time);
   const fs::path file = staging_ / kFramesDir / name;
-  std::ofstream out(file, std::ios::binary);
-  out.write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size()));
-  if (!out) core::ThrowRuntime(file.string() + ": cannot write");
+  core::WriteFile(file, std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
   frames_csv_ << time.nanoseconds() << "," << name << "\n";
 }
 
@@ -307,9 +347,7 @@ void DatasetWriter::AddFile(const std::filesystem::path& relative, std::string_v
   }
   std::error_code ec;
   std::filesystem::create_directories((staging_ / normal).parent_path(), ec);
-  std::ofstream out(staging_ / normal, std::ios::binary);
-  out.write(content.data(), static_cast<std::streamsize>(content.size()));
-  if (!out) core::ThrowRuntime((staging_ / normal).string() + ": cannot write");
+  core::WriteFile(staging_ / normal, content);
 }
 
 void DatasetWriter::Commit() {
@@ -339,14 +377,12 @@ void DatasetWriter::Commit() {
     yaml << YAML::EndMap;
   }
   yaml << YAML::EndMap;
-  {
-    std::ofstream out(staging_ / "dataset.yaml");
-    out << yaml.c_str() << "\n";
-    if (!out) core::ThrowRuntime((staging_ / "dataset.yaml").string() + ": cannot write");
-  }
+  core::WriteFile(staging_ / "dataset.yaml", std::string(yaml.c_str()) + "\n");
   frames_csv_.close();
   encoders_csv_.close();
-  if (!frames_csv_ || !encoders_csv_) core::ThrowRuntime(staging_.string() + ": cannot write the CSV files");
+  if (!frames_csv_ || !encoders_csv_) {
+    core::ThrowRuntime(staging_.string() + ": cannot write the CSV files (" + core::WriteErrorText(errno) + ")");
+  }
   if (groundtruth_) {
     std::error_code ec;
     fs::create_directories(staging_ / "groundtruth", ec);

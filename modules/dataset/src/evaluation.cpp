@@ -344,6 +344,8 @@ void WriteMetricsJson(const std::filesystem::path& file, const Metrics& metrics)
   json["fix_error_rms_mm"] = ToJson(metrics.fix_error_rms_mm);
   json["off_map_frames"] = ToJson(metrics.off_map_frames);
   json["off_map_max_error_mm"] = ToJson(metrics.off_map_max_error_mm);
+  json["skipped_frames"] = ToJson(metrics.skipped_frames);
+  json["skipped_encoder_samples"] = ToJson(metrics.skipped_encoder_samples);
   json["reentries"] = ToJson(metrics.reentries);
   json["reentry_frames_to_fix_max"] = ToJson(metrics.reentry_frames_to_fix_max);
   json["reentry_first_fix_error_max_mm"] = ToJson(metrics.reentry_first_fix_error_max_mm);

@@ -165,16 +165,34 @@ TEST(Dataset, MalformedCsvLine) {
   EXPECT_THAT(ReadError(dir), HasSubstr("right_ticks '3000000000' is not an int32"));
 }
 
-TEST(Dataset, NonMonotonicTimestamp) {
+// A row recorded twice or out of order is a recording's fault, not an error: it is skipped
+// (counted, and warned about once), and every stream sees times that increase.
+TEST(Dataset, RowsNotAfterTheRowBeforeAreSkipped) {
   test::ScratchDir scratch;
   const fs::path dir = scratch / "ds";
   WriteSmall(dir);
-  test::WriteFile(
-      dir / "cam0/data.csv",
-      "#timestamp_ns,filename\n0,0.png\n66000000,66000000.png\n33000000,33000000.png\n");
-  EXPECT_THAT(
-      ReadError(dir),
-      HasSubstr("cam0/data.csv:4: timestamp 33000000 is not after the previous one (66000000)"));
+  test::WriteFile(dir / "cam0/data.csv",
+                  "#timestamp_ns,filename\n0,0.png\n66000000,66000000.png\n33000000,33000000.png\n"
+                  "66000000,66000000.png\n");
+  test::WriteFile(dir / "encoders/data.csv",
+                  "#timestamp_ns,left_ticks,right_ticks\n0,1,1\n20000000,2,2\n10000000,3,3\n30000000,4,4\n");
+  const DatasetReader reader(dir);
+  EXPECT_EQ(reader.skipped_frames(), 2);
+  EXPECT_EQ(reader.skipped_encoder_samples(), 1);
+  std::vector<std::int64_t> frame_ns;
+  for (auto frames = reader.Frames(); const auto frame = frames.Next();) frame_ns.push_back(frame->time.nanoseconds());
+  EXPECT_THAT(frame_ns, testing::ElementsAre(0, 66000000));
+  std::vector<std::int32_t> ticks;
+  for (auto encoders = reader.Encoders(); const auto sample = encoders.Next();) ticks.push_back(sample->left_ticks);
+  EXPECT_THAT(ticks, testing::ElementsAre(1, 2, 4));
+  const DatasetReader::Summary summary = reader.Validate();
+  EXPECT_EQ(summary.frames, 2);
+  EXPECT_EQ(summary.skipped_frames, 2);
+  EXPECT_EQ(summary.skipped_encoder_samples, 1);
+
+  // A bad time is still an error, named by file and line.
+  test::WriteFile(dir / "cam0/data.csv", "#timestamp_ns,filename\n0,0.png\nsoon,66000000.png\n");
+  EXPECT_THAT(ReadError(dir), HasSubstr("cam0/data.csv:3: timestamp_ns 'soon' is not an integer"));
 }
 
 TEST(Dataset, ImageOfWrongSizeOrPathEscape) {

@@ -26,12 +26,7 @@ BuildCheckpoint::BuildCheckpoint(std::filesystem::path file, sqlite3* db) : file
 BuildCheckpoint::~BuildCheckpoint() { sqlite3_close(db_); }
 
 void BuildCheckpoint::Execute(const std::string& sql) const {
-  char* message = nullptr;
-  if (sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &message) != SQLITE_OK) {
-    const std::string reason = message ? message : "unknown error";
-    sqlite3_free(message);
-    core::ThrowRuntime(file_.string() + ": SQLite: " + reason);
-  }
+  internal::Execute(db_, sql, file_);
 }
 
 void BuildCheckpoint::Remove(const std::filesystem::path& file) {
@@ -45,7 +40,7 @@ std::unique_ptr<BuildCheckpoint> BuildCheckpoint::Create(const std::filesystem::
   sqlite3* db = nullptr;
   if (sqlite3_open_v2(file.c_str(), &db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_FULLMUTEX, nullptr) !=
       SQLITE_OK) {
-    const std::string reason = db ? sqlite3_errmsg(db) : "out of memory";
+    const std::string reason = internal::Why(db);
     sqlite3_close(db);
     core::ThrowRuntime(file.string() + ": cannot create the build checkpoint: " + reason);
   }
@@ -66,7 +61,7 @@ std::unique_ptr<BuildCheckpoint> BuildCheckpoint::Create(const std::filesystem::
       sqlite3_bind_text(insert.get(), 1, name.c_str(), -1, SQLITE_TRANSIENT);
       sqlite3_bind_text(insert.get(), 2, value.c_str(), -1, SQLITE_TRANSIENT);
       if (sqlite3_step(insert.get()) != SQLITE_DONE) {
-        core::ThrowRuntime(file.string() + ": cannot write the build checkpoint: " + sqlite3_errmsg(db));
+        core::ThrowRuntime(file.string() + ": cannot write the build checkpoint: " + internal::Why(db));
       }
     };
     for (const auto& [name, value] : identity) put(kIdentityPrefix + name, value);
@@ -83,7 +78,7 @@ std::unique_ptr<BuildCheckpoint> BuildCheckpoint::Open(const std::filesystem::pa
   if (!std::filesystem::is_regular_file(file, ec)) core::ThrowInvalidInput(file.string() + ": no build checkpoint");
   sqlite3* db = nullptr;
   if (sqlite3_open_v2(file.c_str(), &db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_FULLMUTEX, nullptr) != SQLITE_OK) {
-    const std::string reason = db ? sqlite3_errmsg(db) : "out of memory";
+    const std::string reason = internal::Why(db);
     sqlite3_close(db);
     core::ThrowInvalidInput(file.string() + ": cannot open the build checkpoint: " + reason);
   }
@@ -92,7 +87,7 @@ std::unique_ptr<BuildCheckpoint> BuildCheckpoint::Open(const std::filesystem::pa
   {
     sqlite3_stmt* raw = nullptr;
     if (sqlite3_prepare_v2(db, "SELECT name, value FROM build", -1, &raw, nullptr) != SQLITE_OK) {
-      const std::string reason = sqlite3_errmsg(db);
+      const std::string reason = internal::Why(db);
       sqlite3_finalize(raw);
       core::ThrowInvalidInput(file.string() + ": not a build checkpoint (" + reason + "); remove it to build afresh");
     }
@@ -154,7 +149,7 @@ void BuildCheckpoint::Save(MapBuilder& builder, std::int64_t frames_done,
         sqlite3_bind_blob(tile.get(), 3, accumulator.data, static_cast<int>(bytes), SQLITE_STATIC);
         sqlite3_bind_int64(tile.get(), 4, static_cast<std::int64_t>(Crc32(accumulator.data, bytes)));
         if (sqlite3_step(tile.get()) != SQLITE_DONE) {
-          core::ThrowRuntime(file_.string() + ": cannot save tile " + key.ToString() + ": " + sqlite3_errmsg(db_));
+          core::ThrowRuntime(file_.string() + ": cannot save tile " + key.ToString() + ": " + internal::Why(db_));
         }
       }
       const Statement value(db_, "INSERT OR REPLACE INTO build VALUES (?, ?)", file_);
@@ -164,7 +159,7 @@ void BuildCheckpoint::Save(MapBuilder& builder, std::int64_t frames_done,
         sqlite3_bind_text(value.get(), 1, name.c_str(), -1, SQLITE_TRANSIENT);
         sqlite3_bind_text(value.get(), 2, text.c_str(), -1, SQLITE_TRANSIENT);
         if (sqlite3_step(value.get()) != SQLITE_DONE) {
-          core::ThrowRuntime(file_.string() + ": cannot save the build progress: " + sqlite3_errmsg(db_));
+          core::ThrowRuntime(file_.string() + ": cannot save the build progress: " + internal::Why(db_));
         }
       };
       put(kFramesDone, frames_done);
@@ -199,7 +194,7 @@ void BuildCheckpoint::Restore(MapBuilder& builder) const {
     std::memcpy(accumulator.data, blob, bytes);
     builder.accumulators_[key] = accumulator;
   }
-  if (step != SQLITE_DONE) core::ThrowRuntime(file_.string() + ": cannot read the build checkpoint: " + sqlite3_errmsg(db_));
+  if (step != SQLITE_DONE) core::ThrowRuntime(file_.string() + ": cannot read the build checkpoint: " + internal::Why(db_));
   builder.frames_ = frames_painted_;
   builder.changed_.clear();
 }

@@ -39,12 +39,7 @@ TileStore::~TileStore() {
 }
 
 void TileStore::Execute(const std::string& sql) const {
-  char* message = nullptr;
-  if (sqlite3_exec(db_, sql.c_str(), nullptr, nullptr, &message) != SQLITE_OK) {
-    const std::string reason = message ? message : "unknown error";
-    sqlite3_free(message);
-    core::ThrowRuntime(file_.string() + ": SQLite: " + reason);
-  }
+  internal::Execute(db_, sql, file_);
 }
 
 std::unique_ptr<TileStore> TileStore::Create(const std::filesystem::path& file, const MapGrid& grid) {
@@ -55,7 +50,7 @@ std::unique_ptr<TileStore> TileStore::Create(const std::filesystem::path& file, 
   sqlite3* db = nullptr;
   if (sqlite3_open_v2(file.c_str(), &db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_FULLMUTEX, nullptr) !=
       SQLITE_OK) {
-    const std::string reason = db ? sqlite3_errmsg(db) : "out of memory";
+    const std::string reason = internal::Why(db);
     sqlite3_close(db);
     core::ThrowRuntime(file.string() + ": cannot create the map: " + reason);
   }
@@ -85,7 +80,7 @@ std::unique_ptr<TileStore> TileStore::Open(const std::filesystem::path& file, bo
   sqlite3* db = nullptr;
   const int flags = (writable ? SQLITE_OPEN_READWRITE : SQLITE_OPEN_READONLY) | SQLITE_OPEN_FULLMUTEX;
   if (sqlite3_open_v2(file.c_str(), &db, flags, nullptr) != SQLITE_OK) {
-    const std::string reason = db ? sqlite3_errmsg(db) : "out of memory";
+    const std::string reason = internal::Why(db);
     sqlite3_close(db);
     core::ThrowInvalidInput(file.string() + ": cannot open the map: " + reason);
   }
@@ -95,8 +90,13 @@ std::unique_ptr<TileStore> TileStore::Open(const std::filesystem::path& file, bo
   {
     sqlite3_stmt* raw = nullptr;
     if (sqlite3_prepare_v2(db, "SELECT name, value FROM metadata", -1, &raw, nullptr) != SQLITE_OK) {
-      const std::string reason = sqlite3_errmsg(db);
+      const std::string reason = internal::Why(db);
+      const int code = sqlite3_errcode(db) & 0xff;
       sqlite3_finalize(raw);
+      // A file that could not be read now (locked, an I/O error) is not a bad map.
+      if (code == SQLITE_BUSY || code == SQLITE_LOCKED || code == SQLITE_IOERR || code == SQLITE_NOMEM) {
+        core::ThrowRuntime(file.string() + ": cannot read the map: " + reason);
+      }
       core::ThrowInvalidInput(file.string() + ": not a mosaicloc map (" + reason + ")");
     }
     while (sqlite3_step(raw) == SQLITE_ROW) {
@@ -178,7 +178,7 @@ TileStore::ReaderPtr TileStore::TakeReader(std::string* why) const {
   if (sqlite3_open_v2(file_.c_str(), &reader->db, SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX, nullptr) != SQLITE_OK ||
       sqlite3_prepare_v2(reader->db, "SELECT data, crc32 FROM tiles WHERE level = ? AND col = ? AND row = ?", -1,
                          &reader->select, nullptr) != SQLITE_OK) {
-    *why = reader->db ? sqlite3_errmsg(reader->db) : "out of memory";
+    *why = internal::Why(reader->db);
     return nullptr;
   }
   sqlite3_busy_timeout(reader->db, kBusyTimeoutMs);
@@ -213,7 +213,7 @@ TileStatus TileStore::Fetch(const TileKey& key,
   }
   if (step != SQLITE_ROW) {
     // The connection is dropped, not pooled: whatever went wrong stays with it.
-    return corrupt(std::string("cannot be read: ") + sqlite3_errmsg(reader->db));
+    return corrupt(std::string("cannot be read: ") + internal::Why(reader->db));
   }
   // The blob is checked and used where SQLite holds it (valid until the statement is reset),
   // not copied out first.
@@ -280,7 +280,7 @@ void TileStore::Insert(const std::vector<TileWrite>& tiles, const std::vector<st
     sqlite3_bind_blob(statement.get(), 4, encoded[i].data(), static_cast<int>(encoded[i].size()), SQLITE_STATIC);
     sqlite3_bind_int64(statement.get(), 5, static_cast<std::int64_t>(Crc32(encoded[i])));
     if (sqlite3_step(statement.get()) != SQLITE_DONE) {
-      core::ThrowRuntime(file_.string() + ": cannot write tile " + tiles[i].key.ToString() + ": " + sqlite3_errmsg(db_));
+      core::ThrowRuntime(file_.string() + ": cannot write tile " + tiles[i].key.ToString() + ": " + internal::Why(db_));
     }
   }
 }
@@ -343,7 +343,7 @@ std::int64_t TileStore::WriteRecorded(const std::vector<TileWrite>& tiles, const
       sqlite3_bind_text(insert.get(), 2, reason.c_str(), -1, SQLITE_TRANSIENT);
       sqlite3_bind_int64(insert.get(), 3, level0);
       if (sqlite3_step(insert.get()) != SQLITE_DONE) {
-        core::ThrowRuntime(file_.string() + ": cannot record an update: " + sqlite3_errmsg(db_));
+        core::ThrowRuntime(file_.string() + ": cannot record an update: " + internal::Why(db_));
       }
     }
     const std::int64_t id = sqlite3_last_insert_rowid(db_);
@@ -362,7 +362,7 @@ std::int64_t TileStore::WriteRecorded(const std::vector<TileWrite>& tiles, const
       sqlite3_bind_int64(keep.get(), 3, tile.key.col);
       sqlite3_bind_int64(keep.get(), 4, tile.key.row);
       if (sqlite3_step(keep.get()) != SQLITE_DONE) {
-        core::ThrowRuntime(file_.string() + ": cannot keep tile " + tile.key.ToString() + ": " + sqlite3_errmsg(db_));
+        core::ThrowRuntime(file_.string() + ": cannot keep tile " + tile.key.ToString() + ": " + internal::Why(db_));
       }
     }
     Insert(tiles, encoded);
@@ -460,7 +460,7 @@ void TileStore::WriteRevert(std::int64_t id, const std::vector<TileWrite>& tiles
       sqlite3_bind_int64(remove.get(), 2, key.col);
       sqlite3_bind_int64(remove.get(), 3, key.row);
       if (sqlite3_step(remove.get()) != SQLITE_DONE) {
-        core::ThrowRuntime(file_.string() + ": cannot remove tile " + key.ToString() + ": " + sqlite3_errmsg(db_));
+        core::ThrowRuntime(file_.string() + ": cannot remove tile " + key.ToString() + ": " + internal::Why(db_));
       }
     }
     Execute("COMMIT;");
@@ -568,7 +568,7 @@ void TileStore::WritePlaceRepeatTest(std::int64_t views, std::int64_t own, std::
       const std::string value = std::to_string(values[i]);
       sqlite3_bind_text(meta.get(), 2, value.c_str(), -1, SQLITE_TRANSIENT);
       if (sqlite3_step(meta.get()) != SQLITE_DONE) {
-        core::ThrowRuntime(file_.string() + ": cannot write the floor's self-test: " + sqlite3_errmsg(db_));
+        core::ThrowRuntime(file_.string() + ": cannot write the floor's self-test: " + internal::Why(db_));
       }
     }
     Execute("COMMIT;");
@@ -598,7 +598,7 @@ std::vector<PlaceCell> TileStore::ReadPlaces() const {
     }
     cells.push_back(std::move(cell));
   }
-  if (step != SQLITE_DONE) core::ThrowRuntime(file_.string() + ": cannot read the place index: " + sqlite3_errmsg(db_));
+  if (step != SQLITE_DONE) core::ThrowRuntime(file_.string() + ": cannot read the place index: " + internal::Why(db_));
   return cells;
 }
 
@@ -618,7 +618,7 @@ void TileStore::WritePlaces(const PlaceIndexInfo& info, const std::vector<PlaceC
         sqlite3_bind_text(meta.get(), 1, kPlacesKeys[i], -1, SQLITE_STATIC);
         sqlite3_bind_text(meta.get(), 2, values[i].c_str(), -1, SQLITE_TRANSIENT);
         if (sqlite3_step(meta.get()) != SQLITE_DONE) {
-          core::ThrowRuntime(file_.string() + ": cannot write the place index's metadata: " + sqlite3_errmsg(db_));
+          core::ThrowRuntime(file_.string() + ": cannot write the place index's metadata: " + internal::Why(db_));
         }
       }
     }
@@ -631,7 +631,7 @@ void TileStore::WritePlaces(const PlaceIndexInfo& info, const std::vector<PlaceC
       sqlite3_bind_int64(statement.get(), 4, static_cast<std::int64_t>(Crc32(cell.data)));
       if (sqlite3_step(statement.get()) != SQLITE_DONE) {
         core::ThrowRuntime(file_.string() + ": cannot write place index cell col " + std::to_string(cell.col) +
-                           " row " + std::to_string(cell.row) + ": " + sqlite3_errmsg(db_));
+                           " row " + std::to_string(cell.row) + ": " + internal::Why(db_));
       }
     }
     Execute("COMMIT;");
@@ -678,7 +678,7 @@ std::vector<QualityCell> TileStore::ReadQuality() const {
     }
     cells.push_back(cell);
   }
-  if (step != SQLITE_DONE) core::ThrowRuntime(file_.string() + ": cannot read the quality layer: " + sqlite3_errmsg(db_));
+  if (step != SQLITE_DONE) core::ThrowRuntime(file_.string() + ": cannot read the quality layer: " + internal::Why(db_));
   return cells;
 }
 
@@ -698,7 +698,7 @@ void TileStore::WriteQuality(int level, const std::vector<QualityCell>& cells) {
       const std::string value = std::to_string(level);
       sqlite3_bind_text(meta.get(), 1, value.c_str(), -1, SQLITE_TRANSIENT);
       if (sqlite3_step(meta.get()) != SQLITE_DONE) {
-        core::ThrowRuntime(file_.string() + ": cannot write the quality layer's metadata: " + sqlite3_errmsg(db_));
+        core::ThrowRuntime(file_.string() + ": cannot write the quality layer's metadata: " + internal::Why(db_));
       }
     }
     const Statement statement(db_, "INSERT INTO quality VALUES (?, ?, ?, ?, ?, ?)", file_);
@@ -712,7 +712,7 @@ void TileStore::WriteQuality(int level, const std::vector<QualityCell>& cells) {
       sqlite3_bind_int64(statement.get(), 6, static_cast<std::int64_t>(QualityCrc(cell)));
       if (sqlite3_step(statement.get()) != SQLITE_DONE) {
         core::ThrowRuntime(file_.string() + ": cannot write quality cell col " + std::to_string(cell.col) + " row " +
-                           std::to_string(cell.row) + ": " + sqlite3_errmsg(db_));
+                           std::to_string(cell.row) + ": " + internal::Why(db_));
       }
     }
     Execute("COMMIT;");
@@ -733,7 +733,7 @@ void TileStore::Checkpoint() {
   int log_frames = -1, checkpointed = -1;
   const int rc = sqlite3_wal_checkpoint_v2(db_, nullptr, SQLITE_CHECKPOINT_TRUNCATE, &log_frames, &checkpointed);
   if (rc != SQLITE_OK) {
-    core::ThrowRuntime(file_.string() + ": cannot checkpoint the write-ahead log into the map: " + sqlite3_errmsg(db_));
+    core::ThrowRuntime(file_.string() + ": cannot checkpoint the write-ahead log into the map: " + internal::Why(db_));
   }
   // A finished map in WAL mode makes every reader leave a log and a shared-memory file beside
   // it (a read-only connection cannot remove them); the next writable Open turns WAL on again.

@@ -327,6 +327,7 @@ class LiveRun::Impl {
       summary["map_update_pending_cells"] = kept.updates.cells_pending;
       summary["map_keeping_dropped"] = kept.dropped;
       summary["map_reindexed"] = kept.reindexed;
+      if (!kept.failure.empty()) summary["map_keeping_failure"] = kept.failure;
     }
     return summary;
   }

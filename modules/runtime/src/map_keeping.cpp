@@ -67,12 +67,18 @@ void MapKeeper::Frame(core::Timestamp time, const cv::Mat& image, const localize
   item.update.tracking = outcome.lock == estimation::LockState::kTracking && outcome.mode == localizer::Mode::kTrack;
   item.update.nis = outcome.nis;
   if (!background_) {
-    Process(item);
+    if (!failure_.empty()) return;
+    try {
+      Process(item);
+    } catch (const std::exception& error) {
+      Stop(error);
+    }
     return;
   }
   {
     const std::lock_guard lock(mutex_);
-    if (error_ || queue_.size() >= queue_frames_) {
+    if (!failure_.empty()) return;
+    if (queue_.size() >= queue_frames_) {
       // Behind (a long commit) or stopped: this frame is not mapped. A stretch whose chain
       // breaks here is committed as it stands, and the next one starts from a fix.
       if (++dropped_ == 1) core::Log().warn("map keeping: behind the camera; frames are not mapped until it catches up");
@@ -100,14 +106,21 @@ void MapKeeper::Loop() {
     }
     try {
       Process(item);
-    } catch (...) {
+    } catch (const std::exception& error) {
       const std::lock_guard lock(mutex_);
-      error_ = std::current_exception();
+      Stop(error);
       queue_.clear();
-      core::Log().error("map keeping stopped: the map is no longer extended or updated");
       return;
     }
   }
+}
+
+void MapKeeper::Stop(const std::exception& error) {
+  if (!failure_.empty()) return;
+  failure_ = error.what();
+  core::Log().error("map keeping stopped: {}; the map keeps what was committed before and is no longer extended or "
+                    "updated on this drive; localization goes on",
+                    failure_);
 }
 
 MapKeepingSummary MapKeeper::Finish() {
@@ -121,9 +134,14 @@ MapKeepingSummary MapKeeper::Finish() {
     wake_.notify_all();
     thread_.join();
   }
-  if (error_) std::rethrow_exception(error_);
-  extender_.Finish();
   MapKeepingSummary summary;
+  if (failure_.empty()) {
+    try {
+      extender_.Finish();
+    } catch (const std::exception& error) {
+      Stop(error);
+    }
+  }
   summary.extension = extender_.summary();
   if (updater_) summary.updates = updater_->summary();
   summary.dropped = dropped_;
@@ -132,12 +150,17 @@ MapKeepingSummary MapKeeper::Finish() {
   if (summary.extension.tiles_written > 0 || summary.updates.updates > 0) {
     // The new and the rewritten floor join the place index (global relocalization) and the
     // quality layer, as `map build` makes them.
-    const MapIndexSummary index = IndexStore(map_.store());
-    AssessStore(map_.store());
-    summary.reindexed = true;
-    core::Log().info("map: place index rebuilt ({} features, {:.1f} s), quality layer assessed", index.features,
-                     index.seconds);
+    try {
+      const MapIndexSummary index = IndexStore(map_.store());
+      AssessStore(map_.store());
+      summary.reindexed = true;
+      core::Log().info("map: place index rebuilt ({} features, {:.1f} s), quality layer assessed", index.features,
+                       index.seconds);
+    } catch (const std::exception& error) {
+      Stop(error);
+    }
   }
+  summary.failure = failure_;
   const mapping::ExtensionSummary& e = summary.extension;
   core::Log().info("map extension: {} stretches ({} closed onto the map), {} frames painted, {} tiles written, {:.1f} s",
                    e.segments, e.closed, e.keyframes, e.tiles_written, e.seconds);

@@ -72,8 +72,12 @@ struct FrameExtras {
 // What a replay mode records frame by frame, and the report made of it.
 class ReplayRecord {
  public:
-  ReplayRecord(std::optional<dataset::Trajectory> groundtruth, const std::function<void(double)>& progress)
-      : groundtruth_(std::move(groundtruth)), progress_(progress) {}
+  ReplayRecord(const dataset::DatasetReader& reader, std::optional<dataset::Trajectory> groundtruth,
+               const std::function<void(double)>& progress)
+      : groundtruth_(std::move(groundtruth)), progress_(progress), total_frames_(reader.frame_rows()) {
+    known_.skipped_frames = reader.skipped_frames();
+    known_.skipped_encoder_samples = reader.skipped_encoder_samples();
+  }
 
   /// One frame: the estimate at its time (if any) and the processing time, ms.
   void Frame(core::Timestamp time, const std::optional<core::Pose2>& world_from_vehicle, double ms) {
@@ -86,11 +90,8 @@ class ReplayRecord {
     latency_ms_.push_back(ms);
     last_latency_ms_ = ms;
     processing_s_ += ms * 1e-3;
-    if (frames_ % 16 == 0 && groundtruth_ && progress_) {
-      const auto span = groundtruth_->back().time - groundtruth_->front().time;
-      progress_(std::clamp(static_cast<double>((time - groundtruth_->front().time).count()) /
-                               static_cast<double>(span.count() + 1),
-                           0.0, 1.0));
+    if (frames_ % 16 == 0 && progress_) {
+      progress_(std::min(1.0, static_cast<double>(frames_) / static_cast<double>(std::max<std::int64_t>(total_frames_, 1))));
     }
   }
 
@@ -147,6 +148,8 @@ class ReplayRecord {
     metrics.revisit_places = known_.revisit_places;
     metrics.revisit_visits = known_.revisit_visits;
     metrics.revisit_failures = known_.revisit_failures;
+    metrics.skipped_frames = known_.skipped_frames;
+    metrics.skipped_encoder_samples = known_.skipped_encoder_samples;
     dataset::AddTruthFreeFigures(reports_, estimate_, innovations_, &metrics);
     if (groundtruth_) {
       // Every fix checked against the truth: a lock that never broke proves nothing if it held
@@ -313,6 +316,7 @@ class ReplayRecord {
   dataset::Metrics known_;
   std::optional<dataset::Trajectory> groundtruth_;
   const std::function<void(double)>& progress_;
+  std::int64_t total_frames_;  ///< the recording's frames, for the progress
   dataset::Trajectory estimate_;
   std::vector<double> latency_ms_;
   double processing_s_ = 0.0;
@@ -422,7 +426,7 @@ ReplaySummary ReplayDeadReckoning(const ReplayOptions& options, const std::funct
                       StartPose(groundtruth, info, groundtruth ? groundtruth->front().time : core::Timestamp()),
                       &summary.encoder_samples_rejected);
 
-  ReplayRecord record(groundtruth, progress);
+  ReplayRecord record(reader, groundtruth, progress);
   auto stream = reader.Frames();
   while (true) {
     const auto frame_start = std::chrono::steady_clock::now();
@@ -510,7 +514,7 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
     pending = encoders.Next();
   };
 
-  ReplayRecord record(groundtruth, progress);
+  ReplayRecord record(reader, groundtruth, progress);
   auto stream = reader.Frames();
   while (const auto frame = stream.Next()) {
     while (pending && pending->time <= frame->time) feed();
@@ -568,6 +572,7 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
   }
   if (keeper) {
     const MapKeepingSummary kept = keeper->Finish();
+    summary.map_keeping_failure = kept.failure;
     RecordExtension(*keeper, kept, groundtruth, info, options.out, &record.known());
     if (settings.map_update.enabled) RecordUpdates(kept.updates, groundtruth, info, &record.known());
   }
@@ -614,7 +619,7 @@ ReplaySummary ReplayVisualOdometry(const ReplayOptions& options, const std::func
 
   const camera::IdealCamera camera = CameraOf(info);
   const tracking::Tracker tracker(camera, options.settings.localizer.tracker);
-  ReplayRecord record(groundtruth, progress);
+  ReplayRecord record(reader, groundtruth, progress);
   cv::Mat previous;
   core::Timestamp previous_time;
   core::Pose2 pose;

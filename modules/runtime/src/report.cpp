@@ -34,6 +34,8 @@ dataset::Metrics WriteReport(const std::filesystem::path& directory, const datas
     keep(merged.fix_error_rms_mm, metrics.fix_error_rms_mm);
     keep(merged.off_map_frames, metrics.off_map_frames);
     keep(merged.off_map_max_error_mm, metrics.off_map_max_error_mm);
+    keep(merged.skipped_frames, metrics.skipped_frames);
+    keep(merged.skipped_encoder_samples, metrics.skipped_encoder_samples);
     keep(merged.reentries, metrics.reentries);
     keep(merged.reentry_frames_to_fix_max, metrics.reentry_frames_to_fix_max);
     keep(merged.reentry_first_fix_error_max_mm, metrics.reentry_first_fix_error_max_mm);

@@ -57,6 +57,11 @@ struct EncoderSample {
 /// Reads a dataset as a stream: frames and encoder samples one at a time, each line and
 /// file validated as it is read. Every problem is a core::Error (invalid input) whose message
 /// starts with "file:line: ".
+///
+/// One fault of a recording is not an error: a row whose time is not after the row before it
+/// (a frame or sample recorded twice, or out of order, or behind a clock that stepped back).
+/// Such rows are skipped, so that every reader sees times that increase; the reader warns once
+/// per file, naming the lines, and counts them (skipped_frames(), skipped_encoder_samples()).
 class DatasetReader {
  public:
   /// Opens DIR and validates dataset.yaml and the presence and headers of the CSV files.
@@ -64,6 +69,11 @@ class DatasetReader {
 
   const std::filesystem::path& directory() const { return directory_; }
   const DatasetInfo& info() const { return info_; }
+  /// Rows of cam0/data.csv the frame stream gives (their files are checked as they are read).
+  std::int64_t frame_rows() const { return frame_rows_; }
+  /// Rows of cam0/data.csv and of the encoder file skipped for their time.
+  std::int64_t skipped_frames() const { return skipped_frames_; }
+  std::int64_t skipped_encoder_samples() const { return skipped_encoder_samples_; }
 
   class FrameStream {
    public:
@@ -109,12 +119,17 @@ class DatasetReader {
     std::int64_t encoder_samples = 0;
     std::int64_t groundtruth_poses = 0;
     double duration_s = 0.0;
+    std::int64_t skipped_frames = 0;           ///< rows skipped for their time (see above)
+    std::int64_t skipped_encoder_samples = 0;
   };
   Summary Validate() const;
 
  private:
   std::filesystem::path directory_;
   DatasetInfo info_;
+  std::int64_t frame_rows_ = 0;
+  std::int64_t skipped_frames_ = 0;
+  std::int64_t skipped_encoder_samples_ = 0;
 };
 
 /// Writes a dataset so that it appears complete or not at all: everything goes to a hidden

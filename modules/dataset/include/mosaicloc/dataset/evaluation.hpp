@@ -70,6 +70,8 @@ struct Metrics {
   std::optional<std::int64_t> repeatability_places;  ///< places visited at least twice
   std::optional<double> fix_error_rms_mm;  ///< RMS error of the visual fixes themselves (caller)
   std::optional<std::int64_t> off_map_frames;        ///< frames reported off the map (caller)
+  std::optional<std::int64_t> skipped_frames;           ///< recording rows skipped: not after the row before (caller)
+  std::optional<std::int64_t> skipped_encoder_samples;  ///< the same for encoder samples (caller)
   std::optional<double> off_map_max_error_mm;  ///< largest dead-reckoning error while off the map (caller)
   /// Returns onto the map (the true view wholly on it after some frames that were not), the
   /// most frames any of them took to the first fix, and the largest error of those first

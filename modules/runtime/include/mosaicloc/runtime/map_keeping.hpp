@@ -34,6 +34,10 @@ struct MapKeepingSummary {
   /// (localizer::OverlapSpeedWatch), and the fastest speed off the map, m/s.
   std::int64_t overspeed_frames = 0;
   double mapping_speed_max_mps = 0.0;
+  /// Why map keeping stopped before the drive ended (a full disk, the map locked by another
+  /// process, ...), or empty. The map holds what was committed before: every write is one
+  /// transaction. Localization is not affected.
+  std::string failure;
 };
 
 /// The map kept up to date as a drive goes (design.md sections 7d and 7e): automatic mapping
@@ -57,7 +61,8 @@ class MapKeeper {
   void Frame(core::Timestamp time, const cv::Mat& image, const localizer::FrameOutcome& outcome, bool pose_known);
   /// Processes what waits, commits the open stretch and, when the floor changed, rebuilds the
   /// place index and the quality layer over the whole map (as `map build` makes them).
-  /// Rethrows what stopped the background thread. Call once, after the last Frame.
+  /// A write that failed, then or before, stops map keeping and is the summary's `failure`:
+  /// it never ends the drive. Call once, after the last Frame.
   MapKeepingSummary Finish();
 
   /// The camera poses of every frame painted by automatic mapping (after Finish).
@@ -70,6 +75,8 @@ class MapKeeper {
   };
   void Process(const Item& item);
   void Loop();
+  // Records why map keeping stops (the first failure) and says so; call with mutex_ held.
+  void Stop(const std::exception& error);
 
   MapSession& map_;
   mapping::MapExtender extender_;
@@ -84,7 +91,7 @@ class MapKeeper {
   bool finishing_ = false;
   bool finished_ = false;
   std::int64_t dropped_ = 0;
-  std::exception_ptr error_;
+  std::string failure_;
   std::thread thread_;  // last: starts once everything above exists
 };
 

@@ -74,6 +74,8 @@ struct ReplaySummary {
   std::int64_t relocalizations = 0;
   Eigen::Vector2d wheel_scale_error = Eigen::Vector2d::Zero();  ///< learnt (left, right), 0.02 = 2 %
   Eigen::Vector2d wheel_scale_sigma = Eigen::Vector2d::Zero();
+  /// With mapping: why map keeping stopped before the end (MapKeepingSummary::failure), or empty.
+  std::string map_keeping_failure;
 };
 
 /// Replays a dataset in `options.mode` and writes the report (design.md section 4): a
