@@ -30,6 +30,27 @@ function(mosaicloc_target_options target)
   endif()
 endfunction()
 
+# mosaicloc_gtest_suites(<target> LABEL <label>): registers the GoogleTest program <target>
+# with CTest, one test per suite (cmake/GTestSuites.cmake lists them once it is built), named
+# <short>:<Suite>, where <short> is the target's name without "mosaicloc_" and "_test".
+function(mosaicloc_gtest_suites target)
+  cmake_parse_arguments(ARG "" "LABEL" "" ${ARGN})
+  string(REGEX REPLACE "^mosaicloc_(.*)_test$" "\\1" short ${target})
+  set(listed "${CMAKE_CURRENT_BINARY_DIR}/${target}_suites.cmake")
+  add_custom_command(TARGET ${target} POST_BUILD
+    COMMAND ${CMAKE_COMMAND} -D TEST_EXECUTABLE=$<TARGET_FILE:${target}> -D CTEST_FILE=${listed}
+      -D PREFIX=${short} -D LABEL=${ARG_LABEL} "-D ENVIRONMENT=MOSAICLOC_SHARED_DATA=${MOSAICLOC_SHARED_DATA}"
+      -P ${PROJECT_SOURCE_DIR}/cmake/GTestSuites.cmake
+    BYPRODUCTS ${listed}
+    VERBATIM)
+  # CTest reads the list when it exists; before the program is built it says so.
+  set(include "${CMAKE_CURRENT_BINARY_DIR}/${target}_include.cmake")
+  file(WRITE ${include}
+    "if(EXISTS [==[${listed}]==])\n  include([==[${listed}]==])\nelse()\n"
+    "  add_test([==[${short}:NOT_BUILT]==] [==[${target}_NOT_BUILT]==])\nendif()\n")
+  set_property(DIRECTORY APPEND PROPERTY TEST_INCLUDE_FILES ${include})
+endfunction()
+
 function(mosaicloc_add_module name)
   cmake_parse_arguments(ARG "" "" "SOURCES;PUBLIC_DEPS;PRIVATE_DEPS;TESTS;TEST_DEPS" ${ARGN})
   set(target mosaicloc_${name})
@@ -49,9 +70,6 @@ function(mosaicloc_add_module name)
       mosaicloc::test_support GTest::gtest GTest::gmock GTest::gtest_main)
     mosaicloc_target_options(${test_target})
     add_dependencies(mosaicloc_unit_tests ${test_target})
-    gtest_discover_tests(${test_target}
-      PROPERTIES LABELS unit
-      ENVIRONMENT "MOSAICLOC_SHARED_DATA=${MOSAICLOC_SHARED_DATA}"
-      DISCOVERY_TIMEOUT 60)
+    mosaicloc_gtest_suites(${test_target} LABEL unit)
   endif()
 endfunction()
