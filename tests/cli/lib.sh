@@ -2,8 +2,10 @@
 set -u
 MOSAICLOC=$1
 SCRATCH=$(mktemp -d)
-trap '[ -n "${KEEP_SCRATCH:-}" ] || rm -rf "$SCRATCH"' EXIT
 FAILURES=0
+# The scratch folder goes with the test, unless asked for (KEEP_SCRATCH) or a check failed:
+# then it stays, for a failure that timing made (a live run's) to be looked at.
+trap 'if [ -n "${KEEP_SCRATCH:-}" ] || [ "$FAILURES" -gt 0 ]; then echo "scratch kept: $SCRATCH" >&2; else rm -rf "$SCRATCH"; fi' EXIT
 
 fail() { echo "FAIL: $*" >&2; FAILURES=$((FAILURES + 1)); }
 

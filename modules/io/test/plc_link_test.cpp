@@ -69,6 +69,9 @@ class TestPlc {
     return mapping_->tab_registers[address];
   }
   void DelayReplies(std::chrono::milliseconds delay) { delay_ms_ = static_cast<int>(delay.count()); }
+  /// Answers with bytes that are no Modbus reply (a PLC whose firmware went wrong, a device
+  /// that is not a PLC on the PLC's address).
+  void GarbleReplies(bool garble) { garble_ = garble; }
   int requests() const { return requests_; }
 
  private:
@@ -105,6 +108,14 @@ class TestPlc {
         if (n > 0) {
           ++requests_;
           if (delay_ms_ > 0) std::this_thread::sleep_for(std::chrono::milliseconds(delay_ms_));
+          if (garble_) {
+            // The request's transaction id, then a protocol id, length and function code no
+            // reply has, and noise.
+            const std::uint8_t junk[] = {query[0], query[1], 0x47, 0x45, 0x00, 0x09, 0xff, 0x83, 0x54, 0x0d, 0x0a, 0x00, 0x7f};
+            [[maybe_unused]] const ssize_t sent = write(*it, junk, sizeof(junk));
+            ++it;
+            continue;
+          }
           const std::lock_guard lock(mutex_);
           modbus_reply(context_, query, n, mapping_);
         }
@@ -119,6 +130,7 @@ class TestPlc {
   std::mutex mutex_;
   std::atomic<bool> stop_{false};
   std::atomic<int> delay_ms_{0};
+  std::atomic<bool> garble_{false};
   std::atomic<int> requests_{0};
   std::thread thread_;
 };
@@ -271,6 +283,31 @@ TEST(PlcClientTest, LateReplyDoesNotPoisonTheNextRead) {
   }
   ASSERT_TRUE(read.has_value());
   EXPECT_EQ(read->plc_heartbeat, 11U);
+}
+
+TEST(PlcClientTest, GarbageForAnAnswerIsAFailureAndTheNextAnswerIsRead) {
+  const int port = FreePort();
+  TestPlc plc(port);
+  const auto link = OpenPlcLink(ClientOptions(port));
+  plc.Set(4, 20);
+  ASSERT_TRUE(link->Read().ok());
+  plc.GarbleReplies(true);
+  for (int i = 0; i < 3; ++i) {
+    const auto garbled = link->Read();
+    ASSERT_FALSE(garbled.ok());
+    EXPECT_NE(garbled.error().find("holding registers 0-6"), std::string::npos) << garbled.error();
+  }
+  EXPECT_GE(link->stats().read_errors + link->stats().timeouts, 3);
+  // Whatever the garbage left in the connection is not taken for the next answer.
+  plc.GarbleReplies(false);
+  plc.Set(4, 21);
+  std::optional<PlcInputs> read;
+  for (int i = 0; i < 50 && !read; ++i) {
+    if (auto r = link->Read(); r.ok()) read = r.value();
+    std::this_thread::sleep_for(10ms);
+  }
+  ASSERT_TRUE(read.has_value());
+  EXPECT_EQ(read->plc_heartbeat, 21U);
 }
 
 TEST(PlcClientTest, RegistersThePlcLacksAreNamedInTheError) {

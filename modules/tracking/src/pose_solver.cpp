@@ -64,16 +64,21 @@ void ModelResidual(const double* pose, const Correspondence& c, double s, double
 // The used correspondences' residuals, each weighted by sqrt(w_i), as a ceres::TinySolver
 // function of (x, y, yaw, k, a, b) (P = 6), (x, y, yaw, k) (P = 4), (x, y, yaw) with k held
 // (P = 3), or (x, y) with the yaw held as well (P = 2); what is held keeps its start value.
-template <int P>
+// kParameters is P for the default (P = 4, the scale estimated), whose fixed-size solver is
+// 20-30 % faster; Eigen::Dynamic serves the others with P at run time (a fixed-size
+// TinySolver costs 8 s of compiling, twice that under the sanitizers).
+template <int kParameters>
 struct WeightedResiduals {
   using Scalar = double;
-  enum { NUM_RESIDUALS = Eigen::Dynamic, NUM_PARAMETERS = P };
+  enum { NUM_RESIDUALS = Eigen::Dynamic, NUM_PARAMETERS = kParameters };
   const std::vector<const Correspondence*>& cs;
   const std::vector<double>& scale;
   const std::vector<double>& root_weight;
   const double* held;  // the start pose (6)
   double height_mm;
+  int P;  // the free parameters
   int NumResiduals() const { return static_cast<int>(2 * cs.size()); }
+  int NumParameters() const { return P; }
   // (x, y, yaw, k, a, b) of the parameters x.
   void PoseOf(const double* x, double* pose) const {
     for (int p = 0; p < 6; ++p) pose[p] = p < P ? x[p] : held[p];
@@ -108,21 +113,23 @@ struct Solved {
 // ceres::TinySolver (Levenberg-Marquardt). A fixed point is a stationary point of the robust
 // cost, sum_i rho'_i J_i^T r_i = 0, the same optimum ceres::Solve finds; for three parameters
 // and a handful of residuals ceres::Solve's set-up cost about ten times the arithmetic.
-template <int P>
+template <int kParameters>
 Solved SolveRounds(const std::vector<const Correspondence*>& cs, const std::vector<double>& scale, double* pose,
-                   const PoseSolverOptions& options) {
+                   const PoseSolverOptions& options, int P) {
+  using Residuals = WeightedResiduals<kParameters>;
+  using Vector = Eigen::Matrix<double, kParameters, 1>;
   const std::unique_ptr<ceres::LossFunction> loss = LossOf(options);
   std::vector<double> root_weight(cs.size(), 1.0);
   double held[6];
   std::copy(pose, pose + 6, held);
-  const WeightedResiduals<P> residuals{cs, scale, root_weight, held, options.camera_height_mm};
-  ceres::TinySolver<WeightedResiduals<P>> solver;
+  const Residuals residuals{cs, scale, root_weight, held, options.camera_height_mm, P};
+  ceres::TinySolver<Residuals> solver;
   solver.options.max_num_iterations = options.max_iterations;
   solver.options.gradient_tolerance = 1e-14;
   solver.options.parameter_tolerance = 1e-12;
   solver.options.function_tolerance = 1e-12;
   Solved s;
-  Eigen::Matrix<double, P, 1> x;
+  Vector x(P);
   for (int p = 0; p < P; ++p) x(p) = pose[p];
   for (int round = 0; round < options.max_iterations; ++round) {
     s.iterations = round + 1;
@@ -133,9 +140,9 @@ Solved SolveRounds(const std::vector<const Correspondence*>& cs, const std::vect
       ModelResidual(at, *cs[i], scale[i], options.camera_height_mm, P, r, nullptr);
       root_weight[i] = std::sqrt(LossWeight(loss.get(), r));
     }
-    const Eigen::Matrix<double, P, 1> before = x;
+    const Vector before = x;
     const auto& summary = solver.Solve(residuals, &x);
-    if (summary.status == ceres::TinySolver<WeightedResiduals<P>>::HIT_MAX_ITERATIONS || !x.allFinite()) break;
+    if (summary.status == ceres::TinySolver<Residuals>::HIT_MAX_ITERATIONS || !x.allFinite()) break;
     // Without a loss the weights never change: one round is the solution. With one the rounds
     // approach the fixed point linearly, slowly where residuals are several loss scales: stop
     // when a round moves the position by under 10 nm and the yaw, scale and tilt by under 1e-7
@@ -163,9 +170,8 @@ Solved Solve(const std::vector<Correspondence>& cs, const std::vector<bool>& use
     used.push_back(&cs[i]);
     used_scale.push_back(scale[i]);
   }
-  if (free == 6) return SolveRounds<6>(used, used_scale, pose, options);
-  if (free == 4) return SolveRounds<4>(used, used_scale, pose, options);
-  return free == 3 ? SolveRounds<3>(used, used_scale, pose, options) : SolveRounds<2>(used, used_scale, pose, options);
+  return free == 4 ? SolveRounds<4>(used, used_scale, pose, options, 4)
+                   : SolveRounds<Eigen::Dynamic>(used, used_scale, pose, options, free);
 }
 
 // How many parameters the used correspondences determine: the yaw needs two distinct points
