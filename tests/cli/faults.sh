@@ -7,7 +7,9 @@
 #   checks clean afterwards, and localization goes on to the end of the drive;
 # - the map locked by another process: a clear error, and map keeping stops, not the drive;
 # - a recording with frames recorded twice, out of order, missing for a second, and behind a
-#   clock that stepped back: replayed with those rows skipped and counted, and no wrong fix.
+#   clock that stepped back: replayed with those rows skipped and counted, and no wrong fix;
+# - wheel encoders that stall for a second (a loose cable, a frozen PLC counter) and then jump
+#   to where the wheels are: the camera holds the pose, and no fix is wrong.
 # Usage: faults.sh MOSAICLOC
 source "$(dirname "$0")/lib.sh"
 
@@ -155,6 +157,13 @@ if kind == "rows":
     frames[60], frames[61] = frames[61], frames[60]    # two out of order
     del frames[100:130]                                # a second missing: the time jumps
     samples.insert(200, list(samples[200]))            # a sample recorded twice
+elif kind == "stall":
+    # The counters stop 3 s into the drive and read the wheels again 1 s later.
+    start, frozen = int(samples[0][0]), None
+    for r in samples:
+        if 3_000_000_000 <= int(r[0]) - start < 4_000_000_000:
+            frozen = frozen or (r[1], r[2])
+            r[1], r[2] = frozen
 else:
     # The recorder's clock steps 0.3 s back 4 s into the drive: every later row is stamped
     # 0.3 s early (the ground truth, kept in true time, would no longer match: it goes).
@@ -165,7 +174,7 @@ write("cam0/data.csv", header, frames)
 write("encoders/data.csv", _, samples)
 PY
 }
-for kind in rows clock; do
+for kind in rows clock stall; do
   mkdir -p "$W/$kind"
   cp -r "$W/ds/." "$W/$kind"
   fault "$W/$kind" $kind
@@ -180,5 +189,7 @@ json_check "$W/rows-report/metrics.json" 'd["skipped_frames"] == 2' 'd["skipped_
 expect_exit 0 "$M" --json replay --dataset "$W/clock" --map "$W/map.db" --out "$W/clock-report"
 json_check "$W/clock-report/metrics.json" 'd["skipped_frames"] >= 8' 'd["skipped_encoder_samples"] >= 29' \
   'd["lock_losses"] == 0' 'd["fix_rate"] >= 0.95'
+expect_exit 0 "$M" --json replay --dataset "$W/stall" --map "$W/map.db" --out "$W/stall-report"
+json_check "$W/stall-report/metrics.json" 'd["wrong_fixes"] == 0' 'd["lock_losses"] == 0' 'd["fix_rate"] >= 0.85'
 
 finish
