@@ -28,15 +28,7 @@ Action AddDatasetCommand(CLI::App& app, const GlobalOptions& global) {
                                      {"skipped_encoder_samples", summary.skipped_encoder_samples}};
       PrintJson(result);
     } else {
-      std::printf("%s: valid: %lld frames, %lld encoder samples, %lld ground-truth poses, %.2f s\n",
-                  directory->string().c_str(), static_cast<long long>(summary.frames),
-                  static_cast<long long>(summary.encoder_samples), static_cast<long long>(summary.groundtruth_poses),
-                  summary.duration_s);
-      if (summary.skipped_frames + summary.skipped_encoder_samples > 0) {
-        std::printf("  skipped, not after the row before in time: %lld frames, %lld encoder samples\n",
-                    static_cast<long long>(summary.skipped_frames),
-                    static_cast<long long>(summary.skipped_encoder_samples));
-      }
+      std::printf("%s: %s\n", directory->string().c_str(), summary.Describe().c_str());
     }
   };
 }

@@ -6,6 +6,7 @@
 #include "commands.hpp"
 #include "mosaicloc/runtime/localization_config.hpp"
 #include "mosaicloc/core/error.hpp"
+#include "mosaicloc/runtime/map_keeping.hpp"
 #include "mosaicloc/runtime/replay.hpp"
 #include "progress.hpp"
 #include "report.hpp"
@@ -77,10 +78,7 @@ void Run(const ReplayArgs& args, const GlobalOptions& global) {
   const runtime::ReplaySummary summary = runtime::Replay(options, progress.Callback());
   progress.Finish();
   PrintMetrics(summary.report, summary.metrics, global.json);
-  if (!summary.map_keeping_failure.empty()) {
-    core::ThrowRuntime("replay --mapping: map keeping stopped (" + summary.map_keeping_failure +
-                       "); the report is written, and the map holds what was committed before");
-  }
+  runtime::ThrowIfMapKeepingStopped("replay --mapping", summary.map_keeping_failure);
 }
 
 }  // namespace

@@ -12,6 +12,7 @@
 #include "mosaicloc/core/stop_signals.hpp"
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/runtime/live_run.hpp"
+#include "mosaicloc/runtime/map_keeping.hpp"
 #include "mosaicloc/runtime/run_config.hpp"
 
 namespace mosaicloc::app {
@@ -90,10 +91,7 @@ void Run(const RunArgs& args, const GlobalOptions& global) {
                   args.record.string().c_str(), args.record.string().c_str(), config.map.string().c_str());
     }
   }
-  if (summary.contains("map_keeping_failure")) {
-    core::ThrowRuntime("run: map keeping stopped (" + summary["map_keeping_failure"].get<std::string>() +
-                       "); localization went on to the end, and the map holds what was committed before");
-  }
+  runtime::ThrowIfMapKeepingStopped("run", summary.value("map_keeping_failure", std::string()));
 }
 
 }  // namespace

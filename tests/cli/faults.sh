@@ -102,7 +102,7 @@ cp "$W/half.db" "$W/full-half.db"
 size_kb=$(( $(stat -c %s "$W/half.db") / 1024 + 64 ))
 expect_exit 1 small_files "$size_kb" "$M" --json replay --dataset "$W/ds" --map "$W/full-half.db" --mapping --out "$W/full-replay"
 expect_in "$SCRATCH/err" "map keeping stopped"
-expect_in "$SCRATCH/err" "the report is written, and the map holds what was committed before"
+expect_in "$SCRATCH/err" "its results are written, and the map holds what was committed before"
 json_check "$W/full-replay/metrics.json" 'd["wrong_fixes"] == 0' \
   "d['fix_rate'] == $(python3 -c "import json; print(json.load(open('$W/kept/metrics.json'))['fix_rate'])")"
 expect_exit 0 "$M" map check "$W/full-half.db"

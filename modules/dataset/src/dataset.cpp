@@ -4,6 +4,7 @@
 
 #include <cerrno>
 #include <charconv>
+#include <iomanip>
 #include <limits>
 #include <sstream>
 #include <vector>
@@ -251,6 +252,17 @@ bool DatasetReader::HasGroundTruth() const {
 Trajectory DatasetReader::GroundTruth() const {
   if (!HasGroundTruth()) core::ThrowInvalidInput((directory_ / kGroundTruth).string() + ": missing (no ground truth)");
   return ReadTum(directory_ / kGroundTruth);
+}
+
+std::string DatasetReader::Summary::Describe() const {
+  std::ostringstream text;
+  text << "valid: " << frames << " frames, " << encoder_samples << " encoder samples, " << groundtruth_poses
+       << " ground-truth poses, " << std::fixed << std::setprecision(2) << duration_s << " s";
+  if (skipped_frames + skipped_encoder_samples > 0) {
+    text << "\n  skipped, not after the row before in time: " << skipped_frames << " frames, "
+         << skipped_encoder_samples << " encoder samples";
+  }
+  return text.str();
 }
 
 DatasetReader::Summary DatasetReader::Validate() const {

@@ -85,6 +85,7 @@ TEST(Dataset, RoundTrip) {
   EXPECT_EQ(summary.encoder_samples, 10);
   EXPECT_EQ(summary.groundtruth_poses, 2);
   EXPECT_NEAR(summary.duration_s, 0.066, 1e-12);
+  EXPECT_EQ(summary.Describe(), "valid: 3 frames, 10 encoder samples, 2 ground-truth poses, 0.07 s");
 }
 
 TEST(Dataset, UncommittedWriterLeavesNothing) {
@@ -189,6 +190,7 @@ TEST(Dataset, RowsNotAfterTheRowBeforeAreSkipped) {
   EXPECT_EQ(summary.frames, 2);
   EXPECT_EQ(summary.skipped_frames, 2);
   EXPECT_EQ(summary.skipped_encoder_samples, 1);
+  EXPECT_THAT(summary.Describe(), HasSubstr("\n  skipped, not after the row before in time: 2 frames, 1 encoder samples"));
 
   // A bad time is still an error, named by file and line.
   test::WriteFile(dir / "cam0/data.csv", "#timestamp_ns,filename\n0,0.png\nsoon,66000000.png\n");

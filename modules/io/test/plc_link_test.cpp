@@ -208,6 +208,15 @@ TEST(CountersChangedAt, MiddleOfTheLastCounterPeriodSinceThePreviousRead) {
   EXPECT_EQ(CountersChangedAt(t0, t0 + 30ms, 0ms), t0 + 15ms);
 }
 
+// Reads until the PLC answers (the link reconnects after its backoff), for at most half a second.
+std::optional<PlcInputs> ReadWhenAnswered(PlcLink& link) {
+  for (int i = 0; i < 50; ++i) {
+    if (auto r = link.Read(); r.ok()) return r.value();
+    std::this_thread::sleep_for(10ms);
+  }
+  return std::nullopt;
+}
+
 TEST(PlcClientTest, NoPlcIsAFailureNotACrashAndRetriesWithBackoff) {
   const int port = FreePort();
   PlcLinkOptions options = ClientOptions(port);
@@ -252,11 +261,7 @@ TEST(PlcClientTest, PlcRestartIsSurvived) {
   EXPECT_FALSE(link->stats().connected);
   TestPlc plc(port);
   plc.Set(4, 2);
-  std::optional<PlcInputs> read;
-  for (int i = 0; i < 50 && !read; ++i) {
-    if (auto r = link->Read(); r.ok()) read = r.value();
-    std::this_thread::sleep_for(10ms);
-  }
+  const std::optional<PlcInputs> read = ReadWhenAnswered(*link);
   ASSERT_TRUE(read.has_value());
   EXPECT_EQ(read->plc_heartbeat, 2U);
   EXPECT_EQ(link->stats().connects, 2);
@@ -276,11 +281,7 @@ TEST(PlcClientTest, LateReplyDoesNotPoisonTheNextRead) {
   // The late answer (heartbeat 10) must not be taken for the answer to the next request.
   plc.DelayReplies(0ms);
   plc.Set(4, 11);
-  std::optional<PlcInputs> read;
-  for (int i = 0; i < 50 && !read; ++i) {
-    if (auto r = link->Read(); r.ok()) read = r.value();
-    std::this_thread::sleep_for(10ms);
-  }
+  const std::optional<PlcInputs> read = ReadWhenAnswered(*link);
   ASSERT_TRUE(read.has_value());
   EXPECT_EQ(read->plc_heartbeat, 11U);
 }
@@ -301,11 +302,7 @@ TEST(PlcClientTest, GarbageForAnAnswerIsAFailureAndTheNextAnswerIsRead) {
   // Whatever the garbage left in the connection is not taken for the next answer.
   plc.GarbleReplies(false);
   plc.Set(4, 21);
-  std::optional<PlcInputs> read;
-  for (int i = 0; i < 50 && !read; ++i) {
-    if (auto r = link->Read(); r.ok()) read = r.value();
-    std::this_thread::sleep_for(10ms);
-  }
+  const std::optional<PlcInputs> read = ReadWhenAnswered(*link);
   ASSERT_TRUE(read.has_value());
   EXPECT_EQ(read->plc_heartbeat, 21U);
 }

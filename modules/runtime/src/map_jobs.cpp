@@ -90,7 +90,9 @@ MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(d
     pose_options.join_start_sigma_mm = args.join_start_sigma_mm;
     pose_options.out = estimated_file;
     pose_options.report = args.report;
-    mapping = EstimateMapPoses(pose_options, [&](double fraction) {
+    std::vector<const dataset::DatasetReader*> open;
+    for (const auto& reader : readers) open.push_back(reader.get());
+    mapping = EstimateMapPoses(pose_options, open, [&](double fraction) {
       if (progress) progress(0.5 * fraction);
     });
   }

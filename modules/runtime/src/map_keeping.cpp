@@ -7,6 +7,13 @@
 
 namespace mosaicloc::runtime {
 
+void ThrowIfMapKeepingStopped(const std::string& command, const std::string& failure) {
+  if (failure.empty()) return;
+  core::ThrowRuntime(command + ": map keeping stopped (" + failure +
+                     "); localization went on to the end, its results are written, and the map holds what was "
+                     "committed before");
+}
+
 MapKeeper::MapKeeper(MapSession& map, const camera::IdealCamera& camera, const tracking::TrackerOptions& tracker,
                      const LocalizationSettings& settings, const core::Pose2& vehicle_from_camera, bool background,
                      std::size_t queue_frames)

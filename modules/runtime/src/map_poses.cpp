@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <memory>
 #include <numbers>
 #include <sstream>
 
@@ -185,9 +186,20 @@ fs::path DrivePath(const fs::path& out, int k) {
 }
 
 MapPosesSummary EstimateMapPoses(const MapPosesOptions& options, const std::function<void(double)>& progress) {
+  std::vector<std::unique_ptr<dataset::DatasetReader>> opened;
+  std::vector<const dataset::DatasetReader*> readers;
+  opened.push_back(std::make_unique<dataset::DatasetReader>(options.dataset));
+  for (const fs::path& d : options.joined) opened.push_back(std::make_unique<dataset::DatasetReader>(d));
+  for (const auto& reader : opened) readers.push_back(reader.get());
+  return EstimateMapPoses(options, readers, progress);
+}
+
+MapPosesSummary EstimateMapPoses(const MapPosesOptions& options, const std::vector<const dataset::DatasetReader*>& readers,
+                                 const std::function<void(double)>& progress) {
   const auto started = std::chrono::steady_clock::now();
   std::vector<fs::path> datasets = {options.dataset};
   datasets.insert(datasets.end(), options.joined.begin(), options.joined.end());
+  if (readers.size() != datasets.size()) core::ThrowInvalidInput("map poses: one reader per drive is needed");
   if (!options.graph_in.empty() && datasets.size() > 1) {
     core::ThrowInvalidInput("an imported pose graph is of one drive: it cannot be joined with others");
   }
@@ -197,7 +209,7 @@ MapPosesSummary EstimateMapPoses(const MapPosesOptions& options, const std::func
   std::vector<std::optional<dataset::Trajectory>> truths;
   std::vector<std::size_t> firsts;  // per drive, its first frame in the input
   for (std::size_t d = 0; d < datasets.size(); ++d) {
-    const dataset::DatasetReader reader(datasets[d]);
+    const dataset::DatasetReader& reader = *readers[d];
     const dataset::DatasetInfo& info = reader.info();
     const camera::IdealCamera camera = CameraOf(info);
     if (d == 0) {

@@ -121,6 +121,9 @@ class DatasetReader {
     double duration_s = 0.0;
     std::int64_t skipped_frames = 0;           ///< rows skipped for their time (see above)
     std::int64_t skipped_encoder_samples = 0;
+    /// "valid: F frames, E encoder samples, G ground-truth poses, D s", and a second line
+    /// with the skipped rows when there are any.
+    std::string Describe() const;
   };
   Summary Validate() const;
 

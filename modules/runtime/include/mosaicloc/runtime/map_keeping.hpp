@@ -40,6 +40,11 @@ struct MapKeepingSummary {
   std::string failure;
 };
 
+/// After a drive whose map keeping stopped early (`failure` not empty): throws core::Error
+/// (runtime) saying so for `command`, so that the command, its report already written, ends
+/// with an error. Does nothing when `failure` is empty.
+void ThrowIfMapKeepingStopped(const std::string& command, const std::string& failure);
+
 /// The map kept up to date as a drive goes (design.md sections 7d and 7e): automatic mapping
 /// of the floor off the map (mapping::MapExtender) and automatic map updates of floor that
 /// changed (mapping::MapUpdater, when settings.map_update.enabled), fed each frame's outcome.

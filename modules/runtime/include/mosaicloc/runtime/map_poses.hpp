@@ -3,8 +3,10 @@
 #include <filesystem>
 #include <functional>
 #include <optional>
+#include <vector>
 
 #include "mosaicloc/core/pose2.hpp"
+#include "mosaicloc/dataset/dataset.hpp"
 #include "mosaicloc/dataset/trajectory.hpp"
 #include "mosaicloc/mapping/mapper.hpp"
 
@@ -66,6 +68,10 @@ struct MapPosesSummary {
 /// compares with the ground truth where the dataset has one. Throws core::Error (invalid
 /// input) for a dataset that cannot be read.
 MapPosesSummary EstimateMapPoses(const MapPosesOptions& options, const std::function<void(double)>& progress = {});
+/// The same with the drives already open (options.dataset's, then each joined one's), so that
+/// a caller that reads them again (map build) opens and checks each once.
+MapPosesSummary EstimateMapPoses(const MapPosesOptions& options, const std::vector<const dataset::DatasetReader*>& readers,
+                                 const std::function<void(double)>& progress = {});
 
 /// The consistency report: consistency.json (the figures), loops.csv (every loop tried, why
 /// the rejected ones were), seams.csv (every registered pair's residual before and after
