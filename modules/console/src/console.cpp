@@ -11,6 +11,7 @@
 #include <mutex>
 #include <optional>
 #include <sstream>
+#include <string_view>
 #include <thread>
 #include <unordered_map>
 
@@ -222,6 +223,58 @@ void SendError(httplib::Response& response, int status, const std::string& messa
   response.set_content(nlohmann::json{{"error", message}}.dump(), "application/json");
 }
 
+// The console's server, which can also answer a connection's bytes handed to it (Answer): the
+// same request parsing, token check, rate limit and routes, without a socket.
+class ConsoleServer final : public httplib::Server {
+ public:
+  std::string Answer(std::string_view request) {
+    BufferStream stream(request);
+    // As a connection would be served: requests one after another (pipelined) until the input
+    // ends or a response closes the connection; at most keep-alive's count of them.
+    for (int i = 0; i < 100 && stream.is_readable(); ++i) {
+      bool closed = false;
+      if (!process_request(stream, false, closed, nullptr) || closed) break;
+    }
+    return std::move(stream.written);
+  }
+
+ private:
+  class BufferStream final : public httplib::Stream {
+   public:
+    explicit BufferStream(std::string_view input) : input_(input) {}
+    bool is_readable() const override { return !input_.empty(); }
+    // A client that stops reading after 1 MiB or a tenth of a second: a live stream ends there.
+    bool is_writable() const override {
+      return written.size() < (1U << 20) && std::chrono::steady_clock::now() - opened_ < std::chrono::milliseconds(100);
+    }
+    ssize_t read(char* ptr, size_t size) override {
+      const std::size_t n = std::min(size, input_.size());
+      std::copy_n(input_.data(), n, ptr);
+      input_.remove_prefix(n);
+      return static_cast<ssize_t>(n);
+    }
+    ssize_t write(const char* ptr, size_t size) override {
+      if (!is_writable()) return -1;
+      written.append(ptr, size);
+      return static_cast<ssize_t>(size);
+    }
+    void get_remote_ip_and_port(std::string& ip, int& port) const override {
+      ip = "127.0.0.1";
+      port = 40000;
+    }
+    void get_local_ip_and_port(std::string& ip, int& port) const override {
+      ip = "127.0.0.1";
+      port = 8080;
+    }
+    socket_t socket() const override { return INVALID_SOCKET; }
+    std::string written;
+
+   private:
+    std::string_view input_;
+    std::chrono::steady_clock::time_point opened_ = std::chrono::steady_clock::now();
+  };
+};
+
 }  // namespace
 
 class Console::Impl {
@@ -281,6 +334,8 @@ class Console::Impl {
     core::Log().info("console: {}", Url());
     return port_;
   }
+
+  std::string Answer(std::string_view request) { return server_.Answer(request); }
 
   void Stop() {
     stopping_ = true;
@@ -634,7 +689,7 @@ class Console::Impl {
     server_.Get(R"(/leaflet/[a-z0-9/.-]+)", [this](const httplib::Request& request, httplib::Response& response) {
       const auto it = viewer_files_.find(request.path);
       if (it == viewer_files_.end()) return SendError(response, 404, "no such file");
-      response.set_header("Cache-Control", "max-age=86400");
+      CacheFor(response, "max-age=86400");
       response.set_content(it->second.body, it->second.content_type);
     });
     server_.Get("/api/map", [this](const httplib::Request&, httplib::Response& response) {
@@ -674,8 +729,14 @@ class Console::Impl {
       png = std::make_shared<const std::string>(read.png.begin(), read.png.end());
       cache_.Put(key, png);
     }
-    response.set_header("Cache-Control", "max-age=60");
+    CacheFor(response, "max-age=60");
     response.set_content(*png, "image/png");
+  }
+
+  // Every answer carries the default "no-store"; one that may be cached says how long instead.
+  static void CacheFor(httplib::Response& response, const char* cache_control) {
+    response.headers.erase("Cache-Control");
+    response.set_header("Cache-Control", cache_control);
   }
 
   void Stream(httplib::Response& response) {
@@ -685,7 +746,6 @@ class Console::Impl {
       return SendError(response, 503, "too many live streams open");
     }
     const auto period = std::chrono::duration<double>(1.0 / options_.stream_hz);
-    response.set_header("Cache-Control", "no-store");
     response.set_chunked_content_provider(
         "text/event-stream",
         [this, period, last_serial = std::int64_t{-1}](std::size_t, httplib::DataSink& sink) mutable {
@@ -714,7 +774,7 @@ class Console::Impl {
   std::map<std::string, internal::StaticFile> viewer_files_;
   internal::RateLimiter limiter_;
   internal::EncodedTileCache cache_;
-  httplib::Server server_;
+  ConsoleServer server_;
   std::thread thread_;
   int port_ = -1;
   std::atomic<bool> stopping_{false};
@@ -736,6 +796,7 @@ Console::Console(const ConsoleOptions& options, const fs::path& map) : impl_(std
 Console::~Console() = default;
 int Console::Start() { return impl_->Start(); }
 void Console::Stop() { impl_->Stop(); }
+std::string Console::Answer(std::string_view request) { return impl_->Answer(request); }
 std::string Console::Url() const { return impl_->Url(); }
 void Console::PublishPose(const LivePose& pose) noexcept { impl_->PublishPose(pose); }
 void Console::PublishStatus(const nlohmann::json& status) { impl_->PublishStatus(status); }

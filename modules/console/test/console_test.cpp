@@ -88,6 +88,9 @@ TEST_F(ConsoleTest, ServesTheMapsTilesAsStoredAndItsLayout) {
   ASSERT_EQ(tile->status, 200);
   EXPECT_EQ(tile->get_header_value("Content-Type"), "image/png");
   EXPECT_EQ(tile->body, std::string(stored_tile_.begin(), stored_tile_.end()));
+  // A tile may be cached for a minute, and says only that.
+  EXPECT_EQ(tile->get_header_value_count("Cache-Control"), 1U);
+  EXPECT_EQ(tile->get_header_value("Cache-Control"), "max-age=60");
   auto again = client.Get("/api/tiles/0/1/0.png");  // from the cache
   ASSERT_TRUE(again);
   EXPECT_EQ(again->body, tile->body);
@@ -97,6 +100,8 @@ TEST_F(ConsoleTest, ServesTheMapsTilesAsStoredAndItsLayout) {
 
   auto page = client.Get("/");
   ASSERT_TRUE(page);
+  EXPECT_EQ(page->get_header_value_count("Cache-Control"), 1U);
+  EXPECT_EQ(page->get_header_value("Cache-Control"), "no-store");
   EXPECT_NE(page->body.find("console.js"), std::string::npos);
   auto viewer = client.Get("/leaflet/leaflet.js");
   ASSERT_TRUE(viewer);
@@ -109,6 +114,24 @@ TEST_F(ConsoleTest, ServesTheMapsTilesAsStoredAndItsLayout) {
   auto gz = client.Get("/leaflet/leaflet.js", {{"Accept-Encoding", "gzip, deflate, br"}});
   ASSERT_TRUE(gz);
   EXPECT_EQ(gz->get_header_value("Content-Encoding"), "gzip");
+}
+
+// A connection's bytes handed to Answer get what a socket would: the same parsing, token
+// check and routes, pipelined requests one after another, and garbage an error or nothing.
+TEST_F(ConsoleTest, AnswersAConnectionsBytesAsTheServerDoes) {
+  ConsoleOptions options = Options();
+  options.token = "a-token-of-sixteen-or-more";
+  Console console(options, map_);
+  const std::string tile = console.Answer(
+      "GET /api/tiles/0/1/0.png HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer a-token-of-sixteen-or-more\r\n\r\n"
+      "GET /api/map HTTP/1.1\r\nHost: x\r\n\r\n");
+  EXPECT_TRUE(tile.starts_with("HTTP/1.1 200 OK\r\n")) << tile.substr(0, 200);
+  EXPECT_NE(tile.find(std::string(stored_tile_.begin(), stored_tile_.end())), std::string::npos);
+  EXPECT_NE(tile.find("HTTP/1.1 401"), std::string::npos);  // the second request had no token
+  EXPECT_TRUE(console.Answer("GET /api/map HTTP/1.1\r\n\r\n").starts_with("HTTP/1.1 401"));
+  const std::string garbage = console.Answer(std::string("\x16\x03\x01\x02\x00\x01\x00\x01\xfc\x03\x03", 11));
+  EXPECT_TRUE(garbage.empty() || garbage.starts_with("HTTP/1.1 400")) << garbage.substr(0, 100);
+  EXPECT_EQ(console.counters().unauthorized, 2);
 }
 
 TEST_F(ConsoleTest, ServesNothingOutsideItsMapReportsAndViewer) {

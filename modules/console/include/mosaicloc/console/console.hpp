@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -98,6 +99,10 @@ class Console {
   void Stop();
   /// http://HOST:PORT/ (with the token, if any), once started.
   std::string Url() const;
+  /// The bytes one client connection sends, answered as the server answers them (the same
+  /// request parsing, token check, rate limit and routes, the client at 127.0.0.1), without a
+  /// socket; returns what it would send back. Started or not. For fuzzing the console.
+  std::string Answer(std::string_view request);
 
   /// The live run's newest frame: never waits (dropped when a reader holds the state), so the
   /// frame loop is never slowed.
