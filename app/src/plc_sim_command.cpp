@@ -41,7 +41,8 @@ void RunPlcSim(PlcSimArgs args, const GlobalOptions& global) {
     if (global.quiet || global.json) return;
     std::printf("%7.1f s  clients %d  ticks %d %d  heartbeat %u  requests %lld answered %lld  fixes %lld  "
                 "last error %s\n",
-                s.seconds, s.clients, s.left_ticks, s.right_ticks, s.heartbeat, static_cast<long long>(s.requests),
+                s.seconds, s.clients, s.counters[0], s.counters[1], s.heartbeat,
+                static_cast<long long>(s.requests),
                 static_cast<long long>(s.answered), static_cast<long long>(s.fixes),
                 s.last_error_mm ? fmt::format("{:.3f} mm", *s.last_error_mm).c_str() : "-");
     std::fflush(stdout);

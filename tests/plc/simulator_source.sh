@@ -1,5 +1,7 @@
 # The simulator as a live source: `run` renders a drive and plays its frames in real time while
-# `plc-sim` plays the same drive's encoder counts (the simulator is deterministic).
+# `plc-sim` plays the same drive's encoder counts (the simulator is deterministic). The vehicle
+# is a tricycle: the PLC serves its drive wheel counter and its steering encoder (registers
+# 0-1 and 2-3), and the run takes its kind from the drive.
 source "$(dirname "$0")/lib.sh"
 TEXTURE="${MOSAICLOC_SHARED_DATA:-}/textures/asphalt_02_2048.jpg"
 if [ ! -f "$TEXTURE" ]; then
@@ -8,7 +10,10 @@ if [ ! -f "$TEXTURE" ]; then
 fi
 cat > "$SCRATCH/drive.yaml" <<YAML
 floor: {kind: image, image: $TEXTURE}
-route: {name: straight, straight_length_m: 2.0, stop_s: 0.7, speed_mps: 1.0}
+route: {name: straight, straight_length_m: 2.0, stop_s: 0.7, speed_mps: 1.0, curvature_transition_m: 0.5,
+        lateral_deviation_mm: 8.0}
+vehicle: {kind: tricycle, drive_wheel_radius_mm: 100.0, wheelbase_mm: 1200.0, steering_ticks_per_revolution: 65536}
+encoders: {drive_radius_error: 0.01, steering_offset_error_deg: 0.3}
 run: {seed: 32, laps: 1}
 YAML
 "$MOSAICLOC" --quiet simulate --out "$SCRATCH/map-run" --config "$SCRATCH/drive.yaml" --speed-mps 0.5 --seed 31 \
@@ -26,6 +31,6 @@ cp "$SCRATCH/out" "$SCRATCH/run.jsonl"
 wait $PLC || fail "plc-sim failed: $(tail -3 "$SCRATCH/plc.err")"
 tail -1 "$SCRATCH/run.jsonl"
 json_check "$SCRATCH/run.jsonl" 'd["fix_rate"] >= 0.95' 'd["lock_losses"] == 0' 'd["answered"] >= 5' \
-  'd["answered"] == d["requests"]'
+  'd["answered"] == d["requests"]' 'd["encoder_rejected"] == 0' 'd["encoder_samples"] >= 300'
 json_check "$SCRATCH/plc.json" 'd["answered"] >= 5' 'd["fixes_received"] >= 20'
 finish

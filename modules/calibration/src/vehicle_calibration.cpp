@@ -189,7 +189,10 @@ VehicleCalibrationResult CalibrateVehicle(const std::vector<DriveStep>& steps,
     result.sigma = (lu.inverse().diagonal() * variance).cwiseSqrt();
   }
   result.vehicle_from_camera = core::Pose2(p(0), p(1), std::remainder(p(2), 2.0 * M_PI));
-  result.wheels = {p(3), p(4), p(5)};
+  result.wheels = core::WheelGeometry{};
+  result.wheels.left_wheel_radius_mm = p(3);
+  result.wheels.right_wheel_radius_mm = p(4);
+  result.wheels.track_width_mm = p(5);
   double sum_t = 0.0, sum_r = 0.0;
   for (long i = 0; i < r.size() / 3; ++i) {
     sum_t += (r(3 * i) * r(3 * i) + r(3 * i + 1) * r(3 * i + 1)) * options.registration_sigma_mm * options.registration_sigma_mm;

@@ -119,6 +119,12 @@ VehicleDriveResult CalibrateVehicleFromDrive(const std::filesystem::path& datase
   if (!options.Check(&why)) core::ThrowInvalidInput(why);
   const dataset::DatasetReader reader(dataset_dir);
   const dataset::DatasetInfo& info = reader.info();
+  if (info.vehicle.kind != core::DriveKind::kDifferential) {
+    core::ThrowInvalidInput(dataset_dir.string() + "/dataset.yaml: vehicle.kind is " + core::ToString(info.vehicle.kind) +
+                            ": the calibration drive calibrates a differential drive's wheels; a tricycle's wheelbase "
+                            "and steering offset are taken as measured, and the localizer learns the offset's error "
+                            "and the drive wheel's scale from its fixes");
+  }
   std::vector<dataset::EncoderSample> encoders;
   for (auto stream = reader.Encoders(); auto sample = stream.Next();) encoders.push_back(*sample);
   if (encoders.size() < 2) core::ThrowInvalidInput(dataset_dir.string() + ": the drive has no encoder samples");

@@ -35,7 +35,7 @@ std::vector<DriveStep> Drive(const core::Pose2& vehicle_from_camera, const core:
 
 TEST(CalibrateVehicle, RecoversMountingAndWheelsFromAStraightRunAndATurn) {
   const core::Pose2 truth(212.5, -14.0, 0.035);
-  const core::WheelGeometry wheels{75.4, 74.7, 507.0, 4096};
+  const core::WheelGeometry wheels{core::DriveKind::kDifferential, 75.4, 74.7, 507.0, 4096};
   const auto steps = Drive(truth, wheels, 0.02, 1e-4, 3);
   const VehicleCalibrationResult result = CalibrateVehicle(steps, {});
   ASSERT_TRUE(result.converged) << result.message;
@@ -66,7 +66,7 @@ TEST(CalibrateVehicle, AStraightRunAloneIsReportedAsNotDetermining) {
 
 TEST(CalibrateVehicle, LongerBaselinesComposeTheArcsOfTheirIntervals) {
   const core::Pose2 truth(212.5, -14.0, 0.035);
-  const core::WheelGeometry wheels{75.4, 74.7, 507.0, 4096};
+  const core::WheelGeometry wheels{core::DriveKind::kDifferential, 75.4, 74.7, 507.0, 4096};
   const auto single = Drive(truth, wheels, 0.0, 0.0, 5);
   // Every step also registered over three intervals, the straight run into the turn
   // included: the composed arcs must predict those motions exactly.

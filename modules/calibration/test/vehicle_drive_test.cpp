@@ -82,7 +82,7 @@ TEST(VehicleCalibrationFile, RoundTripsExactly) {
   test::ScratchDir scratch;
   VehicleCalibrationFile written;
   written.vehicle_from_camera = core::Pose2(212.51234567891234, -14.000000001, 0.0351);
-  written.wheels = {75.4000000001, 74.7, 507.03, 4096};
+  written.wheels = {core::DriveKind::kDifferential, 75.4000000001, 74.7, 507.03, 4096};
   written.sigma = {0.01, 0.02, 1e-5, 0.003, 0.004, 0.05};
   WriteVehicleCalibration(scratch / "vehicle.yaml", written, "a comment\non two lines");
   const std::string text = test::ReadFile(scratch / "vehicle.yaml");

@@ -1,8 +1,17 @@
 #include "mosaicloc/core/wheel_geometry.hpp"
 
 #include <cmath>
+#include <numbers>
 
 namespace mosaicloc::core {
+
+const char* ToString(DriveKind kind) {
+  switch (kind) {
+    case DriveKind::kDifferential: return "differential";
+    case DriveKind::kTricycle: return "tricycle";
+  }
+  return "unknown";
+}
 
 bool WheelGeometry::Check(std::string* why) const {
   const auto positive = [why](const char* key, double value) {
@@ -10,15 +19,36 @@ bool WheelGeometry::Check(std::string* why) const {
     *why = std::string(key) + " must be > 0 mm (got " + std::to_string(value) + ")";
     return false;
   };
-  if (!positive("left_wheel_radius_mm", left_wheel_radius_mm) ||
-      !positive("right_wheel_radius_mm", right_wheel_radius_mm) || !positive("track_width_mm", track_width_mm)) {
+  const auto counts = [why](const char* key, std::int64_t value) {
+    if (value > 0) return true;
+    *why = std::string(key) + " must be > 0 (got " + std::to_string(value) + ")";
     return false;
+  };
+  if (kind == DriveKind::kTricycle) {
+    if (!positive("drive_wheel_radius_mm", drive_wheel_radius_mm) || !positive("wheelbase_mm", wheelbase_mm) ||
+        !counts("ticks_per_revolution", ticks_per_revolution) ||
+        !counts("steering_ticks_per_revolution", steering_ticks_per_revolution)) {
+      return false;
+    }
+    if (!(std::abs(steering_offset_deg) <= 45.0)) {
+      *why = "steering_offset_deg must be within +-45 (got " + std::to_string(steering_offset_deg) + ")";
+      return false;
+    }
+    return true;
   }
-  if (ticks_per_revolution <= 0) {
-    *why = "ticks_per_revolution must be > 0 (got " + std::to_string(ticks_per_revolution) + ")";
-    return false;
-  }
-  return true;
+  return positive("left_wheel_radius_mm", left_wheel_radius_mm) &&
+         positive("right_wheel_radius_mm", right_wheel_radius_mm) && positive("track_width_mm", track_width_mm) &&
+         counts("ticks_per_revolution", ticks_per_revolution);
+}
+
+double WheelGeometry::SteeringRad(std::int32_t steering_ticks) const {
+  return 2.0 * std::numbers::pi * static_cast<double>(steering_ticks) /
+             static_cast<double>(steering_ticks_per_revolution) +
+         steering_offset_deg * std::numbers::pi / 180.0;
+}
+
+double WheelGeometry::TicksToMm(double radius_mm, std::int64_t ticks) const {
+  return 2.0 * std::numbers::pi * radius_mm * static_cast<double>(ticks) / static_cast<double>(ticks_per_revolution);
 }
 
 void ReadWheelGeometry(YamlMap& map, WheelGeometry* wheels, bool required) {
@@ -29,10 +59,19 @@ void ReadWheelGeometry(YamlMap& map, WheelGeometry* wheels, bool required) {
       map.Optional(key, value);
     }
   };
-  read("left_wheel_radius_mm", &wheels->left_wheel_radius_mm);
-  read("right_wheel_radius_mm", &wheels->right_wheel_radius_mm);
-  read("track_width_mm", &wheels->track_width_mm);
-  read("ticks_per_revolution", &wheels->ticks_per_revolution);
+  map.OptionalEnum("kind", &wheels->kind, kDriveKinds);
+  if (wheels->kind == DriveKind::kTricycle) {
+    read("drive_wheel_radius_mm", &wheels->drive_wheel_radius_mm);
+    read("wheelbase_mm", &wheels->wheelbase_mm);
+    read("ticks_per_revolution", &wheels->ticks_per_revolution);
+    read("steering_ticks_per_revolution", &wheels->steering_ticks_per_revolution);
+    read("steering_offset_deg", &wheels->steering_offset_deg);
+  } else {
+    read("left_wheel_radius_mm", &wheels->left_wheel_radius_mm);
+    read("right_wheel_radius_mm", &wheels->right_wheel_radius_mm);
+    read("track_width_mm", &wheels->track_width_mm);
+    read("ticks_per_revolution", &wheels->ticks_per_revolution);
+  }
   map.Check(*wheels);
 }
 

@@ -62,5 +62,26 @@ TEST(WheelGeometry, RequiredKeysAreAllNamedWhenMissing) {
   EXPECT_THAT(problems[2], HasSubstr("vehicle.ticks_per_revolution: missing required key"));
 }
 
+TEST(WheelGeometry, ATricycleHasItsOwnKeysAndTheOthersAreProblems) {
+  WheelGeometry wheels;
+  EXPECT_TRUE(Read("vehicle:\n  kind: tricycle\n  wheelbase_mm: 1400\n  steering_offset_deg: -0.4\n", &wheels, false)
+                  .empty());
+  EXPECT_EQ(wheels.kind, DriveKind::kTricycle);
+  EXPECT_EQ(wheels.wheelbase_mm, 1400.0);
+  EXPECT_NEAR(wheels.SteeringRad(0), -0.4 * M_PI / 180.0, 1e-15);
+  EXPECT_NEAR(wheels.SteeringRad(16384), M_PI / 2 - 0.4 * M_PI / 180.0, 1e-15);  // a quarter of 65536
+  wheels = {};
+  EXPECT_THAT(Read("vehicle:\n  kind: tricycle\n  track_width_mm: 480\n", &wheels, false),
+              ElementsAre(HasSubstr("track_width_mm")));
+  wheels = {};
+  EXPECT_THAT(Read("vehicle:\n  kind: tricycle\n  steering_offset_deg: 60\n", &wheels, false),
+              ElementsAre(HasSubstr("steering_offset_deg: must be within +-45")));
+  wheels = {};
+  EXPECT_THAT(Read("vehicle:\n  kind: forklift\n", &wheels, false), ElementsAre(HasSubstr("kind")));
+  wheels = {};  // a dataset names every key of its kind
+  EXPECT_THAT(Read("vehicle:\n  kind: tricycle\n  wheelbase_mm: 1400\n", &wheels, true),
+              testing::Contains(HasSubstr("drive_wheel_radius_mm")));
+}
+
 }  // namespace
 }  // namespace mosaicloc::core

@@ -27,7 +27,20 @@ constexpr const char* kFramesDir = "cam0/data";
 constexpr const char* kEncodersCsv = "encoders/data.csv";
 constexpr const char* kGroundTruth = "groundtruth/data.tum";
 constexpr const char* kFramesHeader = "#timestamp_ns,filename";
-constexpr const char* kEncodersHeader = "#timestamp_ns,left_ticks,right_ticks";
+// The encoder file's columns after the time: the vehicle kind's two counters.
+struct EncoderColumns {
+  const char* header;
+  const char* names[2];
+  std::int32_t EncoderSample::*fields[2];
+};
+EncoderColumns ColumnsOf(core::DriveKind kind) {
+  if (kind == core::DriveKind::kTricycle) {
+    return {"#timestamp_ns,drive_ticks,steering_ticks", {"drive_ticks", "steering_ticks"},
+            {&EncoderSample::drive_ticks, &EncoderSample::steering_ticks}};
+  }
+  return {"#timestamp_ns,left_ticks,right_ticks", {"left_ticks", "right_ticks"},
+          {&EncoderSample::left_ticks, &EncoderSample::right_ticks}};
+}
 
 using detail::LineError;
 using detail::ParseInt64;
@@ -161,7 +174,21 @@ DatasetReader::DatasetReader(const fs::path& directory) : directory_(directory) 
   info_ = ReadDatasetInfo(directory_ / "dataset.yaml");
   // Fail early on a missing or headless CSV, or a bad time, rather than after minutes of processing.
   skipped_frames_ = SkippedRows(directory_ / kFramesCsv, kFramesHeader, &frame_rows_);
-  skipped_encoder_samples_ = SkippedRows(directory_ / kEncodersCsv, kEncodersHeader);
+  skipped_encoder_samples_ = SkippedRows(directory_ / kEncodersCsv, ColumnsOf(info_.vehicle.kind).header);
+  // A header that names the other kind's counters: the file is not this vehicle's.
+  std::ifstream encoders(directory_ / kEncodersCsv);
+  std::string header;
+  std::getline(encoders, header);
+  for (const core::DriveKind other : core::kDriveKinds) {
+    const EncoderColumns columns = ColumnsOf(other);
+    if (other != info_.vehicle.kind &&
+        (header.find(columns.names[0]) != std::string::npos || header.find(columns.names[1]) != std::string::npos)) {
+      LineError(directory_ / kEncodersCsv, 1,
+                "the header names a " + std::string(core::ToString(other)) + "'s counters, but dataset.yaml's "
+                "vehicle.kind is " + core::ToString(info_.vehicle.kind) + " (expected '" +
+                    ColumnsOf(info_.vehicle.kind).header + "')");
+    }
+  }
 }
 
 DatasetReader::FrameStream::FrameStream(fs::path directory, const CameraInfo& camera)
@@ -209,40 +236,41 @@ std::optional<Frame> DatasetReader::FrameStream::Next(const std::function<bool(c
   return frame;
 }
 
-DatasetReader::EncoderStream::EncoderStream(fs::path csv) : csv_(std::move(csv)) {
-  OpenCsv(csv_, kEncodersHeader, &in_);
+DatasetReader::EncoderStream::EncoderStream(fs::path csv, core::DriveKind kind) : csv_(std::move(csv)), kind_(kind) {
+  OpenCsv(csv_, ColumnsOf(kind_).header, &in_);
 }
 
 std::optional<EncoderSample> DatasetReader::EncoderStream::Next() {
   std::string line;
   std::vector<std::string> fields;
   EncoderSample sample;
+  const EncoderColumns columns = ColumnsOf(kind_);
   do {
     if (!NextLine(in_, &line_number_, &line)) return std::nullopt;
     fields = SplitCsv(line);
     if (fields.size() != 3) {
       LineError(csv_, line_number_,
-                "expected 3 fields 'timestamp_ns,left_ticks,right_ticks', got " + std::to_string(fields.size()));
+                "expected 3 fields '" + std::string(columns.header + 1) + "', got " + std::to_string(fields.size()));
     }
     sample.time = ParseTime(csv_, line_number_, fields[0]);
   } while (!InOrder(sample.time, &last_time_));
-  std::int32_t* targets[2] = {&sample.left_ticks, &sample.right_ticks};
-  const char* names[2] = {"left_ticks", "right_ticks"};
   for (int i = 0; i < 2; ++i) {
     std::int64_t value = 0;
     if (!ParseInt64(fields[static_cast<std::size_t>(i) + 1], &value) ||
         value < std::numeric_limits<std::int32_t>::min() || value > std::numeric_limits<std::int32_t>::max()) {
-      LineError(csv_, line_number_, std::string(names[i]) + " '" + fields[static_cast<std::size_t>(i) + 1] +
+      LineError(csv_, line_number_, std::string(columns.names[i]) + " '" + fields[static_cast<std::size_t>(i) + 1] +
                                         "' is not an int32 counter value");
     }
-    *targets[i] = static_cast<std::int32_t>(value);
+    sample.*columns.fields[i] = static_cast<std::int32_t>(value);
   }
   return sample;
 }
 
 DatasetReader::FrameStream DatasetReader::Frames() const { return FrameStream(directory_, info_.camera); }
 
-DatasetReader::EncoderStream DatasetReader::Encoders() const { return EncoderStream(directory_ / kEncodersCsv); }
+DatasetReader::EncoderStream DatasetReader::Encoders() const {
+  return EncoderStream(directory_ / kEncodersCsv, info_.vehicle.kind);
+}
 
 bool DatasetReader::HasGroundTruth() const {
   std::error_code ec;
@@ -299,7 +327,7 @@ DatasetWriter::DatasetWriter(const fs::path& directory, const DatasetInfo& info,
   encoders_csv_.open(staging_ / kEncodersCsv);
   if (!frames_csv_ || !encoders_csv_) core::ThrowRuntime(staging_.string() + ": cannot write");
   frames_csv_ << kFramesHeader << "\n";
-  encoders_csv_ << kEncodersHeader << "\n";
+  encoders_csv_ << ColumnsOf(info_.vehicle.kind).header << "\n";
 }
 
 DatasetWriter::~DatasetWriter() {
@@ -347,7 +375,9 @@ void DatasetWriter::AddEncoderSample(const EncoderSample& sample) {
                             std::to_string(sample.time.nanoseconds()) + ")");
   }
   last_encoder_time_ = sample.time;
-  encoders_csv_ << sample.time.nanoseconds() << "," << sample.left_ticks << "," << sample.right_ticks << "\n";
+  const EncoderColumns columns = ColumnsOf(info_.vehicle.kind);
+  encoders_csv_ << sample.time.nanoseconds() << "," << sample.*columns.fields[0] << "," << sample.*columns.fields[1]
+                << "\n";
 }
 
 void DatasetWriter::SetGroundTruth(const Trajectory& world_from_vehicle) { groundtruth_ = world_from_vehicle; }
@@ -378,10 +408,20 @@ void DatasetWriter::Commit() {
   yaml << YAML::Key << "yaw_rad" << YAML::Value << info_.camera.vehicle_from_camera.yaw_rad();
   yaml << YAML::EndMap << YAML::EndMap;
   yaml << YAML::Key << "vehicle" << YAML::Value << YAML::BeginMap;
-  yaml << YAML::Key << "left_wheel_radius_mm" << YAML::Value << info_.vehicle.left_wheel_radius_mm;
-  yaml << YAML::Key << "right_wheel_radius_mm" << YAML::Value << info_.vehicle.right_wheel_radius_mm;
-  yaml << YAML::Key << "track_width_mm" << YAML::Value << info_.vehicle.track_width_mm;
-  yaml << YAML::Key << "ticks_per_revolution" << YAML::Value << info_.vehicle.ticks_per_revolution;
+  const core::WheelGeometry& v = info_.vehicle;
+  if (v.kind == core::DriveKind::kTricycle) {
+    yaml << YAML::Key << "kind" << YAML::Value << core::ToString(v.kind);
+    yaml << YAML::Key << "drive_wheel_radius_mm" << YAML::Value << v.drive_wheel_radius_mm;
+    yaml << YAML::Key << "wheelbase_mm" << YAML::Value << v.wheelbase_mm;
+    yaml << YAML::Key << "ticks_per_revolution" << YAML::Value << v.ticks_per_revolution;
+    yaml << YAML::Key << "steering_ticks_per_revolution" << YAML::Value << v.steering_ticks_per_revolution;
+    yaml << YAML::Key << "steering_offset_deg" << YAML::Value << v.steering_offset_deg;
+  } else {  // the kind is the default: left out, as datasets from before tricycles have it
+    yaml << YAML::Key << "left_wheel_radius_mm" << YAML::Value << v.left_wheel_radius_mm;
+    yaml << YAML::Key << "right_wheel_radius_mm" << YAML::Value << v.right_wheel_radius_mm;
+    yaml << YAML::Key << "track_width_mm" << YAML::Value << v.track_width_mm;
+    yaml << YAML::Key << "ticks_per_revolution" << YAML::Value << v.ticks_per_revolution;
+  }
   yaml << YAML::EndMap;
   if (!info_.provenance.empty()) {
     yaml << YAML::Key << "provenance" << YAML::Value << YAML::BeginMap;

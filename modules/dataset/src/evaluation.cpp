@@ -350,6 +350,14 @@ void WriteMetricsJson(const std::filesystem::path& file, const Metrics& metrics)
   json["reentry_frames_to_fix_max"] = ToJson(metrics.reentry_frames_to_fix_max);
   json["reentry_first_fix_error_max_mm"] = ToJson(metrics.reentry_first_fix_error_max_mm);
   json["relocalizations"] = ToJson(metrics.relocalizations);
+  if (metrics.wheel_scale_left_percent) {
+    json["wheel_scale_left_percent"] = ToJson(metrics.wheel_scale_left_percent);
+    json["wheel_scale_right_percent"] = ToJson(metrics.wheel_scale_right_percent);
+  }
+  if (metrics.drive_wheel_scale_percent) {
+    json["drive_wheel_scale_percent"] = ToJson(metrics.drive_wheel_scale_percent);
+    json["steering_offset_error_deg"] = ToJson(metrics.steering_offset_error_deg);
+  }
   json["frames_to_first_fix"] = ToJson(metrics.frames_to_first_fix);
   json["first_fix_s"] = ToJson(metrics.first_fix_s);
   json["kidnap_frames_to_fix"] = ToJson(metrics.kidnap_frames_to_fix);

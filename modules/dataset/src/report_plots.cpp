@@ -290,7 +290,7 @@ void WriteMapPlots(const std::filesystem::path& directory, const std::vector<Fra
 }
 
 void WriteTimelines(const std::filesystem::path& directory, const std::vector<TimelineSample>& samples,
-                    const std::string& title) {
+                    const std::string& title, core::DriveKind kind) {
   CreateDirectory(directory);
   const bool height = std::any_of(samples.begin(), samples.end(),
                                   [](const TimelineSample& s) { return std::isfinite(s.height_mm); });
@@ -311,8 +311,8 @@ void WriteTimelines(const std::filesystem::path& directory, const std::vector<Ti
     nis[0].y.push_back(s.nis > 0.0 ? std::log10(s.nis) : plot::kNaN);
     speed[0].y.push_back(s.speed_mps);
     latency[0].y.push_back(s.latency_ms);
-    wheels[0].y.push_back(s.wheel_scale_left_percent);
-    wheels[1].y.push_back(s.wheel_scale_right_percent);
+    wheels[0].y.push_back(s.calibration_first);
+    wheels[1].y.push_back(s.calibration_second);
     heights[0].y.push_back(s.height_mm);
   }
   int k = 0;
@@ -327,12 +327,15 @@ void WriteTimelines(const std::filesystem::path& directory, const std::vector<Ti
   ++k;
   Panel(canvas, area(), t, latency, "latency [ms]", false);
   ++k;
-  Panel(canvas, area(), t, wheels, "wheel scale [%]", !height);
+  const bool tricycle = kind == core::DriveKind::kTricycle;
+  Panel(canvas, area(), t, wheels, tricycle ? "calibration [% / deg]" : "wheel scale [%]", !height);
   if (height) {
     ++k;
     Panel(canvas, area(), t, heights, "camera height [mm]", true);
   }
-  plot::PutText(canvas, "NIS: dashed, the 95 % bound (3 dof); wheel scale: left blue, right green",
+  plot::PutText(canvas,
+                tricycle ? "NIS: dashed, the 95 % bound (3 dof); drive wheel scale [%] blue, steering offset [deg] green"
+                         : "NIS: dashed, the 95 % bound (3 dof); wheel scale: left blue, right green",
                 {kWidth / 2, 46}, 0.5, plot::kDarkGrey, Align::kCenter, Align::kStart);
   plot::SavePng(directory / "timelines.png", canvas);
 }

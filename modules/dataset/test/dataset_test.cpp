@@ -88,6 +88,38 @@ TEST(Dataset, RoundTrip) {
   EXPECT_EQ(summary.Describe(), "valid: 3 frames, 10 encoder samples, 2 ground-truth poses, 0.07 s");
 }
 
+// A tricycle's dataset names its kind and keys, and its encoder file its two counters; a
+// differential drive's file under a tricycle's header is an error at the header.
+TEST(Dataset, TricycleRoundTrip) {
+  test::ScratchDir scratch;
+  DatasetInfo info = SmallInfo();
+  info.vehicle.kind = core::DriveKind::kTricycle;
+  info.vehicle.wheelbase_mm = 1350.0;
+  info.vehicle.steering_offset_deg = -0.25;
+  {
+    DatasetWriter writer(scratch / "ds", info, false);
+    writer.AddFrame(Ms(0), Image(1));
+    EncoderSample sample;
+    sample.time = Ms(0);
+    sample.drive_ticks = 2147483600;
+    sample.steering_ticks = -1234;
+    writer.AddEncoderSample(sample);
+    writer.Commit();
+  }
+  const DatasetReader reader(scratch / "ds");
+  EXPECT_EQ(reader.info().vehicle.kind, core::DriveKind::kTricycle);
+  EXPECT_EQ(reader.info().vehicle.wheelbase_mm, 1350.0);
+  EXPECT_EQ(reader.info().vehicle.steering_offset_deg, -0.25);
+  auto encoders = reader.Encoders();
+  const auto read = encoders.Next();
+  ASSERT_TRUE(read.has_value());
+  EXPECT_EQ(read->drive_ticks, 2147483600);
+  EXPECT_EQ(read->steering_ticks, -1234);
+  EXPECT_EQ(read->left_ticks, 0);
+  test::WriteFile(scratch / "ds/encoders/data.csv", "#timestamp_ns,left_ticks,right_ticks\n0,1,2\n");
+  EXPECT_THAT(ReadError(scratch / "ds"), HasSubstr("encoders/data.csv"));
+}
+
 TEST(Dataset, UncommittedWriterLeavesNothing) {
   test::ScratchDir scratch;
   {

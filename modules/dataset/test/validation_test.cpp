@@ -122,7 +122,7 @@ TEST(ReportPlots, DrawWhatIsKnownAndSayWhatIsNot) {
     samples[i].seconds = 0.1 * i;
     samples[i].quality = i == 1 ? std::numeric_limits<double>::quiet_NaN() : 0.95;
     samples[i].nis = std::numeric_limits<double>::quiet_NaN();
-    samples[i].wheel_scale_left_percent = samples[i].wheel_scale_right_percent = std::numeric_limits<double>::quiet_NaN();
+    samples[i].calibration_first = samples[i].calibration_second = std::numeric_limits<double>::quiet_NaN();
     samples[i].height_mm = std::numeric_limits<double>::quiet_NaN();
   }
   WriteTimelines(scratch.path(), samples, "unknowns");

@@ -5,10 +5,14 @@
 
 namespace mosaicloc::estimation {
 
-bool DiffDriveOptions::Check(std::string* why) const {
+bool OdometryOptions::Check(std::string* why) const {
   if (!wheels.Check(why)) return false;
   if (!(wheel_variance_mm >= 0.0) || !(max_wheel_speed_mps > 0.0)) {
     *why = "wheel_variance_mm must be >= 0 and max_wheel_speed_mps > 0";
+    return false;
+  }
+  if (!(steering_sigma_deg >= 0.0 && steering_sigma_deg <= 10.0)) {
+    *why = "steering_sigma_deg must be in [0, 10]";
     return false;
   }
   return true;
@@ -27,76 +31,125 @@ std::string ToString(OdometryFailure failure) {
   return "unknown";
 }
 
-DiffDriveOdometry::DiffDriveOdometry(const DiffDriveOptions& options, const core::Pose2& world_from_vehicle)
+Eigen::Vector2d WheelTravel::Motion(const Eigen::Vector2d& c, Eigen::Matrix2d* jacobian) const {
+  if (kind == core::DriveKind::kTricycle) {
+    const double s = (1.0 + c.x()) * drive_mm;
+    const double phi = steering_rad + c.y();
+    const double cos_phi = std::cos(phi), sin_phi = std::sin(phi);
+    if (jacobian != nullptr) {  // columns k, delta; rows ds, dtheta
+      *jacobian << drive_mm * cos_phi, -s * sin_phi, drive_mm * sin_phi / base_mm, s * cos_phi / base_mm;
+    }
+    return {s * cos_phi, s * sin_phi / base_mm};
+  }
+  const double left = (1.0 + c.x()) * left_mm;
+  const double right = (1.0 + c.y()) * right_mm;
+  if (jacobian != nullptr) {  // columns k_l, k_r: dk_l moves ds by l/2 and dtheta by -l/b
+    *jacobian << 0.5 * left_mm, 0.5 * right_mm, -left_mm / base_mm, right_mm / base_mm;
+  }
+  return {0.5 * (left + right), (right - left) / base_mm};
+}
+
+WheelTravel WheelTravel::Part(double fraction) const {
+  WheelTravel part = *this;
+  part.left_mm *= fraction;
+  part.right_mm *= fraction;
+  part.drive_mm *= fraction;
+  return part;
+}
+
+Eigen::Vector2d WheelTravel::Rolled() const {
+  if (kind == core::DriveKind::kTricycle) return {std::abs(drive_mm), std::abs(drive_mm)};
+  return {std::abs(left_mm), std::abs(right_mm)};
+}
+
+WheelOdometry::WheelOdometry(const OdometryOptions& options, const core::Pose2& world_from_vehicle)
     : options_(options), world_from_vehicle_(world_from_vehicle) {
   std::string why;
   if (!options_.Check(&why)) core::ThrowInvalidInput("odometry: " + why);
 }
 
-double DiffDriveOdometry::LeftTicksToMm(std::int64_t ticks) const {
-  return 2.0 * std::numbers::pi * options_.wheels.left_wheel_radius_mm * static_cast<double>(ticks) /
-         static_cast<double>(options_.wheels.ticks_per_revolution);
+double WheelOdometry::LeftTicksToMm(std::int64_t ticks) const {
+  return options_.wheels.TicksToMm(options_.wheels.left_wheel_radius_mm, ticks);
 }
 
-double DiffDriveOdometry::RightTicksToMm(std::int64_t ticks) const {
-  return 2.0 * std::numbers::pi * options_.wheels.right_wheel_radius_mm * static_cast<double>(ticks) /
-         static_cast<double>(options_.wheels.ticks_per_revolution);
+double WheelOdometry::RightTicksToMm(std::int64_t ticks) const {
+  return options_.wheels.TicksToMm(options_.wheels.right_wheel_radius_mm, ticks);
 }
 
-void DiffDriveOdometry::Reset(const core::Pose2& world_from_vehicle, const Eigen::Matrix3d& covariance) {
+void WheelOdometry::Reset(const core::Pose2& world_from_vehicle, const Eigen::Matrix3d& covariance) {
   world_from_vehicle_ = world_from_vehicle;
   covariance_ = covariance;
 }
 
-core::Result<OdometryIncrement, OdometryFailure> DiffDriveOdometry::Update(core::Timestamp time,
-                                                                          std::int32_t left_ticks,
-                                                                          std::int32_t right_ticks) {
+core::Result<OdometryIncrement, OdometryFailure> WheelOdometry::Update(core::Timestamp time,
+                                                                      const core::EncoderCounts& counts) {
   if (!last_time_) {
     last_time_ = time;
-    last_left_ = left_ticks;
-    last_right_ = right_ticks;
+    last_ = counts;
     return OdometryIncrement{};
   }
   if (time <= *last_time_) return core::Fail(OdometryFailure::kNotIncreasingTime);
 
+  const core::WheelGeometry& wheels = options_.wheels;
   OdometryIncrement increment;
   increment.dt = time - *last_time_;
-  increment.left_mm = LeftTicksToMm(TickDelta(last_left_, left_ticks));
-  increment.right_mm = RightTicksToMm(TickDelta(last_right_, right_ticks));
+  WheelTravel& travel = increment.travel;
+  travel.kind = wheels.kind;
+  // The wheels' travels (or the drive wheel's), their variances and d(ds, dtheta)/d(travels).
+  Eigen::Vector2d variance;
+  Eigen::Matrix2d d_motion;
+  double fastest_mm = 0.0;
+  if (wheels.kind == core::DriveKind::kTricycle) {
+    travel.base_mm = wheels.wheelbase_mm;
+    travel.drive_mm = wheels.TicksToMm(wheels.drive_wheel_radius_mm, TickDelta(last_.drive_ticks, counts.drive_ticks));
+    // The angle held over the increment: the mean of its two readings. How it moved between
+    // them is not known: a change of d between the readings adds the variance of a uniform
+    // spread over d (d^2 / 12), which at the entry to a bend (the wheel swung within a sample)
+    // far exceeds the reading's own error.
+    const double before = wheels.SteeringRad(last_.steering_ticks), after = wheels.SteeringRad(counts.steering_ticks);
+    travel.steering_rad = 0.5 * (before + after);
+    fastest_mm = std::abs(travel.drive_mm);
+    const double sigma_rad = options_.steering_sigma_deg * std::numbers::pi / 180.0;
+    variance = {options_.wheel_variance_mm * std::abs(travel.drive_mm),
+                sigma_rad * sigma_rad + (after - before) * (after - before) / 12.0};
+    const double cos_phi = std::cos(travel.steering_rad), sin_phi = std::sin(travel.steering_rad);
+    const double s = travel.drive_mm, l = travel.base_mm;
+    d_motion << cos_phi, -s * sin_phi, sin_phi / l, s * cos_phi / l;  // columns: drive travel, steering angle
+  } else {
+    travel.base_mm = wheels.track_width_mm;
+    travel.left_mm = LeftTicksToMm(TickDelta(last_.left_ticks, counts.left_ticks));
+    travel.right_mm = RightTicksToMm(TickDelta(last_.right_ticks, counts.right_ticks));
+    fastest_mm = std::max(std::abs(travel.left_mm), std::abs(travel.right_mm));
+    variance = {options_.wheel_variance_mm * std::abs(travel.right_mm),
+                options_.wheel_variance_mm * std::abs(travel.left_mm)};
+    const double b = travel.base_mm;
+    d_motion << 0.5, 0.5, 1.0 / b, -1.0 / b;  // columns: right, left
+  }
   last_time_ = time;
-  last_left_ = left_ticks;
-  last_right_ = right_ticks;
+  last_ = counts;
 
   const double dt_s = core::ToSeconds(increment.dt);
-  const double max_travel_mm = options_.max_wheel_speed_mps * 1000.0 * dt_s;
-  if (std::abs(increment.left_mm) > max_travel_mm || std::abs(increment.right_mm) > max_travel_mm) {
-    return core::Fail(OdometryFailure::kImplausibleJump);
-  }
+  if (fastest_mm > options_.max_wheel_speed_mps * 1000.0 * dt_s) return core::Fail(OdometryFailure::kImplausibleJump);
 
-  const double b = options_.wheels.track_width_mm;
-  increment.track_width_mm = b;
-  const double ds = 0.5 * (increment.right_mm + increment.left_mm);
-  const double dtheta = (increment.right_mm - increment.left_mm) / b;
+  const Eigen::Vector2d motion = travel.Motion(Eigen::Vector2d::Zero());
+  const double ds = motion.x(), dtheta = motion.y();
   increment.previous_from_current = core::Pose2::Exp({ds, 0.0, dtheta});
   increment.forward_speed_mps = ds / dt_s * 1e-3;
   increment.yaw_rate_radps = dtheta / dt_s;
 
   // Covariance propagation with the midpoint model (Siegwart et al., eqs. 5.6-5.9):
   //   x' = x + ds cos(phi), y' = y + ds sin(phi), theta' = theta + dtheta, phi = theta + dtheta/2,
-  //   P' = Fp P Fp^T + Frl diag(k|ds_r|, k|ds_l|) Frl^T.
+  //   P' = Fp P Fp^T + Fw diag(variances) Fw^T, Fw = d(x', y', theta')/d(ds, dtheta) d(ds, dtheta)/d(inputs).
   const double phi = world_from_vehicle_.yaw_rad() + 0.5 * dtheta;
   const double c = std::cos(phi);
   const double s = std::sin(phi);
   Eigen::Matrix3d f_pose = Eigen::Matrix3d::Identity();
   f_pose(0, 2) = -ds * s;
   f_pose(1, 2) = ds * c;
-  Eigen::Matrix<double, 3, 2> f_wheels;  // columns: right, left
-  f_wheels << 0.5 * c - ds / (2.0 * b) * s, 0.5 * c + ds / (2.0 * b) * s,
-              0.5 * s + ds / (2.0 * b) * c, 0.5 * s - ds / (2.0 * b) * c,
-              1.0 / b, -1.0 / b;
-  const Eigen::Vector2d wheel_variance(options_.wheel_variance_mm * std::abs(increment.right_mm),
-                                       options_.wheel_variance_mm * std::abs(increment.left_mm));
-  const Eigen::Matrix3d wheel_part = f_wheels * wheel_variance.asDiagonal() * f_wheels.transpose();
+  Eigen::Matrix<double, 3, 2> f_motion;  // d(x', y', theta')/d(ds, dtheta)
+  f_motion << c, -0.5 * ds * s, s, 0.5 * ds * c, 0.0, 1.0;
+  const Eigen::Matrix<double, 3, 2> f_wheels = f_motion * d_motion;
+  const Eigen::Matrix3d wheel_part = f_wheels * variance.asDiagonal() * f_wheels.transpose();
   covariance_ = f_pose * covariance_ * f_pose.transpose() + wheel_part;
   // The same in the previous vehicle frame: rotate the world-frame part back by its yaw.
   Eigen::Matrix3d to_vehicle = Eigen::Matrix3d::Identity();

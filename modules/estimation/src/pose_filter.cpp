@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 #include <Eigen/LU>
 
@@ -56,7 +57,27 @@ bool PoseFilterOptions::Check(std::string* why) const {
   if (!(wheel_scale_walk_per_sqrt_m >= 0.0 && wheel_scale_walk_per_sqrt_m <= 0.1)) {
     return fail("wheel_scale_walk_per_sqrt_m must be in [0, 0.1]");
   }
+  if (!(steering_offset_sigma_deg >= 0.0 && steering_offset_sigma_deg <= 20.0)) {
+    return fail("steering_offset_sigma_deg must be in [0, 20]");
+  }
+  if (!(steering_offset_walk_deg_per_sqrt_m >= 0.0 && steering_offset_walk_deg_per_sqrt_m <= 1.0)) {
+    return fail("steering_offset_walk_deg_per_sqrt_m must be in [0, 1]");
+  }
   return true;
+}
+
+Eigen::Vector2d PoseFilter::CalibrationSigma() const {
+  if (options_.kind == core::DriveKind::kTricycle) {
+    return {options_.wheel_scale_sigma, options_.steering_offset_sigma_deg * std::numbers::pi / 180.0};
+  }
+  return Eigen::Vector2d::Constant(options_.wheel_scale_sigma);
+}
+
+Eigen::Vector2d PoseFilter::CalibrationWalk() const {
+  if (options_.kind == core::DriveKind::kTricycle) {
+    return {options_.wheel_scale_walk_per_sqrt_m, options_.steering_offset_walk_deg_per_sqrt_m * std::numbers::pi / 180.0};
+  }
+  return Eigen::Vector2d::Constant(options_.wheel_scale_walk_per_sqrt_m);
 }
 
 PoseFilter::PoseFilter(const PoseFilterOptions& options, core::Timestamp time, const core::Pose2& world_from_vehicle,
@@ -65,8 +86,8 @@ PoseFilter::PoseFilter(const PoseFilterOptions& options, core::Timestamp time, c
   std::string why;
   if (!options_.Check(&why)) core::ThrowInvalidInput("pose filter options: " + why);
   Node start;
-  start.covariance.bottomRightCorner<2, 2>() =
-      Eigen::Matrix2d::Identity() * (options_.wheel_scale_sigma * options_.wheel_scale_sigma);
+  const Eigen::Vector2d sigma = CalibrationSigma();
+  start.covariance.bottomRightCorner<2, 2>() = sigma.cwiseProduct(sigma).asDiagonal();
   history_.push_back(start);
   Reset(time, world_from_vehicle, covariance);
 }
@@ -90,21 +111,18 @@ void PoseFilter::Propagate(const Node& from, Node* to) const {
   Matrix5d f = Matrix5d::Identity();
   Matrix5d noise = Matrix5d::Zero();
   to->wheel_scale = from.wheel_scale;
-  if (to->from_wheels) {
-    const double b = to->track_width_mm;
-    const double left = (1.0 + from.wheel_scale.x()) * to->left_mm;
-    const double right = (1.0 + from.wheel_scale.y()) * to->right_mm;
-    const double ds = 0.5 * (left + right), dtheta = (right - left) / b;
-    to->increment = core::Pose2::Exp({ds, 0.0, dtheta});
-    // d(pose+)/d(k_l, k_r) through (ds, dtheta): dk_l moves ds by l/2 and dtheta by -l/b.
-    const Eigen::Matrix2d arc = ArcTranslationJacobian(ds, dtheta);
-    Eigen::Matrix2d d_motion;  // columns k_l, k_r; rows ds, dtheta
-    d_motion << 0.5 * to->left_mm, 0.5 * to->right_mm, -to->left_mm / b, to->right_mm / b;
+  if (to->travel.measured()) {
+    // d(pose+)/dc through (ds, dtheta).
+    Eigen::Matrix2d d_motion;  // columns c; rows ds, dtheta
+    const Eigen::Vector2d motion = to->travel.Motion(from.wheel_scale, &d_motion);
+    to->increment = core::Pose2::Exp({motion.x(), 0.0, motion.y()});
+    const Eigen::Matrix2d arc = ArcTranslationJacobian(motion.x(), motion.y());
     f.block<2, 2>(0, 3) = rotation * arc * d_motion;
     f.block<1, 2>(2, 3) = d_motion.row(1);
-    const double walk = options_.wheel_scale_walk_per_sqrt_m * options_.wheel_scale_walk_per_sqrt_m * 1e-3;
-    noise(3, 3) = walk * std::abs(to->left_mm);
-    noise(4, 4) = walk * std::abs(to->right_mm);
+    const Eigen::Vector2d walk = CalibrationWalk();
+    const Eigen::Vector2d rolled_m = to->travel.Rolled() * 1e-3;
+    noise(3, 3) = walk.x() * walk.x() * rolled_m.x();
+    noise(4, 4) = walk.y() * walk.y() * rolled_m.y();
   }
   const double dx = to->increment.x_mm(), dy = to->increment.y_mm();
   f(0, 2) = -(s * dx + c * dy);
@@ -118,9 +136,8 @@ void PoseFilter::Propagate(const Node& from, Node* to) const {
 
 PoseFilter::Node PoseFilter::Part(const Node& node, double fraction) {
   Node part = node;
-  if (node.from_wheels) {
-    part.left_mm = fraction * node.left_mm;
-    part.right_mm = fraction * node.right_mm;
+  if (node.travel.measured()) {
+    part.travel = node.travel.Part(fraction);
   } else {
     part.increment = ArcPart(node.increment, fraction);
   }
@@ -132,10 +149,7 @@ void PoseFilter::Predict(core::Timestamp time, const OdometryIncrement& incremen
   if (time <= history_.back().time) return;  // out of order: odometry never goes back
   Node node;
   node.time = time;
-  node.from_wheels = increment.track_width_mm > 0.0;
-  node.left_mm = increment.left_mm;
-  node.right_mm = increment.right_mm;
-  node.track_width_mm = increment.track_width_mm;
+  node.travel = increment.travel;
   node.increment = increment.previous_from_current;
   node.increment_covariance = increment.covariance;
   // The state may already be past the increment's start (the filter coasted to a frame while
@@ -153,10 +167,9 @@ void PoseFilter::Predict(core::Timestamp time, const OdometryIncrement& incremen
   if (dt_s > 0.0) {
     // The speeds of the whole increment, with the wheels' scales applied.
     Eigen::Vector3d twist = increment.previous_from_current.Log();
-    if (node.from_wheels) {
-      const double left = (1.0 + node.wheel_scale.x()) * increment.left_mm;
-      const double right = (1.0 + node.wheel_scale.y()) * increment.right_mm;
-      twist = {0.5 * (left + right), 0.0, (right - left) / increment.track_width_mm};
+    if (increment.travel.measured()) {
+      const Eigen::Vector2d motion = increment.travel.Motion(node.wheel_scale);
+      twist = {motion.x(), 0.0, motion.y()};
     }
     forward_speed_mm_per_s_ = twist.x() / dt_s;
     yaw_rate_rad_per_s_ = twist.z() / dt_s;

@@ -45,8 +45,8 @@ class InputDecoder {
  private:
   static std::int32_t Ticks(const RegisterField& field, CounterUnwrapper* unwrapper, std::int64_t count);
   RegisterMap map_;
-  CounterUnwrapper left_;
-  CounterUnwrapper right_;
+  CounterUnwrapper first_;
+  CounterUnwrapper second_;
 };
 
 }  // namespace mosaicloc::io::detail

@@ -160,7 +160,7 @@ class ModbusServerLink final : public PlcLink {
     const std::vector<const RegisterField*> outputs = options.registers.Outputs();
     all.insert(all.end(), outputs.begin(), outputs.end());
     range_ = detail::RangeOf(all);
-    for (const RegisterField* field : {&options.registers.left_ticks, &options.registers.right_ticks}) {
+    for (const RegisterField* field : options.registers.Counters()) {
       tick_registers_.push_back({field->address, field->words()});
     }
     try {

@@ -145,7 +145,7 @@ RegisterRange RangeOf(const std::vector<const RegisterField*>& fields) {
 }
 
 InputDecoder::InputDecoder(const RegisterMap& map)
-    : map_(map), left_(map.left_ticks.width_bits), right_(map.right_ticks.width_bits) {}
+    : map_(map), first_(map.Counters()[0]->width_bits), second_(map.Counters()[1]->width_bits) {}
 
 std::int32_t InputDecoder::Ticks(const RegisterField& field, CounterUnwrapper* unwrapper, std::int64_t count) {
   const std::int64_t extended = unwrapper->Update(count);
@@ -157,8 +157,16 @@ std::int32_t InputDecoder::Ticks(const RegisterField& field, CounterUnwrapper* u
 PlcInputs InputDecoder::Decode(const std::uint16_t* words, int base) {
   const auto at = [&](const RegisterField& field) { return DecodeCount(field, words + (field.address - base)); };
   PlcInputs inputs;
-  inputs.left_ticks = Ticks(map_.left_ticks, &left_, at(map_.left_ticks));
-  inputs.right_ticks = Ticks(map_.right_ticks, &right_, at(map_.right_ticks));
+  if (map_.kind == core::DriveKind::kTricycle) {
+    inputs.drive_ticks = Ticks(map_.drive_ticks, &first_, at(map_.drive_ticks));
+    // An absolute angle: its count as read (scaled), never unwrapped.
+    const std::int64_t steering = at(map_.steering_ticks);
+    inputs.steering_ticks = static_cast<std::int32_t>(
+        map_.steering_ticks.scale == 1.0 ? steering : std::llround(static_cast<double>(steering) * map_.steering_ticks.scale));
+  } else {
+    inputs.left_ticks = Ticks(map_.left_ticks, &first_, at(map_.left_ticks));
+    inputs.right_ticks = Ticks(map_.right_ticks, &second_, at(map_.right_ticks));
+  }
   inputs.plc_heartbeat = static_cast<std::uint32_t>(at(map_.plc_heartbeat));
   inputs.fix_request = static_cast<std::uint32_t>(at(map_.fix_request));
   inputs.relocalize_request = static_cast<std::uint32_t>(at(map_.relocalize_request));

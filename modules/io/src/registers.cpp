@@ -24,8 +24,19 @@ std::string RegisterField::Describe() const {
   return fmt::format("{} (registers {}-{})", name, address, address + words() - 1);
 }
 
+std::array<const RegisterField*, 2> RegisterMap::Counters() const {
+  if (kind == core::DriveKind::kTricycle) return {&drive_ticks, &steering_ticks};
+  return {&left_ticks, &right_ticks};
+}
+
+std::array<std::int32_t, 2> RegisterMap::CounterValues(const core::EncoderCounts& counts) const {
+  if (kind == core::DriveKind::kTricycle) return {counts.drive_ticks, counts.steering_ticks};
+  return {counts.left_ticks, counts.right_ticks};
+}
+
 std::vector<const RegisterField*> RegisterMap::Inputs() const {
-  return {&left_ticks, &right_ticks, &plc_heartbeat, &fix_request, &relocalize_request};
+  const auto counters = Counters();
+  return {counters[0], counters[1], &plc_heartbeat, &fix_request, &relocalize_request};
 }
 
 std::vector<const RegisterField*> RegisterMap::Outputs() const {

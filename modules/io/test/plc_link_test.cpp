@@ -373,6 +373,46 @@ TEST(PlcServerTest, PlcWritesInputsAndReadsFixes) {
   modbus_free(plc);
 }
 
+// A tricycle's PLC writes its drive wheel counter and its steering encoder (registers 0-1 and
+// 2-3 by default; here the steering is a 16-bit signed register of its own at 7): the counter
+// is unwrapped as a wheel's, the angle's count taken as read.
+TEST(PlcServerTest, TricycleDriveCounterAndSteeringRegister) {
+  const int port = FreePort();
+  PlcLinkOptions options = ClientOptions(port);
+  options.role = "server";
+  options.registers.kind = core::DriveKind::kTricycle;
+  options.registers.steering_ticks.address = 7;
+  options.registers.steering_ticks.width_bits = 16;
+  const auto link = OpenPlcLink(options);
+  modbus_t* plc = modbus_new_tcp("127.0.0.1", port);
+  ASSERT_EQ(modbus_connect(plc), 0) << modbus_strerror(errno);
+  const std::uint32_t drive = 0x7FFFFFF0U;
+  const std::uint16_t counter[2] = {HighWord(drive), LowWord(drive)};
+  ASSERT_EQ(modbus_write_register(plc, 7, static_cast<std::uint16_t>(-1234)), 1);
+  ASSERT_EQ(modbus_write_registers(plc, 0, 2, counter), 2);
+  auto read = link->Read();
+  for (int i = 0; i < 100 && !read.ok(); ++i) {
+    std::this_thread::sleep_for(1ms);
+    read = link->Read();
+  }
+  ASSERT_TRUE(read.ok()) << read.error();
+  EXPECT_EQ(read.value().drive_ticks, static_cast<std::int32_t>(drive));
+  EXPECT_EQ(read.value().steering_ticks, -1234);
+  EXPECT_EQ(read.value().left_ticks, 0);  // not a differential drive's
+  // Past the int32 maximum the counter wraps as odometry takes it; the steering stays absolute.
+  const std::uint32_t later = drive + 0x20U;
+  const std::uint16_t wrapped[2] = {HighWord(later), LowWord(later)};
+  ASSERT_EQ(modbus_write_register(plc, 7, 1500), 1);
+  ASSERT_EQ(modbus_write_registers(plc, 0, 2, wrapped), 2);
+  std::this_thread::sleep_for(5ms);
+  read = link->Read();
+  ASSERT_TRUE(read.ok()) << read.error();
+  EXPECT_EQ(read.value().drive_ticks, static_cast<std::int32_t>(later));
+  EXPECT_EQ(read.value().steering_ticks, 1500);
+  modbus_close(plc);
+  modbus_free(plc);
+}
+
 TEST(PlcServerTest, PortInUseIsAClearError) {
   const int port = FreePort();
   TestPlc other(port);

@@ -46,6 +46,26 @@ TEST(RegisterMapTest, RejectsOverlapsWidthsScalesAndAddresses) {
   EXPECT_NE(why.find("heartbeat: address 65535"), std::string::npos) << why;
 }
 
+// Only the kind's counters are read and checked: a tricycle's drive and steering registers
+// may sit where a differential drive's left and right would.
+TEST(RegisterMapTest, ATricycleHasItsOwnCounters) {
+  RegisterMap map;
+  map.kind = core::DriveKind::kTricycle;
+  std::string why;
+  EXPECT_TRUE(map.Check(&why)) << why;
+  ASSERT_EQ(map.Inputs().size(), 5U);
+  EXPECT_EQ(map.Inputs()[0]->name, "drive_ticks");
+  EXPECT_EQ(map.Inputs()[1]->name, "steering_ticks");
+  const core::EncoderCounts counts{1, 2, 3, -4};
+  EXPECT_EQ(map.CounterValues(counts), (std::array<std::int32_t, 2>{3, -4}));
+  map.steering_ticks.address = 4;  // onto plc_heartbeat
+  EXPECT_FALSE(map.Check(&why));
+  EXPECT_NE(why.find("steering_ticks"), std::string::npos) << why;
+  map.kind = core::DriveKind::kDifferential;  // then the steering register is not read
+  EXPECT_TRUE(map.Check(&why)) << why;
+  EXPECT_EQ(map.CounterValues(counts), (std::array<std::int32_t, 2>{1, 2}));
+}
+
 TEST(RegisterCodecTest, BothWordOrdersRoundTripAndMatchTheWire) {
   RegisterField field{"x", 0, 32, true, 1.0, WordOrder::kHighFirst};
   std::uint16_t words[2] = {};

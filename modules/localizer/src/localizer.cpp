@@ -169,6 +169,8 @@ Localizer::Localizer(const camera::IdealCamera& camera, const LocalizerOptions& 
       odometry_(options.odometry),
       lock_(options.lock),
       scale_variance_(options.scale_sigma * options.scale_sigma) {
+  // The filter's calibration states are those of the vehicle's kinematics.
+  options_.filter.kind = options_.odometry.wheels.kind;
   std::string why;
   if (!options_.Check(&why)) core::ThrowInvalidInput("localizer options: " + why);
 }
@@ -205,8 +207,8 @@ void Localizer::RequestGlobalRelocalization() {
   pose_unknown_ = places_ != nullptr && places_->usable();
 }
 
-bool Localizer::AddEncoders(core::Timestamp time, std::int32_t left_ticks, std::int32_t right_ticks) {
-  const auto increment = odometry_.Update(time, left_ticks, right_ticks);
+bool Localizer::AddEncoders(core::Timestamp time, const core::EncoderCounts& counts) {
+  const auto increment = odometry_.Update(time, counts);
   if (!increment) return false;
   if (filter_ && increment.value().dt > core::Duration::zero()) filter_->Predict(time, increment.value());
   return true;
@@ -408,7 +410,7 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
 
 void Localizer::KeepKeyframe(core::Timestamp time, const cv::Mat& frame) {
   if (!options_.visual_odometry.enabled) return;
-  if (!keyframe_) keyframe_.emplace();
+  if (!keyframe_) keyframe_ = Keyframe{};
   keyframe_->time = time;
   frame.copyTo(keyframe_->image);  // reuses the buffer: one copy per kept frame
   keyframe_->world_from_vehicle = filter_->PoseAt(time);

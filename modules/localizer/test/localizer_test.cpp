@@ -135,7 +135,7 @@ class Drive : public ::testing::Test {
                          Eigen::Vector3d(start_sigma_mm * start_sigma_mm, start_sigma_mm * start_sigma_mm, 1e-4)
                              .asDiagonal());
     if (unknown_start_) localizer.InitializeUnknown(Timestamp());
-    localizer.AddEncoders(Timestamp(), 0, 0);
+    localizer.AddEncoders(Timestamp(), core::EncoderCounts{});
     if (relocalize) localizer.RequestRelocalization();
     Run run;
     int encoder_step = 0;
@@ -149,8 +149,8 @@ class Drive : public ::testing::Test {
         left_mm += 1.02 * (twist.x() - 0.5 * b * twist.z());
         right_mm += 1.02 * (twist.x() + 0.5 * b * twist.z());
         const double slip = encoder_step >= 50 ? slip_mm : 0.0;
-        localizer.AddEncoders(Timestamp::FromSeconds(encoder_step / 100.0), ticks(left_mm + slip),
-                              ticks(right_mm + slip));
+        localizer.AddEncoders(Timestamp::FromSeconds(encoder_step / 100.0),
+                              core::EncoderCounts{ticks(left_mm + slip), ticks(right_mm + slip)});
       }
       const Pose2 truth = Truth(t_frame, speed_mps);
       const Pose2 camera_pose = truth * options.vehicle_from_camera;

@@ -41,11 +41,11 @@ dataset::Trajectory WheelTrajectory(const dataset::DatasetReader& reader, const 
                                     std::int64_t* rejected) {
   const localizer::LocalizerOptions geometry = LocalizerOptionsFor(
       localizer::LocalizerOptions{}, reader.info().camera, reader.info().vehicle, 0.0);
-  estimation::DiffDriveOdometry odometry(geometry.odometry, start);
+  estimation::WheelOdometry odometry(geometry.odometry, start);
   dataset::Trajectory integrated;
   auto encoders = reader.Encoders();
   while (const auto sample = encoders.Next()) {
-    const auto increment = odometry.Update(sample->time, sample->left_ticks, sample->right_ticks);
+    const auto increment = odometry.Update(sample->time, sample->counts());
     if (!increment) {
       ++*rejected;
       core::Log().warn("{}: encoder sample at {} ns skipped: {}", reader.directory().string(),

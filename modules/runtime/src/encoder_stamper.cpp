@@ -7,7 +7,7 @@ std::optional<dataset::EncoderSample> EncoderStamper::Take(const io::PlcInputs& 
   // Polling: the counters changed since the previous read, within the PLC's last counter
   // period (CountersChangedAt); unchanged counters are passed on only once they have stood
   // still for stationary_after. Served: when the PLC wrote them.
-  const std::pair<std::int32_t, std::int32_t> ticks{read.left_ticks, read.right_ticks};
+  const core::EncoderCounts ticks = read.counts();
   std::optional<core::Timestamp> stamp;
   if (!options_.polling || !have_ticks_) {
     stamp = read.time;
@@ -21,7 +21,8 @@ std::optional<dataset::EncoderSample> EncoderStamper::Take(const io::PlcInputs& 
   last_read_ = read.time;
   if (!stamp) return std::nullopt;
   last_forwarded_ = *stamp;
-  return dataset::EncoderSample{*stamp - options_.latency, read.left_ticks, read.right_ticks};
+  return dataset::EncoderSample{*stamp - options_.latency, read.left_ticks, read.right_ticks, read.drive_ticks,
+                                read.steering_ticks};
 }
 
 }  // namespace mosaicloc::runtime

@@ -228,7 +228,13 @@ class LiveRun::Impl {
     if (config.start_unknown && !map_->places().usable()) {
       core::ThrowInvalidInput("run: start.unknown needs a map with a place index: " + map_->places().problem());
     }
-    link_ = io::OpenPlcLink(config.plc);
+    // The PLC provides the counters of the vehicle driven (a recording's or the configured).
+    io::PlcLinkOptions plc = config.plc;
+    plc.registers.kind = vehicle.kind;
+    if (std::string why; !plc.registers.Check(&why)) {
+      core::ThrowInvalidInput("run: plc.registers for a " + std::string(core::ToString(vehicle.kind)) + ": " + why);
+    }
+    link_ = io::OpenPlcLink(plc);
     if (config.console) {
       console::ConsoleOptions console_options = *config.console;
       console_options.live_run = true;
@@ -552,7 +558,7 @@ class LiveRun::Impl {
       for (const Encoder& e : encoders) {
         if (e.suspend) {
           localizer_->SuspendOdometry();
-        } else if (!localizer_->AddEncoders(e.sample.time, e.sample.left_ticks, e.sample.right_ticks)) {
+        } else if (!localizer_->AddEncoders(e.sample.time, e.sample.counts())) {
           ++stats_.encoder_rejected;
           core::Log().warn("run: encoder sample rejected (ticks {}, {})", e.sample.left_ticks, e.sample.right_ticks);
         }

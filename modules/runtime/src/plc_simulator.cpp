@@ -39,12 +39,17 @@ std::uint32_t Masked(std::uint32_t value, const io::RegisterField& field) {
 }  // namespace
 
 PlcSimulatorSummary RunPlcSimulator(const PlcSimulatorOptions& args, const PlcSimulatorCallbacks& callbacks) {
-  const io::RegisterMap& map = args.registers;
   std::unique_ptr<SimulatedDrive> drive;
   if (args.simulate) drive = std::make_unique<SimulatedDrive>(sim::SimulatorConfigOrDefaults(*args.simulate));
   const std::filesystem::path played = drive ? drive->directory() : args.dataset;
   if (played.empty()) core::ThrowInvalidInput("plc-sim: give --dataset DIR or --simulate [YAML]");
   const dataset::DatasetReader reader(played);
+  // The counters of the vehicle the drive was recorded on.
+  io::RegisterMap map = args.registers;
+  map.kind = reader.info().vehicle.kind;
+  if (std::string why; !map.Check(&why)) {
+    core::ThrowInvalidInput("plc-sim: the register map for a " + std::string(core::ToString(map.kind)) + ": " + why);
+  }
   const std::optional<dataset::Trajectory> groundtruth =
       reader.HasGroundTruth() ? std::optional<dataset::Trajectory>(reader.GroundTruth()) : std::nullopt;
   const Playback playback = Playback::Of(reader, args.start_unix_s);
@@ -169,8 +174,11 @@ PlcSimulatorSummary RunPlcSimulator(const PlcSimulatorOptions& args, const PlcSi
         std::int64_t w = ((v % modulus) + modulus) % modulus;
         return f.is_signed && w > f.MaxCount() ? w - modulus : w;
       };
-      put(map.left_ticks, wrap(std::llround(current.left_ticks / map.left_ticks.scale), map.left_ticks));
-      put(map.right_ticks, wrap(std::llround(current.right_ticks / map.right_ticks.scale), map.right_ticks));
+      const auto counters = map.Counters();
+      const auto values = map.CounterValues(current.counts());
+      for (std::size_t i = 0; i < 2; ++i) {
+        put(*counters[i], wrap(std::llround(values[i] / counters[i]->scale), *counters[i]));
+      }
       put(map.plc_heartbeat, wrap(heartbeat, map.plc_heartbeat));
       put(map.fix_request, wrap(request, map.fix_request));
     });
@@ -182,8 +190,7 @@ PlcSimulatorSummary RunPlcSimulator(const PlcSimulatorOptions& args, const PlcSi
         PlcSimulatorStatus status;
         status.seconds = core::ToSeconds(now - playback.start);
         status.clients = server.clients();
-        status.left_ticks = current.left_ticks;
-        status.right_ticks = current.right_ticks;
+        status.counters = map.CounterValues(current.counts());
         status.heartbeat = heartbeat;
         status.requests = requests;
         status.answered = answered;

@@ -44,6 +44,13 @@
 namespace mosaicloc::runtime {
 namespace {
 
+// The filter's calibration states as shown: a differential drive's wheel scale errors in %,
+// a tricycle's drive wheel scale error in % and its steering offset error in degrees.
+Eigen::Vector2d CalibrationShown(const Eigen::Vector2d& states, core::DriveKind kind) {
+  if (kind == core::DriveKind::kTricycle) return {100.0 * states.x(), states.y() * 180.0 / std::numbers::pi};
+  return 100.0 * states;
+}
+
 // Overlap speed limit of the run (localizer::SpeedLimits), at the run's mean frame period.
 std::optional<double> OverlapSpeedLimit(const dataset::DatasetInfo& info, const dataset::Trajectory& estimate,
                                         double required_overlap) {
@@ -66,7 +73,7 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // figures and the timelines.
 struct FrameExtras {
   std::optional<Eigen::Vector3d> normalized_innovation;
-  Eigen::Vector2d wheel_scale_percent{kNaN, kNaN};
+  Eigen::Vector2d calibration{kNaN, kNaN};  ///< CalibrationShown
 };
 
 // What a replay mode records frame by frame, and the report made of it.
@@ -109,7 +116,7 @@ class ReplayRecord {
     if (report.fixed && last_estimate_ && last_estimate_->time == report.time) fixed_estimates_.push_back(*last_estimate_);
     fixes_csv_ += dataset::FixesCsvRow(report);
     if (extras.normalized_innovation) innovations_.push_back(*extras.normalized_innovation);
-    timeline_extras_.push_back({last_latency_ms_, extras.wheel_scale_percent});
+    timeline_extras_.push_back({last_latency_ms_, extras.calibration});
     reports_.push_back(report);
     if (view_mapped) view_mapped_.push_back(*view_mapped);
   }
@@ -130,6 +137,10 @@ class ReplayRecord {
     metrics.fix_rate = static_cast<double>(fixes_) / static_cast<double>(frames_);
     metrics.lock_losses = lock_losses;
     metrics.relocalizations = relocalizations;
+    metrics.wheel_scale_left_percent = known_.wheel_scale_left_percent;
+    metrics.wheel_scale_right_percent = known_.wheel_scale_right_percent;
+    metrics.drive_wheel_scale_percent = known_.drive_wheel_scale_percent;
+    metrics.steering_offset_error_deg = known_.steering_offset_error_deg;
     metrics.frames_to_first_fix = known_.frames_to_first_fix;
     metrics.first_fix_s = known_.first_fix_s;
     metrics.kidnap_frames_to_fix = known_.kidnap_frames_to_fix;
@@ -304,13 +315,13 @@ class ReplayRecord {
         }
       }
       sample.latency_ms = timeline_extras_[i].latency_ms;
-      sample.wheel_scale_left_percent = timeline_extras_[i].wheel_scale_percent.x();
-      sample.wheel_scale_right_percent = timeline_extras_[i].wheel_scale_percent.y();
+      sample.calibration_first = timeline_extras_[i].calibration.x();
+      sample.calibration_second = timeline_extras_[i].calibration.y();
       sample.height_mm = report.scale * height_mm;
       timeline.push_back(sample);
     }
     dataset::WriteMapPlots(options.out, reports_, floor_, heading);
-    dataset::WriteTimelines(options.out, timeline, heading);
+    dataset::WriteTimelines(options.out, timeline, heading, info.vehicle.kind);
   }
 
   dataset::Metrics known_;
@@ -329,7 +340,7 @@ class ReplayRecord {
   // Per report: what the timelines need beyond its row of fixes.csv.
   struct TimelineExtras {
     double latency_ms;
-    Eigen::Vector2d wheel_scale_percent;
+    Eigen::Vector2d calibration;
   };
   std::vector<TimelineExtras> timeline_extras_;
   double last_latency_ms_ = kNaN;
@@ -508,7 +519,7 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
   core::Timestamp last_fed = pending->time;
   const auto feed = [&] {
     last_fed = pending->time;
-    if (!localizer.AddEncoders(pending->time, pending->left_ticks, pending->right_ticks)) {
+    if (!localizer.AddEncoders(pending->time, pending->counts())) {
       ++summary.encoder_samples_rejected;
     }
     pending = encoders.Next();
@@ -557,7 +568,7 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
     }
     FrameExtras extras;
     if (outcome.nis) extras.normalized_innovation = outcome.normalized_innovation;
-    if (localizer.initialized()) extras.wheel_scale_percent = 100.0 * localizer.wheel_scale_error();
+    if (localizer.initialized()) extras.calibration = CalibrationShown(localizer.wheel_scale_error(), info.vehicle.kind);
     record.Report(FrameReportOf(frame->time, outcome), view_mapped, extras);
     if (!outcome.fixed) {
       const core::Pose2& f = outcome.fix_world_from_vehicle;
@@ -581,9 +592,19 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
   summary.wheel_scale_error = localizer.wheel_scale_error();
   summary.wheel_scale_sigma = localizer.wheel_scale_sigma();
   core::Log().info("map cache: {} tiles loaded, {} relocalizations", summary.tiles_loaded, summary.relocalizations);
-  const Eigen::Vector2d scale = 100.0 * summary.wheel_scale_error, sigma = 100.0 * summary.wheel_scale_sigma;
-  core::Log().info("wheel scale errors learnt: left {:+.3f} % (sigma {:.3f}), right {:+.3f} % (sigma {:.3f})",
-                   scale.x(), sigma.x(), scale.y(), sigma.y());
+  const Eigen::Vector2d learnt = CalibrationShown(summary.wheel_scale_error, info.vehicle.kind);
+  const Eigen::Vector2d sigma = CalibrationShown(summary.wheel_scale_sigma, info.vehicle.kind);
+  if (info.vehicle.kind == core::DriveKind::kTricycle) {
+    record.known().drive_wheel_scale_percent = learnt.x();
+    record.known().steering_offset_error_deg = learnt.y();
+    core::Log().info("calibration errors learnt: drive wheel scale {:+.3f} % (sigma {:.3f}), steering offset {:+.4f} deg "
+                     "(sigma {:.4f})", learnt.x(), sigma.x(), learnt.y(), sigma.y());
+  } else {
+    record.known().wheel_scale_left_percent = learnt.x();
+    record.known().wheel_scale_right_percent = learnt.y();
+    core::Log().info("wheel scale errors learnt: left {:+.3f} % (sigma {:.3f}), right {:+.3f} % (sigma {:.3f})",
+                     learnt.x(), sigma.x(), learnt.y(), sigma.y());
+  }
   if (options.revisit_places > 0) {
     // Repeatability from the recording alone: revisited places registered frame to frame.
     RevisitOptions revisit_options;

@@ -40,6 +40,10 @@ dataset::Metrics WriteReport(const std::filesystem::path& directory, const datas
     keep(merged.reentry_frames_to_fix_max, metrics.reentry_frames_to_fix_max);
     keep(merged.reentry_first_fix_error_max_mm, metrics.reentry_first_fix_error_max_mm);
     keep(merged.relocalizations, metrics.relocalizations);
+    keep(merged.wheel_scale_left_percent, metrics.wheel_scale_left_percent);
+    keep(merged.wheel_scale_right_percent, metrics.wheel_scale_right_percent);
+    keep(merged.drive_wheel_scale_percent, metrics.drive_wheel_scale_percent);
+    keep(merged.steering_offset_error_deg, metrics.steering_offset_error_deg);
     keep(merged.frames_to_first_fix, metrics.frames_to_first_fix);
     keep(merged.first_fix_s, metrics.first_fix_s);
     keep(merged.kidnap_frames_to_fix, metrics.kidnap_frames_to_fix);

@@ -32,7 +32,8 @@ bool ReadRegisters(core::YamlMap* parent, core::YamlMap* registers, io::Register
   if (registers->Has("word_order")) {
     io::WordOrder word_order = io::WordOrder::kHighFirst;
     registers->OptionalEnum("word_order", &word_order, io::kWordOrders);
-    for (io::RegisterField* field : {&map->left_ticks, &map->right_ticks, &map->plc_heartbeat, &map->fix_request,
+    for (io::RegisterField* field : {&map->left_ticks, &map->right_ticks, &map->drive_ticks, &map->steering_ticks,
+                                     &map->plc_heartbeat, &map->fix_request,
                                      &map->relocalize_request,
                                      &map->fix_x, &map->fix_y, &map->fix_yaw, &map->fix_status, &map->fix_quality,
                                      &map->fix_request_echo, &map->heartbeat, &map->fix_mode}) {
@@ -41,6 +42,8 @@ bool ReadRegisters(core::YamlMap* parent, core::YamlMap* registers, io::Register
   }
   ReadField(registers, "left_ticks", &map->left_ticks);
   ReadField(registers, "right_ticks", &map->right_ticks);
+  ReadField(registers, "drive_ticks", &map->drive_ticks);
+  ReadField(registers, "steering_ticks", &map->steering_ticks);
   ReadField(registers, "plc_heartbeat", &map->plc_heartbeat);
   ReadField(registers, "fix_request", &map->fix_request);
   ReadField(registers, "relocalize_request", &map->relocalize_request);
@@ -189,6 +192,7 @@ RunConfig LoadRunConfig(const std::filesystem::path& file) {
   plc.Optional("counter_period_ms", &config.counter_period_ms);
   plc.CheckOwnKeys(config, {{"plc_cycle_ms", "cycle_ms"}});
   core::YamlMap registers = plc.OptionalMap("registers");
+  link.registers.kind = config.vehicle.kind;  // the counters of the vehicle configured
   const bool registers_ok = ReadRegisters(&plc, &registers, &link.registers);
   // The link's ranges are its Check()'s; the register map reports its own problems above.
   if (registers_ok) plc.Check(link);

@@ -185,7 +185,8 @@ SoakSummary RunSoak(const SoakOptions& options, const std::function<void(double)
       const double t = static_cast<double>(encoder_index) * encoder_period_s;
       if (t > segment_end_s) return std::nullopt;
       ++encoder_index;
-      return encoders.Step(core::Timestamp::FromSeconds(t), drive.At(t - segment_start_s).world_from_vehicle);
+      return encoders.Step(core::Timestamp::FromSeconds(t), drive.At(t - segment_start_s).world_from_vehicle,
+                           drive.At(t - segment_start_s + sim::kSteeringInstantS).world_from_vehicle);
     };
     pending = next_encoder();
     if (!initialized && pending) {
@@ -194,7 +195,7 @@ SoakSummary RunSoak(const SoakOptions& options, const std::function<void(double)
       initialized = true;
     }
     const auto feed = [&] {
-      if (!localizer.AddEncoders(pending->time, pending->left_ticks, pending->right_ticks)) {
+      if (!localizer.AddEncoders(pending->time, pending->counts())) {
         ++summary.encoder_samples_rejected;
       }
       pending = next_encoder();

@@ -43,6 +43,7 @@ void ReadSimulatorConfig(const YAML::Node& node, const std::string& file_name, S
   route.Optional("max_accel_mps2", &r.max_accel_mps2);
   route.Optional("max_lateral_accel_mps2", &r.max_lateral_accel_mps2);
   route.Optional("stop_s", &r.stop_s);
+  route.Optional("curvature_transition_m", &r.curvature_transition_m);
   route.Optional("lateral_deviation_mm", &r.lateral_deviation_mm);
   route.Check(r);
   route.Finish();
@@ -158,9 +159,14 @@ void ReadSimulatorConfig(const YAML::Node& node, const std::string& file_name, S
   encoders.Optional("left_radius_error", &e.left_radius_error);
   encoders.Optional("right_radius_error", &e.right_radius_error);
   encoders.Optional("track_width_error", &e.track_width_error);
+  encoders.Optional("drive_radius_error", &e.drive_radius_error);
+  encoders.Optional("wheelbase_error", &e.wheelbase_error);
+  encoders.Optional("steering_offset_error_deg", &e.steering_offset_error_deg);
+  encoders.Optional("steering_backlash_deg", &e.steering_backlash_deg);
   encoders.Optional("slip_std", &e.slip_std);
   encoders.Optional("initial_left_ticks", &e.initial_left_ticks, IntegerInRange(INT32_MIN, INT32_MAX));
   encoders.Optional("initial_right_ticks", &e.initial_right_ticks, IntegerInRange(INT32_MIN, INT32_MAX));
+  encoders.Optional("initial_drive_ticks", &e.initial_drive_ticks, IntegerInRange(INT32_MIN, INT32_MAX));
   encoders.CheckOwnKeys(e);
   encoders.Finish();
 

@@ -66,6 +66,49 @@ std::vector<Primitive> LapPrimitives(const RouteOptions& o) {
 
 }  // namespace
 
+// A point of the centre line, sampled every kStepM.
+struct Drive::CentrePoint {
+  double s;
+  double curvature;     // per m, relative to the direction of travel
+  int direction;
+  core::Pose2 travel;   // heading along the direction of travel
+};
+
+// Each leg's curvature averaged over curvature_transition_m around every point (a bend's
+// step becomes a linear ramp, a clothoid) and its centre line integrated again from the leg's
+// start; the next leg starts where this one now ends.
+void Drive::SmoothCurvature(std::vector<std::vector<CentrePoint>>* legs) const {
+  const double half_window = 0.5 * options_.curvature_transition_m;
+  core::Pose2 start = legs->front().front().travel;
+  for (auto& leg : *legs) {
+    // Prefix sums of curvature times step length: the window's mean in O(1) per point.
+    std::vector<double> turned(leg.size(), 0.0);
+    for (std::size_t i = 1; i < leg.size(); ++i) turned[i] = turned[i - 1] + leg[i].curvature * (leg[i].s - leg[i - 1].s);
+    const auto turned_at = [&](double s) {
+      s = std::clamp(s, leg.front().s, leg.back().s);
+      const auto upper = std::upper_bound(leg.begin(), leg.end(), s, [](double v, const CentrePoint& p) { return v < p.s; });
+      if (upper == leg.end()) return turned.back();
+      const std::size_t j = static_cast<std::size_t>(upper - leg.begin());
+      return turned[j - 1] + leg[j].curvature * (s - leg[j - 1].s);
+    };
+    std::vector<double> smoothed(leg.size());
+    for (std::size_t i = 0; i < leg.size(); ++i) {
+      const double from = std::max(leg.front().s, leg[i].s - half_window);
+      const double to = std::min(leg.back().s, leg[i].s + half_window);
+      smoothed[i] = to > from ? (turned_at(to) - turned_at(from)) / (to - from) : leg[i].curvature;
+    }
+    leg.front().travel = start;
+    for (std::size_t i = 1; i < leg.size(); ++i) {
+      const double step = leg[i].s - leg[i - 1].s;
+      const double k = 0.5 * (smoothed[i - 1] + smoothed[i]);
+      leg[i].travel = leg[i - 1].travel * core::Pose2::Exp({step * 1000.0, 0.0, step * k});
+    }
+    for (std::size_t i = 0; i < leg.size(); ++i) leg[i].curvature = smoothed[i];
+    // Stop and reverse: the vehicle keeps its heading, the travel heading turns round.
+    start = leg.back().travel * core::Pose2(0.0, 0.0, kPi);
+  }
+}
+
 bool RouteOptions::Check(std::string* why) const {
   if (name != "straight" && name != "loop" && name != "network" && name != "serpentine") {
     *why = "route must be straight, loop, network or serpentine, got '" + name + "'";
@@ -99,6 +142,10 @@ bool RouteOptions::Check(std::string* why) const {
     *why = "serpentine_rows must be at most 10000";
     return false;
   }
+  if (!(curvature_transition_m >= 0.0 && curvature_transition_m <= 10.0)) {
+    *why = "curvature_transition_m must be in [0, 10]";
+    return false;
+  }
   if (!(lateral_deviation_mm >= 0.0 && lateral_deviation_mm < 100.0)) {
     *why = "lateral_deviation_mm must be in [0, 100)";
     return false;
@@ -116,13 +163,7 @@ Drive::Drive(const RouteOptions& options, int laps, std::uint64_t seed) : option
   for (const auto& p : lap) lap_length_m_ += p.length_m;
 
   // Centre line, sampled every kStepM, split into legs where the direction changes.
-  struct Point {
-    double s;
-    double curvature;
-    int direction;
-    core::Pose2 travel;  // heading along the direction of travel
-  };
-  std::vector<std::vector<Point>> legs(1);
+  std::vector<std::vector<CentrePoint>> legs(1);
   core::Pose2 travel = core::Pose2::Identity();
   double s = 0.0;
   int direction = lap.front().direction;
@@ -148,6 +189,8 @@ Drive::Drive(const RouteOptions& options, int laps, std::uint64_t seed) : option
       }
     }
   }
+
+  if (options_.curvature_transition_m > 0.0) SmoothCurvature(&legs);
 
   // Speed profile per leg: cruise speed, curvature limit, accelerate from and brake to rest.
   double time = options_.stop_s;

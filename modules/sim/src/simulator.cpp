@@ -185,7 +185,13 @@ bool SimulatorOptions::Check(std::string* why) const {
     *why = "light.height_over_lens_mm puts the ring light below the floor";
     return false;
   }
-  return route.Check(why) && camera.Check(why) && imaging.Check(why) && encoders.Check(why);
+  if (!(route.Check(why) && camera.Check(why) && imaging.Check(why) && encoders.Check(why))) return false;
+  if (encoders.nominal.kind == core::DriveKind::kTricycle && !(route.curvature_transition_m > 0.0)) {
+    *why = "route.curvature_transition_m must be > 0 for a tricycle (its steered wheel cannot swing into a bend at once; "
+           "0.5 m is a typical guide path's)";
+    return false;
+  }
+  return true;
 }
 
 CameraPlacement MakeCameraPlacement(const SimulatorOptions& options) {
@@ -302,11 +308,17 @@ SimulationSummary Simulate(const SimulatorOptions& options, const std::filesyste
   p["noise_std_dn"] = Number(options.imaging.noise_std_dn);
   p["lateral_deviation_mm"] = Number(options.route.lateral_deviation_mm);
   p["encoder_rate_hz"] = Number(options.encoders.rate_hz);
-  p["true_left_wheel_radius_mm"] =
-      Number(options.encoders.nominal.left_wheel_radius_mm * (1.0 + options.encoders.left_radius_error));
-  p["true_right_wheel_radius_mm"] =
-      Number(options.encoders.nominal.right_wheel_radius_mm * (1.0 + options.encoders.right_radius_error));
-  p["true_track_width_mm"] = Number(options.encoders.nominal.track_width_mm * (1.0 + options.encoders.track_width_error));
+  const EncoderOptions& e = options.encoders;
+  if (e.nominal.kind == core::DriveKind::kTricycle) {
+    p["true_drive_wheel_radius_mm"] = Number(e.nominal.drive_wheel_radius_mm * (1.0 + e.drive_radius_error));
+    p["true_wheelbase_mm"] = Number(e.nominal.wheelbase_mm * (1.0 + e.wheelbase_error));
+    p["true_steering_offset_deg"] = Number(e.nominal.steering_offset_deg + e.steering_offset_error_deg);
+    p["steering_backlash_deg"] = Number(e.steering_backlash_deg);
+  } else {
+    p["true_left_wheel_radius_mm"] = Number(e.nominal.left_wheel_radius_mm * (1.0 + e.left_radius_error));
+    p["true_right_wheel_radius_mm"] = Number(e.nominal.right_wheel_radius_mm * (1.0 + e.right_radius_error));
+    p["true_track_width_mm"] = Number(e.nominal.track_width_mm * (1.0 + e.track_width_error));
+  }
   p["wheel_slip_std"] = Number(options.encoders.slip_std);
   p["camera_height_mm"] = Number(options.camera_height_mm);
   p["height_offset_mm"] = Number(options.height_offset_mm);
@@ -342,7 +354,8 @@ SimulationSummary Simulate(const SimulatorOptions& options, const std::filesyste
   const double encoder_period_s = 1.0 / options.encoders.rate_hz;
   for (std::int64_t j = 0; static_cast<double>(j) * encoder_period_s <= end_s; ++j) {
     const double t = static_cast<double>(j) * encoder_period_s;
-    writer.AddEncoderSample(encoders.Step(core::Timestamp::FromSeconds(t), drive.At(t).world_from_vehicle));
+    writer.AddEncoderSample(encoders.Step(core::Timestamp::FromSeconds(t), drive.At(t).world_from_vehicle,
+                                          drive.At(t + kSteeringInstantS).world_from_vehicle));
     ++summary.encoder_samples;
   }
 

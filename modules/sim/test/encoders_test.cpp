@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <numbers>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -36,11 +37,11 @@ TEST(EncoderModel, DeadReckoningShowsTheScaleError) {
   options.left_radius_error = options.right_radius_error = 0.01;
   options.track_width_error = 0.0;
   EncoderModel model(options, 1);
-  estimation::DiffDriveOptions odometry_options;
-  estimation::DiffDriveOdometry odometry(odometry_options);
+  estimation::OdometryOptions odometry_options;
+  estimation::WheelOdometry odometry(odometry_options);
   for (int i = 0; i <= 1000; ++i) {
     const auto sample = model.Step(Ms(10 * i), core::Pose2(5.0 * i, 0.0, 0.0));
-    ASSERT_TRUE(odometry.Update(sample.time, sample.left_ticks, sample.right_ticks).ok());
+    ASSERT_TRUE(odometry.Update(sample.time, sample.counts()).ok());
   }
   EXPECT_NEAR(odometry.world_from_vehicle().x_mm(), 5000.0 / 1.01, 0.5);
 }
@@ -51,10 +52,10 @@ TEST(EncoderModel, TurnInPlaceUsesTheTrueTrackWidth) {
   options.left_radius_error = options.right_radius_error = 0.0;
   options.track_width_error = 0.02;
   EncoderModel model(options, 1);
-  estimation::DiffDriveOdometry odometry(estimation::DiffDriveOptions{});
+  estimation::WheelOdometry odometry(estimation::OdometryOptions{});
   for (int i = 0; i <= 100; ++i) {
     const auto sample = model.Step(Ms(10 * i), core::Pose2(0.0, 0.0, std::numbers::pi / 2 * i / 100.0));
-    ASSERT_TRUE(odometry.Update(sample.time, sample.left_ticks, sample.right_ticks).ok());
+    ASSERT_TRUE(odometry.Update(sample.time, sample.counts()).ok());
   }
   // Wheels travel 2 % further than the nominal track width predicts.
   EXPECT_NEAR(odometry.world_from_vehicle().yaw_rad(), std::numbers::pi / 2 * 1.02, 2e-3);
@@ -76,6 +77,51 @@ TEST(EncoderModel, SameSeedSameCounts) {
     any_different = any_different || sa.left_ticks != sc.left_ticks;
   }
   EXPECT_TRUE(any_different);
+}
+
+// A tricycle on an arc of radius R: the drive wheel, l ahead, rolls on a circle of radius
+// hypot(R, l) at the angle atan(l / R); the steering encoder reads that angle less its true
+// zero, and the drive counter the wheel's path through the true radius. Odometry with the
+// calibration the dataset records finds the offset and the scale as the errors it has.
+TEST(EncoderModel, TricycleReadsTheSteeringAngleAndTheDriveWheelsPath) {
+  EncoderOptions options;
+  options.nominal.kind = core::DriveKind::kTricycle;
+  options.nominal.wheelbase_mm = 1200.0;
+  options.nominal.drive_wheel_radius_mm = 100.0;
+  options.nominal.steering_ticks_per_revolution = 1 << 20;
+  options.slip_std = 0.0;
+  options.wheelbase_error = 0.0;
+  options.drive_radius_error = 0.01;
+  options.steering_offset_error_deg = 0.5;
+  options.steering_backlash_deg = 0.0;
+  EncoderModel model(options, 1);
+  const double radius = 2000.0, step_rad = 0.005;
+  const auto pose = [&](int i) {
+    const double a = step_rad * i;
+    return core::Pose2(radius * std::sin(a), radius * (1.0 - std::cos(a)), a);
+  };
+  std::vector<dataset::EncoderSample> samples;
+  for (int i = 0; i <= 200; ++i) samples.push_back(model.Step(Ms(10 * i), pose(i), pose(i) * core::Pose2(1.0, 0.0, 1.0 / radius)));
+  const double phi = std::atan(1200.0 / radius);
+  const double read_rad = 2.0 * std::numbers::pi * samples[100].steering_ticks / static_cast<double>(1 << 20);
+  EXPECT_NEAR(read_rad, phi - 0.5 * std::numbers::pi / 180.0, 1e-5);
+  const double wheel_path_mm = std::hypot(radius, 1200.0) * step_rad * 200;
+  const double turns = estimation::TickDelta(samples.front().drive_ticks, samples.back().drive_ticks) / 4096.0;
+  EXPECT_NEAR(turns * 2.0 * std::numbers::pi * 101.0, wheel_path_mm, 0.2);
+  EXPECT_EQ(samples.back().left_ticks, 0);  // not a differential drive's counters
+
+  // Odometry with the calibrated (nominal) geometry: short by 1 %, and turning too little.
+  estimation::OdometryOptions odometry_options;
+  odometry_options.wheels = options.nominal;
+  estimation::WheelOdometry odometry(odometry_options);
+  for (const auto& sample : samples) ASSERT_TRUE(odometry.Update(sample.time, sample.counts()).ok());
+  EXPECT_LT(odometry.world_from_vehicle().yaw_rad(), step_rad * 200);
+  odometry_options.wheels.drive_wheel_radius_mm = 101.0;
+  odometry_options.wheels.steering_offset_deg = 0.5;
+  estimation::WheelOdometry corrected(odometry_options);
+  for (const auto& sample : samples) ASSERT_TRUE(corrected.Update(sample.time, sample.counts()).ok());
+  EXPECT_LT(core::Distance(corrected.world_from_vehicle(), pose(200)), 0.5);
+  EXPECT_NEAR(corrected.world_from_vehicle().yaw_rad(), step_rad * 200, 1e-4);
 }
 
 }  // namespace

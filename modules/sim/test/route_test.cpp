@@ -120,6 +120,37 @@ TEST(Drive, LateralDeviationDiffersBetweenLapsAndMatchesItsSize) {
   EXPECT_GT(lap_difference, 0.5);
 }
 
+// With a transition the curvature ramps into and out of each bend, so a tricycle's wheel
+// never has to swing at once; every bend keeps its angle, the path cutting slightly inside.
+TEST(Drive, CurvatureTransitionsEaseTheBendsAndKeepTheirAngles) {
+  RouteOptions sharp = Route("loop");
+  sharp.lateral_deviation_mm = 0.0;
+  RouteOptions eased = sharp;
+  eased.curvature_transition_m = 0.4;
+  const Drive a(sharp, 1, 1), b(eased, 1, 1);
+  // Curvature from the heading change over 10 mm of path, all along the lap.
+  const auto curvature_at = [](const Drive& d, double s) {
+    return core::WrapAngle(d.CentreLineAt(s + 0.005).yaw_rad() - d.CentreLineAt(s - 0.005).yaw_rad()) / 0.01;
+  };
+  double sharp_jump = 0.0, eased_jump = 0.0;
+  for (double s = 0.02; s < a.lap_length_m() - 0.03; s += 0.01) {
+    sharp_jump = std::max(sharp_jump, std::abs(curvature_at(a, s + 0.01) - curvature_at(a, s)));
+    eased_jump = std::max(eased_jump, std::abs(curvature_at(b, s + 0.01) - curvature_at(b, s)));
+  }
+  EXPECT_GT(sharp_jump, 1.5);   // 1/0.5 m in one step
+  EXPECT_LT(eased_jump, 0.1);   // 2 /m over 0.4 m: 0.05 per 10 mm
+  // The same quarter turns: past the first bend the heading is the same.
+  EXPECT_NEAR(core::WrapAngle(a.CentreLineAt(4.3).yaw_rad() - b.CentreLineAt(4.3).yaw_rad()), 0.0, 1e-4);
+  // The eased path stays within a few centimetres of the sharp one, and the lap closes.
+  double apart = 0.0;
+  for (double s = 0.0; s < a.lap_length_m(); s += 0.05) apart = std::max(apart, core::Distance(a.CentreLineAt(s), b.CentreLineAt(s)));
+  EXPECT_LT(apart, 30.0);
+  EXPECT_LT(core::Distance(b.CentreLineAt(0.0), b.CentreLineAt(b.lap_length_m())), 15.0);
+  RouteOptions bad = eased;
+  bad.curvature_transition_m = -1.0;
+  EXPECT_THROW(Drive(bad, 1, 1), core::Error);
+}
+
 TEST(Drive, LapsForFramesCoversTheFrames) {
   const RouteOptions options = Route("straight");
   const int laps = Drive::LapsForFrames(options, 3000, 30.0);

@@ -7,19 +7,63 @@
 
 namespace mosaicloc::core {
 
-/// A differential-drive vehicle's wheels as calibrated: what turns encoder ticks into motion.
-/// The one definition the dataset header, odometry, the simulator and vehicle calibration share.
+/// How a vehicle's wheels move it, and so what its two encoder counters count.
+enum class DriveKind {
+  /// Two driven wheels on one axle, each with an encoder (counters: left, right). The vehicle
+  /// frame's origin is midway between the wheels' contact points.
+  kDifferential,
+  /// One steered, driven wheel ahead of a fixed axle, as tugs and forklifts are (counters: the
+  /// drive wheel's encoder, the steering angle's absolute encoder). The origin is the fixed
+  /// axle's centre, the one point that never slides sideways.
+  kTricycle,
+};
+inline constexpr DriveKind kDriveKinds[] = {DriveKind::kDifferential, DriveKind::kTricycle};
+/// "differential" or "tricycle", as files name them.
+const char* ToString(DriveKind kind);
+
+/// A vehicle's wheels as calibrated: what turns encoder counts into motion. The one definition
+/// the dataset header, odometry, the simulator and vehicle calibration share. Only the fields
+/// of `kind` are used (and read from files).
 struct WheelGeometry {
+  DriveKind kind = DriveKind::kDifferential;
+  // Differential drive.
   double left_wheel_radius_mm = 75.0;
   double right_wheel_radius_mm = 75.0;
   double track_width_mm = 500.0;  ///< distance between the wheel contact points
+  /// Of each wheel's encoder (the tricycle's drive wheel's).
   std::int64_t ticks_per_revolution = 4096;
-  /// Radii and track width > 0 and finite, ticks_per_revolution >= 1.
+  // Tricycle.
+  double drive_wheel_radius_mm = 100.0;
+  double wheelbase_mm = 1000.0;  ///< from the fixed axle's centre to the steered wheel's contact point
+  /// Counts of the steering encoder per turn (an absolute encoder: count 0 is its zero).
+  std::int64_t steering_ticks_per_revolution = 65536;
+  /// The steering angle at count 0, degrees, positive to the left: the wheel points straight
+  /// ahead at count -offset. Calibrated; the filter learns what is left of its error.
+  double steering_offset_deg = 0.0;
+
+  /// The kind's radii and lengths > 0 and finite, counts per turn >= 1, the steering offset
+  /// within +-45 degrees.
   bool Check(std::string* why) const;
+  /// The steering angle, radians, of a steering encoder count (tricycle).
+  double SteeringRad(std::int32_t steering_ticks) const;
+  /// The distance a wheel of `radius_mm` rolls for `ticks` counts.
+  double TicksToMm(double radius_mm, std::int64_t ticks) const;
 };
 
-/// Reads the four keys of a mapping (a dataset header's or a configuration's `vehicle:`)
-/// into *wheels, then Check(): every key required, or each optional over what *wheels holds.
+/// One reading of a vehicle's encoder counters as the PLC counts them (int32, may wrap); only
+/// the two of its kind are used: left and right (differential), drive and steering (tricycle).
+struct EncoderCounts {
+  std::int32_t left_ticks = 0;
+  std::int32_t right_ticks = 0;
+  std::int32_t drive_ticks = 0;
+  std::int32_t steering_ticks = 0;
+  bool operator==(const EncoderCounts&) const = default;
+};
+
+/// Reads a mapping (a dataset header's or a configuration's `vehicle:`) into *wheels: `kind`
+/// (optional, differential when absent), then the keys of that kind, then Check(): every key
+/// of the kind required, or each optional over what *wheels holds. A key of the other kind is
+/// a problem (left unread).
 void ReadWheelGeometry(YamlMap& map, WheelGeometry* wheels, bool required);
 
 }  // namespace mosaicloc::core

@@ -48,10 +48,16 @@ struct Frame {
   cv::Mat image;  ///< CV_8UC1, camera width x height
 };
 
+/// One reading of the vehicle's two encoder counters (raw PLC values, which may wrap); which
+/// two is the vehicle's kind (core::DriveKind): a differential drive's left and right wheel, a
+/// tricycle's drive wheel and steering angle. The others stay 0.
 struct EncoderSample {
   core::Timestamp time;
-  std::int32_t left_ticks = 0;   ///< raw PLC counter, may wrap
+  std::int32_t left_ticks = 0;
   std::int32_t right_ticks = 0;
+  std::int32_t drive_ticks = 0;
+  std::int32_t steering_ticks = 0;
+  core::EncoderCounts counts() const { return {left_ticks, right_ticks, drive_ticks, steering_ticks}; }
 };
 
 /// Reads a dataset as a stream: frames and encoder samples one at a time, each line and
@@ -100,8 +106,9 @@ class DatasetReader {
 
    private:
     friend class DatasetReader;
-    explicit EncoderStream(std::filesystem::path csv);
+    EncoderStream(std::filesystem::path csv, core::DriveKind kind);
     std::filesystem::path csv_;
+    core::DriveKind kind_;
     std::ifstream in_;
     int line_number_ = 1;
     std::optional<core::Timestamp> last_time_;

@@ -6,6 +6,7 @@
 
 #include <opencv2/core/mat.hpp>
 
+#include "mosaicloc/core/wheel_geometry.hpp"
 #include "mosaicloc/dataset/fixes.hpp"
 
 namespace mosaicloc::dataset {
@@ -36,15 +37,18 @@ struct TimelineSample {
   double nis = 0.0;         ///< NaN where the filter judged no fix
   double speed_mps = 0.0;   ///< the estimate's
   double latency_ms = 0.0;  ///< processing time of the frame
-  double wheel_scale_left_percent = 0.0;  ///< the learnt wheel scale errors, NaN when not learnt
-  double wheel_scale_right_percent = 0.0;
+  /// What the filter has learnt of the vehicle's calibration, NaN when not learnt: a
+  /// differential drive's wheel scale errors (left, right, %), a tricycle's drive wheel scale
+  /// error (%) and steering offset error (degrees).
+  double calibration_first = 0.0;
+  double calibration_second = 0.0;
   double height_mm = 0.0;   ///< the camera's height over the floor held, NaN when not estimated
 };
 
 /// Writes timelines.png into `directory` (created if missing; about 1000 x 1450, atomic): fix quality, position standard deviation (log),
-/// NIS with its 95 % bound (log), speed, latency, the learnt wheel scale errors and, when any
-/// sample has one, the camera's height, against time.
+/// NIS with its 95 % bound (log), speed, latency, the learnt calibration (the vehicle kind's)
+/// and, when any sample has one, the camera's height, against time.
 void WriteTimelines(const std::filesystem::path& directory, const std::vector<TimelineSample>& samples,
-                    const std::string& title);
+                    const std::string& title, core::DriveKind kind = core::DriveKind::kDifferential);
 
 }  // namespace mosaicloc::dataset

@@ -13,12 +13,15 @@
 
 namespace mosaicloc::estimation {
 
-/// Differential-drive geometry as calibrated, and its error model.
-struct DiffDriveOptions {
+/// The vehicle's geometry as calibrated (differential drive or tricycle), and its error model.
+struct OdometryOptions {
   core::WheelGeometry wheels;
   /// Error model (Siegwart et al., "Introduction to Autonomous Mobile Robots", 2nd ed.,
-  /// section 5.2.4): each wheel's travel has variance k |ds|, k in mm (mm^2 per mm).
+  /// section 5.2.4): each driven wheel's travel has variance k |ds|, k in mm (mm^2 per mm).
   double wheel_variance_mm = 0.01;
+  /// Tricycle: the steering angle's reading error (the encoder's resolution, backlash in the
+  /// steering gear), degrees, one standard deviation.
+  double steering_sigma_deg = 0.05;
   /// Increments implying a faster wheel are rejected as counter glitches, m/s.
   double max_wheel_speed_mps = 15.0;
   bool Check(std::string* why) const;
@@ -36,14 +39,32 @@ enum class OdometryFailure {
 };
 std::string ToString(OdometryFailure failure);
 
+/// What the encoders measured over an increment, before the kinematics turn it into motion:
+/// with it a filter that estimates the calibration's errors c can turn it again.
+///   differential: c = (k_l, k_r), each wheel's travel (1 + k) times the measured;
+///     ds = (L + R) / 2, dtheta = (R - L) / b, b the track width;
+///   tricycle: c = (k, delta), the drive wheel's travel (1 + k) times the measured and the
+///     steering angle phi + delta; the fixed axle's centre moves ds = s cos(phi) and turns
+///     dtheta = s sin(phi) / l, l the wheelbase (phi constant over the increment).
+struct WheelTravel {
+  core::DriveKind kind = core::DriveKind::kDifferential;
+  double left_mm = 0.0, right_mm = 0.0;       ///< differential
+  double drive_mm = 0.0, steering_rad = 0.0;  ///< tricycle (the calibrated offset applied)
+  double base_mm = 0.0;  ///< track width or wheelbase; 0: no wheel travel (the increment is a pose)
+
+  bool measured() const { return base_mm > 0.0; }
+  /// (ds mm, dtheta rad) with calibration errors c, and d(ds, dtheta)/dc when asked.
+  Eigen::Vector2d Motion(const Eigen::Vector2d& c, Eigen::Matrix2d* jacobian = nullptr) const;
+  /// The share `fraction` of it: the travels scaled, the steering angle the same.
+  WheelTravel Part(double fraction) const;
+  /// How far the wheel behind each calibration state rolled, mm: what its random walk grows with.
+  Eigen::Vector2d Rolled() const;
+};
+
 /// Motion between two encoder samples, in the vehicle frame at the first.
 struct OdometryIncrement {
   core::Duration dt{};
-  double left_mm = 0.0;
-  double right_mm = 0.0;
-  /// The track width the travels were turned into motion with: with it a filter that
-  /// estimates the wheels' scale errors can turn them again.
-  double track_width_mm = 0.0;
+  WheelTravel travel;
   core::Pose2 previous_from_current;  ///< exact arc of constant curvature
   double forward_speed_mps = 0.0;
   double yaw_rate_radps = 0.0;
@@ -54,16 +75,16 @@ struct OdometryIncrement {
 
 /// Dead reckoning from wheel encoders: integrates world_from_vehicle and its covariance
 /// (x mm, y mm, yaw rad). The first sample only initialises the counters.
-class DiffDriveOdometry {
+class WheelOdometry {
  public:
   /// Throws core::Error (invalid input) when the options fail Check().
-  explicit DiffDriveOdometry(const DiffDriveOptions& options,
-                             const core::Pose2& world_from_vehicle = core::Pose2::Identity());
+  explicit WheelOdometry(const OdometryOptions& options,
+                         const core::Pose2& world_from_vehicle = core::Pose2::Identity());
 
-  /// Feeds one encoder sample. On failure the state is unchanged, and the sample is kept
-  /// as the new counter reference only after a glitch (so one bad sample costs one step).
-  core::Result<OdometryIncrement, OdometryFailure> Update(core::Timestamp time, std::int32_t left_ticks,
-                                                          std::int32_t right_ticks);
+  /// Feeds one reading of the counters (the kind's two). On failure the state is unchanged,
+  /// and the sample is kept as the new counter reference only after a glitch (so one bad
+  /// sample costs one step).
+  core::Result<OdometryIncrement, OdometryFailure> Update(core::Timestamp time, const core::EncoderCounts& counts);
 
   const core::Pose2& world_from_vehicle() const { return world_from_vehicle_; }
   const Eigen::Matrix3d& covariance() const { return covariance_; }
@@ -79,12 +100,11 @@ class DiffDriveOdometry {
   double RightTicksToMm(std::int64_t ticks) const;
 
  private:
-  DiffDriveOptions options_;
+  OdometryOptions options_;
   core::Pose2 world_from_vehicle_;
   Eigen::Matrix3d covariance_ = Eigen::Matrix3d::Zero();
   std::optional<core::Timestamp> last_time_;
-  std::int32_t last_left_ = 0;
-  std::int32_t last_right_ = 0;
+  core::EncoderCounts last_;
 };
 
 }  // namespace mosaicloc::estimation

@@ -30,6 +30,13 @@ struct PoseFilterOptions {
   /// stays 0), and how fast it may wander (tyre wear, load), per square root of a metre.
   double wheel_scale_sigma = 0.03;
   double wheel_scale_walk_per_sqrt_m = 0.001;
+  /// What the second calibration state is: the right wheel's scale error (differential), or
+  /// the steering angle's offset error (tricycle; the first is then the drive wheel's scale).
+  core::DriveKind kind = core::DriveKind::kDifferential;
+  /// Tricycle: the steering offset error's standard deviation at the start, and its wander
+  /// per square root of a metre driven (wear of the steering gear, a knock).
+  double steering_offset_sigma_deg = 1.0;
+  double steering_offset_walk_deg_per_sqrt_m = 0.01;
   bool Check(std::string* why) const;
 };
 
@@ -57,9 +64,11 @@ struct FixOutcome {
   std::string reason;         ///< why it was rejected; empty when accepted
 };
 
-/// Extended Kalman filter on world_from_vehicle (x mm, y mm, yaw rad) and the two wheels'
-/// scale errors (k_l, k_r), driven by wheel odometry as its control input and corrected by
-/// absolute fixes that may arrive late.
+/// Extended Kalman filter on world_from_vehicle (x mm, y mm, yaw rad) and two calibration
+/// errors c of the wheels (differential: the two wheels' scale errors (k_l, k_r); tricycle: the
+/// drive wheel's scale error and the steering offset's error (k, delta rad); WheelTravel),
+/// driven by wheel odometry as its control input and corrected by absolute fixes that may
+/// arrive late.
 ///
 /// Why odometry as the input rather than a (x, y, yaw, v, omega) state with odometry as a
 /// measurement: encoders measure the motion itself at 100 Hz or more, so integrating them
@@ -72,11 +81,13 @@ struct FixOutcome {
 /// robot", Autonomous Robots 22, 2007, do the same with a laser), and the prediction is then
 /// as good as the wheels' random error allows.
 ///
-/// Prediction, with the wheel travels l, r as measured and b the track width:
-///   L = (1 + k_l) l, R = (1 + k_r) r,  d = Exp((L + R) / 2, 0, (R - L) / b),  x+ = x (+) d,
-///   P+ = F P F^T + G Q G^T + W,
-/// F the Jacobian in pose and scales, Q the wheel error model's covariance of d, G = diag(R(t), 1),
-/// and W the scales' random walk (variance walk^2 per metre of each wheel's travel).
+/// Prediction, with the wheels' measured travel m (WheelTravel: for a differential drive the
+/// travels l, r and b the track width, L = (1 + k_l) l, R = (1 + k_r) r, ds = (L + R) / 2,
+/// dtheta = (R - L) / b; for a tricycle ds = s cos(phi), dtheta = s sin(phi) / l):
+///   d = Exp(ds(m, c), 0, dtheta(m, c)),  x+ = x (+) d,  P+ = F P F^T + G Q G^T + W,
+/// F the Jacobian in pose and calibration, Q the wheel error model's covariance of d,
+/// G = diag(R(t), 1), and W the calibration's random walk (variance walk^2 per metre its wheel
+/// rolled).
 /// Correction by a fix z of the pose with covariance R (h(x) = pose, yaw residual wrapped):
 ///   S = P_pp + R, K = P H^T S^-1, x+ = x + K (z - h(x)), P+ = (I - K H) P (I - K H)^T + K R K^T.
 /// A late fix (its time inside the history) is applied at its own time: the increment that
@@ -119,7 +130,9 @@ class PoseFilter {
   const core::Pose2& world_from_vehicle() const { return history_.back().world_from_vehicle; }
   /// Covariance of the latest pose (x mm, y mm, yaw rad).
   Eigen::Matrix3d covariance() const { return history_.back().covariance.topLeftCorner<3, 3>(); }
-  /// The wheels' estimated scale errors (k_l, k_r) and their covariance.
+  /// The estimated calibration errors c (differential: the wheels' scale errors (k_l, k_r);
+  /// tricycle: the drive wheel's scale error and the steering offset's error in radians) and
+  /// their covariance.
   const Eigen::Vector2d& wheel_scale_error() const { return history_.back().wheel_scale; }
   Eigen::Matrix2d wheel_scale_covariance() const { return history_.back().covariance.bottomRightCorner<2, 2>(); }
 
@@ -128,18 +141,20 @@ class PoseFilter {
   struct Node {
     core::Timestamp time;
     core::Pose2 world_from_vehicle;
-    Eigen::Vector2d wheel_scale = Eigen::Vector2d::Zero();  ///< (k_l, k_r)
-    Matrix5d covariance = Matrix5d::Zero();                  ///< of (x, y, yaw, k_l, k_r)
-    // The motion from the previous node: wheel travels as measured (the pose increment
-    // follows from them and the scales), or, when coasting, a fixed pose increment.
-    bool from_wheels = false;
-    double left_mm = 0.0, right_mm = 0.0, track_width_mm = 0.0;
+    Eigen::Vector2d wheel_scale = Eigen::Vector2d::Zero();  ///< the calibration errors c
+    Matrix5d covariance = Matrix5d::Zero();                  ///< of (x, y, yaw, c)
+    // The motion from the previous node: wheel travel as measured (the pose increment follows
+    // from it and c), or, when coasting (travel not measured), a fixed pose increment.
+    WheelTravel travel;
     core::Pose2 increment;                  ///< from the previous node to this one, as applied
     Eigen::Matrix3d increment_covariance = Eigen::Matrix3d::Zero();  ///< in the previous vehicle frame
   };
   // The node's share `fraction` of its motion (an arc of constant curvature, its variance
   // growing with travel), from the same start.
   static Node Part(const Node& node, double fraction);
+  // The calibration states' standard deviations at the start and random walks per sqrt(m).
+  Eigen::Vector2d CalibrationSigma() const;
+  Eigen::Vector2d CalibrationWalk() const;
   void Propagate(const Node& from, Node* to) const;
   // Index of the last node at or before `time` (history_ is never empty).
   std::size_t NodeBefore(core::Timestamp time) const;

@@ -45,8 +45,13 @@ struct PlcInputs {
   /// False when nothing changed since the previous read (server role: the PLC has not
   /// written again); such inputs carry no new encoder sample.
   bool fresh = true;
-  std::int32_t left_ticks = 0;   ///< raw counters as odometry takes them: modulo 2^32
+  /// Raw counters as odometry takes them: modulo 2^32 (the register map's kind's two; the
+  /// tricycle's steering count as the encoder reads it).
+  std::int32_t left_ticks = 0;
   std::int32_t right_ticks = 0;
+  std::int32_t drive_ticks = 0;
+  std::int32_t steering_ticks = 0;
+  core::EncoderCounts counts() const { return {left_ticks, right_ticks, drive_ticks, steering_ticks}; }
   std::uint32_t plc_heartbeat = 0;
   std::uint32_t fix_request = 0;
   std::uint32_t relocalize_request = 0;

@@ -61,7 +61,7 @@ struct LocalizerOptions {
   tracking::TrackerOptions tracker;
   estimation::PoseFilterOptions filter;
   estimation::LockOptions lock;
-  estimation::DiffDriveOptions odometry;
+  estimation::OdometryOptions odometry;
   core::Pose2 vehicle_from_camera;
   /// Floor on a fix's standard deviation (model errors the tracker's covariance does not
   /// see: map painting, rectification), mm and rad.
@@ -194,8 +194,9 @@ class Localizer {
   /// RequestGlobalRelocalization), until a fix.
   bool pose_unknown() const { return pose_unknown_; }
 
-  /// One encoder sample (raw PLC counters). Returns false when the sample was rejected.
-  bool AddEncoders(core::Timestamp time, std::int32_t left_ticks, std::int32_t right_ticks);
+  /// One encoder sample (raw PLC counters, the vehicle kind's two). Returns false when the
+  /// sample was rejected.
+  bool AddEncoders(core::Timestamp time, const core::EncoderCounts& counts);
   /// Odometry is unavailable (the PLC link is down or its heartbeat stale): the next sample
   /// only re-seeds the counters, so wheel turns unseen or counters reset by a PLC restart
   /// are not taken for motion. Meanwhile frames coast the filter on the system model.
@@ -212,7 +213,8 @@ class Localizer {
   /// initialized().
   estimation::MotionState Latest() const;
   /// What the filter has learnt of each wheel's scale error (left, right: 0.02 when the
-  /// wheel travels 2 % farther than its calibrated radius says), and the standard deviations.
+  /// wheel travels 2 % farther than its calibrated radius says; a tricycle's drive wheel's, and
+  /// its steering offset's error in radians), and the standard deviations.
   /// One that persists over long drives is a radius to recalibrate; over a short drive the
   /// estimate also absorbs encoder time-stamp errors. Requires initialized().
   Eigen::Vector2d wheel_scale_error() const;
@@ -279,7 +281,7 @@ class Localizer {
   tracking::Tracker tracker_;
   tracking::Tracker edge_tracker_;  ///< with edge_templates, for views partly off the map
   tracking::Relocalizer relocalizer_;
-  estimation::DiffDriveOdometry odometry_;
+  estimation::WheelOdometry odometry_;
   std::optional<estimation::PoseFilter> filter_;
   estimation::LockMonitor lock_;
   std::int64_t relocalizations_ = 0;

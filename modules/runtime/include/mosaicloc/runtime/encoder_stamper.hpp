@@ -40,7 +40,7 @@ class EncoderStamper {
  private:
   EncoderStamperOptions options_;
   bool have_ticks_ = false;  // (not an optional pair: GCC 12 warns wrongly about it)
-  std::pair<std::int32_t, std::int32_t> last_ticks_{0, 0};
+  core::EncoderCounts last_ticks_;
   core::Timestamp last_read_;
   core::Timestamp last_forwarded_;
 };

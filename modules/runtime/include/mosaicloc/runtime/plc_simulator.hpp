@@ -1,5 +1,6 @@
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -33,7 +34,7 @@ struct PlcSimulatorOptions {
 struct PlcSimulatorStatus {
   double seconds = 0.0;  ///< since playback started
   int clients = 0;
-  std::int32_t left_ticks = 0, right_ticks = 0;
+  std::array<std::int32_t, 2> counters{};  ///< the vehicle kind's two counters as played
   std::uint32_t heartbeat = 0;
   std::int64_t requests = 0, answered = 0, fixes = 0;
   std::optional<double> last_error_mm;

@@ -22,10 +22,10 @@ struct CalibrationDriveOptions {
   ImagingOptions imaging;
   /// The truth.
   core::Pose2 vehicle_from_camera{212.5, -14.0, 0.035};
-  dataset::VehicleInfo vehicle{75.4, 74.7, 507.0, 4096};
+  dataset::VehicleInfo vehicle{core::DriveKind::kDifferential, 75.4, 74.7, 507.0, 4096};
   /// What the dataset claims (nominal, before calibration).
   core::Pose2 nominal_vehicle_from_camera{200.0, 0.0, 0.0};
-  dataset::VehicleInfo nominal_vehicle{75.0, 75.0, 500.0, 4096};
+  dataset::VehicleInfo nominal_vehicle{core::DriveKind::kDifferential, 75.0, 75.0, 500.0, 4096};
   double straight_mm = 400.0;
   double step_mm = 10.0;            ///< straight-run advance per frame, at cruising speed
   double turn_rad = 3.14159265358979;

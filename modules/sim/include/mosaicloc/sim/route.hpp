@@ -28,6 +28,11 @@ struct RouteOptions {
   double max_accel_mps2 = 1.0;    ///< longitudinal acceleration and braking
   double max_lateral_accel_mps2 = 1.5;  ///< bounds the speed in turns: v <= sqrt(a / curvature)
   double stop_s = 1.0;            ///< dwell where the vehicle stops (spur end, route end)
+  /// Length over which the curvature changes at the ends of a bend, m (a clothoid's, as the
+  /// guide paths of steered vehicles have: a tricycle's wheel swings at a finite rate). 0: the
+  /// curvature steps, as a differential drive may follow. Bends keep their angle; the path
+  /// cuts slightly inside them.
+  double curvature_transition_m = 0.0;
   /// Path-following error: a smooth lateral deviation with this standard deviation, mm,
   /// different on every lap (its wavelengths do not divide the lap length).
   double lateral_deviation_mm = 3.0;
@@ -72,6 +77,8 @@ class Drive {
   };
 
  private:
+  struct CentrePoint;
+  void SmoothCurvature(std::vector<std::vector<CentrePoint>>* legs) const;
   double LateralDeviationMm(double distance_m) const;
   double LateralDeviationSlope(double distance_m) const;
 
