@@ -39,19 +39,6 @@ inline void WriteBytes(const std::filesystem::path& file, const std::uint8_t* da
   out.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));
 }
 
-/// A loopback TCP port nobody listens on now.
-inline int FreePort() {
-  const int s = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in address{};
-  address.sin_family = AF_INET;
-  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  bind(s, reinterpret_cast<sockaddr*>(&address), sizeof(address));
-  socklen_t length = sizeof(address);
-  getsockname(s, reinterpret_cast<sockaddr*>(&address), &length);
-  close(s);
-  return ntohs(address.sin_port);
-}
-
 /// As a hostile client would: connects to the loopback `port`, sends the bytes, says it sends
 /// no more and reads what comes back until the server closes, has been quiet for `quiet_ms`
 /// or has sent for `max_ms` (a stream). Returns the bytes received.

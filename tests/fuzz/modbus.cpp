@@ -14,6 +14,7 @@
 #include "fuzz_input.hpp"
 #include "mosaicloc/core/log.hpp"
 #include "mosaicloc/io/plc_link.hpp"
+#include "mosaicloc/test/test_support.hpp"
 
 namespace {
 
@@ -21,7 +22,7 @@ using mosaicloc::io::PlcLinkOptions;
 
 // The served registers, started once per process.
 struct Served {
-  int port = mosaicloc::fuzz::FreePort();
+  int port = mosaicloc::test::FreeLoopbackPort();
   std::unique_ptr<mosaicloc::io::PlcLink> link;
   Served() {
     PlcLinkOptions options;

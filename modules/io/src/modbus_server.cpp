@@ -54,6 +54,9 @@ RegisterServer::RegisterServer(const PlcLinkOptions& options, int base, int coun
     }
     modbus_set_indication_timeout(state_->context.get(), 0, 100000);
   }
+  // A request's bytes arrive together: a peer that sends part of one and waits holds the one
+  // serving thread (and every other client) for at most this, not libmodbus' default 0.5 s.
+  modbus_set_byte_timeout(state_->context.get(), 0, 50000);
   thread_ = std::thread([this] { Serve(); });
 }
 

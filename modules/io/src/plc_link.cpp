@@ -131,6 +131,9 @@ ModbusContext NewContext(const PlcLinkOptions& options, bool server) {
   }
   const auto timeout_us = static_cast<std::uint32_t>(std::lround(options.response_timeout_ms * 1000.0));
   modbus_set_response_timeout(context, timeout_us / 1000000U, timeout_us % 1000000U);
+  // Between the bytes of one answer, too: libmodbus' default of 0.5 s let a PLC that sent half
+  // an answer hold the cycle that long.
+  modbus_set_byte_timeout(context, timeout_us / 1000000U, timeout_us % 1000000U);
   return owned;
 }
 

@@ -23,6 +23,7 @@
 #include <modbus/modbus.h>
 
 #include "mosaicloc/io/plc_link.hpp"
+#include "mosaicloc/test/test_support.hpp"
 
 namespace mosaicloc::io {
 namespace {
@@ -30,17 +31,6 @@ namespace {
 using namespace std::chrono_literals;
 
 // A free TCP port on loopback (the kernel's choice).
-int FreePort() {
-  const int s = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in address{};
-  address.sin_family = AF_INET;
-  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  bind(s, reinterpret_cast<sockaddr*>(&address), sizeof(address));
-  socklen_t length = sizeof(address);
-  getsockname(s, reinterpret_cast<sockaddr*>(&address), &length);
-  close(s);
-  return ntohs(address.sin_port);
-}
 
 // A PLC: a libmodbus TCP server with 200 holding registers, answering in a thread,
 // optionally late.
@@ -153,7 +143,7 @@ class ClientWordOrder : public testing::TestWithParam<WordOrder> {};
 
 TEST_P(ClientWordOrder, ReadsInputsAndWritesFixesAsThePlcSeesThem) {
   const WordOrder order = GetParam();
-  const int port = FreePort();
+  const int port = test::FreeLoopbackPort();
   TestPlc plc(port);
   SetTicks(plc, 0, 0xFFFFFFF0U, order);  // -16 as int32: a counter just before the wrap
   SetTicks(plc, 2, 123456789U, order);
@@ -218,7 +208,7 @@ std::optional<PlcInputs> ReadWhenAnswered(PlcLink& link) {
 }
 
 TEST(PlcClientTest, NoPlcIsAFailureNotACrashAndRetriesWithBackoff) {
-  const int port = FreePort();
+  const int port = test::FreeLoopbackPort();
   PlcLinkOptions options = ClientOptions(port);
   options.reconnect_min_ms = 300.0;
   options.reconnect_max_ms = 300.0;
@@ -244,7 +234,7 @@ TEST(PlcClientTest, NoPlcIsAFailureNotACrashAndRetriesWithBackoff) {
 }
 
 TEST(PlcClientTest, PlcRestartIsSurvived) {
-  const int port = FreePort();
+  const int port = test::FreeLoopbackPort();
   const auto link = OpenPlcLink(ClientOptions(port));
   {
     TestPlc plc(port);
@@ -268,7 +258,7 @@ TEST(PlcClientTest, PlcRestartIsSurvived) {
 }
 
 TEST(PlcClientTest, LateReplyDoesNotPoisonTheNextRead) {
-  const int port = FreePort();
+  const int port = test::FreeLoopbackPort();
   TestPlc plc(port);
   const auto link = OpenPlcLink(ClientOptions(port));  // 100 ms timeout
   plc.Set(4, 10);
@@ -287,7 +277,7 @@ TEST(PlcClientTest, LateReplyDoesNotPoisonTheNextRead) {
 }
 
 TEST(PlcClientTest, GarbageForAnAnswerIsAFailureAndTheNextAnswerIsRead) {
-  const int port = FreePort();
+  const int port = test::FreeLoopbackPort();
   TestPlc plc(port);
   const auto link = OpenPlcLink(ClientOptions(port));
   plc.Set(4, 20);
@@ -308,7 +298,7 @@ TEST(PlcClientTest, GarbageForAnAnswerIsAFailureAndTheNextAnswerIsRead) {
 }
 
 TEST(PlcClientTest, RegistersThePlcLacksAreNamedInTheError) {
-  const int port = FreePort();
+  const int port = test::FreeLoopbackPort();
   TestPlc plc(port);  // 200 registers
   PlcLinkOptions options = ClientOptions(port);
   options.registers.fix_x.address = 500;
@@ -322,7 +312,7 @@ TEST(PlcClientTest, RegistersThePlcLacksAreNamedInTheError) {
 }
 
 TEST(PlcServerTest, PlcWritesInputsAndReadsFixes) {
-  const int port = FreePort();
+  const int port = test::FreeLoopbackPort();
   PlcLinkOptions options = ClientOptions(port);
   options.role = "server";
   const auto link = OpenPlcLink(options);
@@ -377,7 +367,7 @@ TEST(PlcServerTest, PlcWritesInputsAndReadsFixes) {
 // 2-3 by default; here the steering is a 16-bit signed register of its own at 7): the counter
 // is unwrapped as a wheel's, the angle's count taken as read.
 TEST(PlcServerTest, TricycleDriveCounterAndSteeringRegister) {
-  const int port = FreePort();
+  const int port = test::FreeLoopbackPort();
   PlcLinkOptions options = ClientOptions(port);
   options.role = "server";
   options.registers.kind = core::DriveKind::kTricycle;
@@ -414,7 +404,7 @@ TEST(PlcServerTest, TricycleDriveCounterAndSteeringRegister) {
 }
 
 TEST(PlcServerTest, PortInUseIsAClearError) {
-  const int port = FreePort();
+  const int port = test::FreeLoopbackPort();
   TestPlc other(port);
   PlcLinkOptions options = ClientOptions(port);
   options.role = "server";

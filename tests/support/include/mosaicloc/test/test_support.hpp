@@ -34,6 +34,9 @@ std::string ReadFile(const std::filesystem::path& file);
 /// Writes (replaces) a file.
 void WriteFile(const std::filesystem::path& file, const std::string& content);
 
+/// A TCP port on loopback that nobody listens on now (the system's pick), for a test's server.
+int FreeLoopbackPort();
+
 /// Zero-normalized cross-correlation of two images of the same size over the pixels where
 /// mask (CV_8UC1) is non-zero; 1 for images equal up to gain and offset.
 double Zncc(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask);
