@@ -223,6 +223,10 @@ void SendError(httplib::Response& response, int status, const std::string& messa
   response.set_content(nlohmann::json{{"error", message}}.dump(), "application/json");
 }
 
+}  // namespace
+
+namespace internal {
+
 // The console's server, which can also answer a connection's bytes handed to it (Answer): the
 // same request parsing, token check, rate limit and routes, without a socket.
 class ConsoleServer final : public httplib::Server {
@@ -275,7 +279,7 @@ class ConsoleServer final : public httplib::Server {
   };
 };
 
-}  // namespace
+}  // namespace internal
 
 class Console::Impl {
  public:
@@ -774,7 +778,7 @@ class Console::Impl {
   std::map<std::string, internal::StaticFile> viewer_files_;
   internal::RateLimiter limiter_;
   internal::EncodedTileCache cache_;
-  ConsoleServer server_;
+  internal::ConsoleServer server_;
   std::thread thread_;
   int port_ = -1;
   std::atomic<bool> stopping_{false};
