@@ -13,15 +13,16 @@
 # Usage: faults.sh MOSAICLOC
 source "$(dirname "$0")/lib.sh"
 
-# stop_at SIGNAL PERCENT CMD...: runs CMD, sends SIGNAL once its progress reaches PERCENT;
-# stdout, stderr and the exit code in $SCRATCH/out, err and code.
+# stop_at SIGNAL 'STAGE: PERCENT' CMD...: runs CMD, sends SIGNAL once the progress of its
+# stage STAGE reaches PERCENT (a command may report stages before it, as a replay checks its
+# map first); stdout, stderr and the exit code in $SCRATCH/out, err and code.
 stop_at() {
-  local signal=$1 percent=$2
+  local signal=$1 progress=$2
   shift 2
   "$@" >"$SCRATCH/out" 2>"$SCRATCH/err" &
   local pid=$!
   for _ in $(seq 1200); do
-    grep -q ": $percent% (" "$SCRATCH/err" && break
+    grep -q "^$progress% (" "$SCRATCH/err" && break
     kill -0 $pid 2>/dev/null || break
     sleep 0.05
   done
@@ -51,14 +52,14 @@ mkdir -p "$W"
 "$M" --quiet map build --dataset "$W/ds" --out "$W/map.db" >/dev/null || fail "map build failed"
 
 echo "== stopped by a signal"
-stop_at INT 25 "$M" simulate --out "$W/stopped-ds" --frames 240 --seed 3 --threads 1
+stop_at INT "simulate: 25" "$M" simulate --out "$W/stopped-ds" --frames 240 --seed 3 --threads 1
 expect_code 130
 expect_in "$SCRATCH/err" "simulate: interrupted (SIGINT) at "
 expect_in "$SCRATCH/err" "no dataset was written"
 [ ! -e "$W/stopped-ds" ] || fail "an interrupted simulate left $W/stopped-ds"
 no_leftovers "$W"
 
-stop_at TERM 75 "$M" map build --dataset "$W/ds" --out "$W/resumed.db"
+stop_at TERM "map build: 75" "$M" map build --dataset "$W/ds" --out "$W/resumed.db"
 expect_code 143
 expect_in "$SCRATCH/err" "map build: terminated (SIGTERM) at "
 expect_in "$SCRATCH/err" "the same command with --resume goes on from there"
@@ -71,7 +72,7 @@ expect_exit 0 "$M" map check "$W/resumed.db"
 "$M" --quiet map export "$W/resumed.db" --out "$W/resumed.png" --level 2 >/dev/null
 cmp -s "$W/whole.png" "$W/resumed.png" || fail "the resumed map differs from the one built in one go"
 
-stop_at TERM 25 "$M" replay --dataset "$W/ds" --map "$W/map.db" --out "$W/stopped-report"
+stop_at TERM "replay: 25" "$M" replay --dataset "$W/ds" --map "$W/map.db" --out "$W/stopped-report"
 expect_code 143
 expect_in "$SCRATCH/err" "replay: terminated (SIGTERM) at "
 [ ! -e "$W/stopped-report/metrics.json" ] || fail "an interrupted replay wrote metrics"

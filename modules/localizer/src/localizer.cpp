@@ -242,16 +242,18 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   if (!filter_) core::ThrowRuntime("localizer: ProcessFrame before Initialize");
   filter_->Coast(time);
   const core::Pose2 predicted = filter_->PoseAt(time);
-  // Time-stamp uncertainty of the odometry: v * sigma_t along the heading.
+  // Time-stamp uncertainty of the odometry: a time-stamp error dt puts the pose dt times the
+  // motion off, v dt along the heading and omega dt in heading; the last fix anchored the state
+  // with the motion then, so the prediction here carries both, independent.
   Eigen::Matrix3d timing = Eigen::Matrix3d::Zero();
   if (options_.odometry_timing_sigma_ms > 0.0) {
-    // A time-stamp error dt puts the odometry v dt off; the last fix anchored the state with
-    // the speed then, so the prediction here carries both: (v_now^2 + v_fix^2) dt^2.
-    const double v_now = filter_->Latest().forward_speed_mm_per_s;
-    const double along_mm = std::sqrt(v_now * v_now + fix_speed_mm_per_s_ * fix_speed_mm_per_s_) *
-                            options_.odometry_timing_sigma_ms * 1e-3;
-    const Eigen::Vector2d heading(std::cos(predicted.yaw_rad()), std::sin(predicted.yaw_rad()));
-    timing.topLeftCorner<2, 2>() = along_mm * along_mm * heading * heading.transpose();
+    const double sigma_s = options_.odometry_timing_sigma_ms * 1e-3;
+    const auto& latest = filter_->Latest();
+    for (const auto& [v, omega] : {std::pair{latest.forward_speed_mm_per_s, latest.yaw_rate_rad_per_s},
+                                   std::pair{fix_speed_mm_per_s_, fix_yaw_rate_rad_per_s_}}) {
+      const Eigen::Vector3d motion(v * std::cos(predicted.yaw_rad()), v * std::sin(predicted.yaw_rad()), omega);
+      timing += sigma_s * sigma_s * motion * motion.transpose();
+    }
   }
   const Eigen::Matrix3d predicted_covariance = filter_->CovarianceAt(time) + timing;
   if (!scale_time_ || time > *scale_time_) {
@@ -344,6 +346,7 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
       }
       if (applied.accepted) {
         fix_speed_mm_per_s_ = filter_->Latest().forward_speed_mm_per_s;
+        fix_yaw_rate_rad_per_s_ = filter_->Latest().yaw_rate_rad_per_s;
         rejected_run_ = 0;
       } else {
         outcome.reason = "fix rejected: " + applied.reason;

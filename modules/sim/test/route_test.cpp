@@ -1,7 +1,11 @@
 #include "mosaicloc/sim/route.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <numbers>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -149,6 +153,38 @@ TEST(Drive, CurvatureTransitionsEaseTheBendsAndKeepTheirAngles) {
   RouteOptions bad = eased;
   bad.curvature_transition_m = -1.0;
   EXPECT_THROW(Drive(bad, 1, 1), core::Error);
+}
+
+// The path-following error fades in and out at each end of a leg without a step in the
+// path's curvature, for any seed: a tricycle's steered wheel would have to swing at once
+// (10 degrees within one encoder sample, with an envelope whose second derivative jumps).
+TEST(Drive, LateralDeviationKeepsTheCurvatureContinuous) {
+  RouteOptions options = Route("straight");
+  options.straight_length_m = 3.0;
+  options.lateral_deviation_mm = 8.0;
+  double largest = 0.0, jump = 0.0;
+  for (std::uint64_t seed = 1; seed <= 12; ++seed) {
+    const Drive drive(options, 1, seed);
+    // Heading against path distance, densely; curvature over 10 mm windows.
+    std::vector<std::pair<double, double>> heading;  // (distance m, yaw rad)
+    for (double t = 0.0; t < drive.duration_s(); t += 0.0005) {
+      const VehicleState state = drive.At(t);
+      if (heading.empty() || state.path_distance_m >= heading.back().first + 0.01) {
+        heading.emplace_back(state.path_distance_m, state.world_from_vehicle.yaw_rad());
+      }
+    }
+    ASSERT_GT(heading.size(), 250u);
+    double previous = 0.0;
+    for (std::size_t i = 1; i < heading.size(); ++i) {
+      const double curvature = core::WrapAngle(heading[i].second - heading[i - 1].second) /
+                               (heading[i].first - heading[i - 1].first);
+      largest = std::max(largest, std::abs(curvature));
+      if (i > 1) jump = std::max(jump, std::abs(curvature - previous));
+      previous = curvature;
+    }
+  }
+  EXPECT_GT(largest, 0.02);  // the deviation does bend the path
+  EXPECT_LT(jump, 0.03);     // but never in a step (a cubic smoothstep steps by 0.08 /m)
 }
 
 TEST(Drive, LapsForFramesCoversTheFrames) {

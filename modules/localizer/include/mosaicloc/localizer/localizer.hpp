@@ -71,8 +71,9 @@ struct LocalizerOptions {
   double fix_covariance_scale = 4.0;
   /// Uncertainty of the encoder samples' time stamps, ms: 0 in replay (exact clocks); on a
   /// vehicle the PLC's update period and the polling make them late or early by a few ms,
-  /// which puts the odometry v * dt behind or ahead along the heading. The prediction is
-  /// widened by that much along the heading, for the search and for the gate.
+  /// which puts the odometry v * dt behind or ahead along the heading and its heading
+  /// omega * dt off while the vehicle turns. The prediction is widened by that much, for the
+  /// search and for the gate.
   double odometry_timing_sigma_ms = 0.0;
   /// Relocalization, when the prediction is too uncertain for the tracker's search range or
   /// a kidnap is known (below): the frame is searched for on the coarse map around the
@@ -291,7 +292,8 @@ class Localizer {
   Eigen::Vector3d rejected_offset_ = Eigen::Vector3d::Zero();
   Eigen::Matrix3d rejected_covariance_ = Eigen::Matrix3d::Zero();
   Eigen::Matrix3d rejected_prediction_covariance_ = Eigen::Matrix3d::Zero();  ///< the filter's, then
-  double fix_speed_mm_per_s_ = 0.0;  ///< forward speed when the last fix was accepted
+  double fix_speed_mm_per_s_ = 0.0;   ///< forward speed when the last fix was accepted
+  double fix_yaw_rate_rad_per_s_ = 0.0;  ///< and the yaw rate then
   /// Consecutive frames without a fix whose prediction, with its uncertainty, lies on the map
   /// (frames without texture neither count nor break the run).
   int unmatched_run_ = 0;
