@@ -1,11 +1,6 @@
 // Modbus round trips on loopback: mosaicloc's PLC link (client role) reading the inputs and
 // writing a fix against a register server, beside plain libmodbus requests of the same size
 // (the floor any link has to pay).
-#include <arpa/inet.h>
-#include <netinet/in.h>
-#include <sys/socket.h>
-#include <unistd.h>
-
 #include <memory>
 
 #include <benchmark/benchmark.h>
@@ -14,29 +9,18 @@
 #include "mosaicloc/core/log.hpp"
 #include "mosaicloc/io/plc_link.hpp"
 #include "mosaicloc/io/register_server.hpp"
+#include "mosaicloc/test/test_support.hpp"
 
 namespace {
 
 using namespace mosaicloc;
-
-int FreePort() {
-  const int s = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in address{};
-  address.sin_family = AF_INET;
-  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  bind(s, reinterpret_cast<sockaddr*>(&address), sizeof(address));
-  socklen_t length = sizeof(address);
-  getsockname(s, reinterpret_cast<sockaddr*>(&address), &length);
-  close(s);
-  return ntohs(address.sin_port);
-}
 
 struct Plc {
   io::PlcLinkOptions options;
   std::unique_ptr<io::RegisterServer> server;
   Plc() {
     core::SetLogLevel(core::LogLevel::kWarning);
-    options.port = FreePort();
+    options.port = test::FreeLoopbackPort();
     options.response_timeout_ms = 500.0;
     server = std::make_unique<io::RegisterServer>(options, 0, 110);
   }

@@ -56,13 +56,28 @@ bool NextLine(std::ifstream& in, int* line_number, std::string* line) {
   return false;
 }
 
-void OpenCsv(const fs::path& csv, const char* header, std::ifstream* in) {
+// Opens a CSV and reads its header line (into `first`, when given), which must be a comment.
+void OpenCsv(const fs::path& csv, const char* header, std::ifstream* in, std::string* first = nullptr) {
   in->open(csv);
   if (!*in) core::ThrowInvalidInput(csv.string() + ": missing or unreadable");
-  std::string first;
-  if (!std::getline(*in, first)) LineError(csv, 1, "empty file: expected the header '" + std::string(header) + "'");
-  if (Trim(first).rfind('#', 0) != 0) {
-    LineError(csv, 1, "expected the header '" + std::string(header) + "', got '" + Trim(first) + "'");
+  std::string line;
+  if (!std::getline(*in, line)) LineError(csv, 1, "empty file: expected the header '" + std::string(header) + "'");
+  if (Trim(line).rfind('#', 0) != 0) {
+    LineError(csv, 1, "expected the header '" + std::string(header) + "', got '" + Trim(line) + "'");
+  }
+  if (first) *first = line;
+}
+
+// An encoder file whose header names the other kind's counters is not this vehicle's.
+void CheckEncoderHeader(const fs::path& csv, const std::string& header, core::DriveKind kind) {
+  for (const core::DriveKind other : core::kDriveKinds) {
+    const EncoderColumns columns = ColumnsOf(other);
+    if (other != kind &&
+        (header.find(columns.names[0]) != std::string::npos || header.find(columns.names[1]) != std::string::npos)) {
+      LineError(csv, 1,
+                "the header names a " + std::string(core::ToString(other)) + "'s counters, but dataset.yaml's "
+                "vehicle.kind is " + core::ToString(kind) + " (expected '" + ColumnsOf(kind).header + "')");
+    }
   }
 }
 
@@ -81,10 +96,11 @@ bool InOrder(core::Timestamp time, std::optional<core::Timestamp>* last) {
 
 // Counts the rows of a CSV whose time is not after the row kept before them (`kept`: the
 // others), warning once with the first few lines. Only the time field is read: the streams
-// check the rest.
-std::int64_t SkippedRows(const fs::path& csv, const char* header, std::int64_t* kept = nullptr) {
+// check the rest. `first`: the header line, when given.
+std::int64_t SkippedRows(const fs::path& csv, const char* header, std::int64_t* kept = nullptr,
+                         std::string* first = nullptr) {
   std::ifstream in;
-  OpenCsv(csv, header, &in);
+  OpenCsv(csv, header, &in, first);
   int line_number = 1;
   std::string line;
   std::optional<core::Timestamp> last;
@@ -174,21 +190,10 @@ DatasetReader::DatasetReader(const fs::path& directory) : directory_(directory) 
   info_ = ReadDatasetInfo(directory_ / "dataset.yaml");
   // Fail early on a missing or headless CSV, or a bad time, rather than after minutes of processing.
   skipped_frames_ = SkippedRows(directory_ / kFramesCsv, kFramesHeader, &frame_rows_);
-  skipped_encoder_samples_ = SkippedRows(directory_ / kEncodersCsv, ColumnsOf(info_.vehicle.kind).header);
-  // A header that names the other kind's counters: the file is not this vehicle's.
-  std::ifstream encoders(directory_ / kEncodersCsv);
-  std::string header;
-  std::getline(encoders, header);
-  for (const core::DriveKind other : core::kDriveKinds) {
-    const EncoderColumns columns = ColumnsOf(other);
-    if (other != info_.vehicle.kind &&
-        (header.find(columns.names[0]) != std::string::npos || header.find(columns.names[1]) != std::string::npos)) {
-      LineError(directory_ / kEncodersCsv, 1,
-                "the header names a " + std::string(core::ToString(other)) + "'s counters, but dataset.yaml's "
-                "vehicle.kind is " + core::ToString(info_.vehicle.kind) + " (expected '" +
-                    ColumnsOf(info_.vehicle.kind).header + "')");
-    }
-  }
+  std::string encoder_header;
+  skipped_encoder_samples_ =
+      SkippedRows(directory_ / kEncodersCsv, ColumnsOf(info_.vehicle.kind).header, nullptr, &encoder_header);
+  CheckEncoderHeader(directory_ / kEncodersCsv, encoder_header, info_.vehicle.kind);
 }
 
 DatasetReader::FrameStream::FrameStream(fs::path directory, const CameraInfo& camera)

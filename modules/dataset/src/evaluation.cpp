@@ -316,6 +316,24 @@ Evaluation Evaluate(const Trajectory& estimate, const Trajectory& groundtruth,
   return evaluation;
 }
 
+Metrics WithEvaluation(Metrics metrics, const Metrics& evaluated) {
+  if (!metrics.frames) metrics.frames = evaluated.frames;
+  metrics.associated = evaluated.associated;
+  metrics.position_rms_mm = evaluated.position_rms_mm;
+  metrics.position_p50_mm = evaluated.position_p50_mm;
+  metrics.position_p99_mm = evaluated.position_p99_mm;
+  metrics.position_max_mm = evaluated.position_max_mm;
+  metrics.heading_rms_deg = evaluated.heading_rms_deg;
+  metrics.heading_max_deg = evaluated.heading_max_deg;
+  metrics.repeatability_mm = evaluated.repeatability_mm;
+  metrics.repeatability_places = evaluated.repeatability_places;
+  metrics.max_speed_mps = evaluated.max_speed_mps;
+  metrics.final_position_error_mm = evaluated.final_position_error_mm;
+  metrics.path_length_m = evaluated.path_length_m;
+  metrics.drift_percent = evaluated.drift_percent;
+  return metrics;
+}
+
 void WriteMetricsJson(const std::filesystem::path& file, const Metrics& metrics) {
   nlohmann::ordered_json json = nlohmann::ordered_json::object();
   json["frames"] = ToJson(metrics.frames);

@@ -109,6 +109,34 @@ TEST(Evaluate, ConstantOffsetOfThreeMillimetres) {
   EXPECT_NEAR(*metrics.path_length_m, (397 * chord_mm + 2 * half_chord_mm) / 1000.0, 1e-9);
 }
 
+// A report's metrics: what the caller measured, and the evaluation's figures against the truth.
+TEST(Evaluate, WithEvaluationKeepsTheCallersFiguresAndTakesTheTruths) {
+  const Trajectory groundtruth = Circle(1);
+  Trajectory estimate;
+  for (std::size_t i = 0; i + 1 < groundtruth.size(); ++i) {
+    const double t_s = (static_cast<double>(i) + 0.5) * kLapS / kSamplesPerLap;
+    estimate.push_back({At(t_s), Shifted(CirclePose(t_s), 1.8, -2.4)});
+  }
+  const Metrics evaluated = Evaluate(estimate, groundtruth, {}).metrics;
+  Metrics caller;
+  caller.fixes = 7;
+  caller.wrong_fixes = 0;
+  caller.steering_offset_error_deg = 0.25;
+  caller.frames_by_mode["track"] = 12;
+  caller.position_rms_mm = 99.0;  // not the caller's to say: the evaluation's wins
+  const Metrics merged = WithEvaluation(caller, evaluated);
+  EXPECT_EQ(merged.frames, evaluated.frames) << "none of the caller's";
+  EXPECT_EQ(merged.fixes, 7);
+  EXPECT_EQ(merged.wrong_fixes, 0);
+  EXPECT_EQ(merged.steering_offset_error_deg, 0.25);
+  EXPECT_EQ(merged.frames_by_mode.at("track"), 12);
+  EXPECT_NEAR(*merged.position_rms_mm, 3.0, 1e-9);
+  EXPECT_EQ(merged.path_length_m, evaluated.path_length_m);
+  EXPECT_EQ(merged.max_speed_mps, evaluated.max_speed_mps);
+  caller.frames = 1000;
+  EXPECT_EQ(WithEvaluation(caller, evaluated).frames, 1000) << "the caller's frame count stands";
+}
+
 TEST(Evaluate, HeadingOffset) {
   const Trajectory groundtruth = Circle(1);
   const Evaluation evaluation = Evaluate(

@@ -38,6 +38,7 @@
 #include "mosaicloc/runtime/live_sources.hpp"
 #include "mosaicloc/runtime/map_session.hpp"
 #include "mosaicloc/runtime/report.hpp"
+#include "mosaicloc/runtime/settings.hpp"
 #include "mosaicloc/sim/config.hpp"
 
 namespace mosaicloc::runtime {
@@ -208,7 +209,7 @@ class LiveRun::Impl {
  public:
   Impl(const LiveRunOptions& config, std::unique_ptr<io::FrameSource> source, const dataset::CameraInfo& camera,
        const dataset::VehicleInfo& vehicle, const std::filesystem::path& record)
-      : config_(config), source_(std::move(source)), camera_info_(camera) {
+      : config_(config), source_(std::move(source)), camera_info_(camera), vehicle_kind_(vehicle.kind) {
     runtime::MapSessionOptions map_options;
     map_options.cache_budget_bytes = config.localizer.cache_budget_mib << 20;
     map_options.camera_mm_per_px = camera.mm_per_px;
@@ -689,12 +690,7 @@ class LiveRun::Impl {
       const std::lock_guard published(published_mutex_);
       scale = published_.scale;
     }
-    nlohmann::json wheel_scale = nullptr;
-    if (localizer_->initialized()) {
-      const Eigen::Vector2d k = localizer_->wheel_scale_error();
-      wheel_scale = nlohmann::json::array({k.x(), k.y()});
-    }
-    return {{"stopped", why},
+    nlohmann::json summary = {{"stopped", why},
             {"frames", stats_.frames.load()},
             {"frames_dropped", stats_.frames_dropped.load() + source_->dropped()},
             {"frames_processed", processed},
@@ -705,7 +701,6 @@ class LiveRun::Impl {
             {"mode_switches", localizer_->mode_switches()},
             {"frames_by_mode", FramesByMode()},
             {"relocalize_requests", stats_.relocalize_requests.load()},
-            {"wheel_scale_error", wheel_scale},
             {"scale", scale},
             {"latency_p50_ms", percentile(latency, 50.0)},
             {"latency_p99_ms", percentile(latency, 99.0)},
@@ -727,6 +722,15 @@ class LiveRun::Impl {
             {"plc_connects", link.connects},
             {"plc_connect_failures", link.connect_failures},
             {"recorded_frames", recorder_ ? nlohmann::json(recorder_->frames()) : nlohmann::json(nullptr)}};
+    // The calibration errors the filter learnt, as a replay's metrics name them (null before
+    // its first frame).
+    const runtime::CalibrationErrors learnt =
+        runtime::CalibrationErrorsShown(localizer_->initialized() ? localizer_->wheel_scale_error() : Eigen::Vector2d::Zero(),
+                                        vehicle_kind_);
+    for (int i = 0; i < 2; ++i) {
+      summary[learnt.names[i]] = localizer_->initialized() ? nlohmann::json(learnt.values[i]) : nlohmann::json(nullptr);
+    }
+    return summary;
   }
 
   static constexpr std::size_t kFrameQueue = 4;
@@ -734,6 +738,7 @@ class LiveRun::Impl {
   LiveRunOptions config_;
   std::unique_ptr<io::FrameSource> source_;
   dataset::CameraInfo camera_info_;
+  core::DriveKind vehicle_kind_;
   std::unique_ptr<runtime::MapSession> map_;  // before the localizer, which renders from it
   bool empty_map_ = false;  ///< mapping from a map with no floor yet
   Clock::time_point last_prediction_{};  // of the prefetcher; Publish runs on the tracking thread

@@ -39,17 +39,11 @@
 #include "mosaicloc/runtime/map_session.hpp"
 #include "mosaicloc/runtime/report.hpp"
 #include "mosaicloc/runtime/revisits.hpp"
+#include "mosaicloc/runtime/settings.hpp"
 #include "mosaicloc/tracking/tracker.hpp"
 
 namespace mosaicloc::runtime {
 namespace {
-
-// The filter's calibration states as shown: a differential drive's wheel scale errors in %,
-// a tricycle's drive wheel scale error in % and its steering offset error in degrees.
-Eigen::Vector2d CalibrationShown(const Eigen::Vector2d& states, core::DriveKind kind) {
-  if (kind == core::DriveKind::kTricycle) return {100.0 * states.x(), states.y() * 180.0 / std::numbers::pi};
-  return 100.0 * states;
-}
 
 // Overlap speed limit of the run (localizer::SpeedLimits), at the run's mean frame period.
 std::optional<double> OverlapSpeedLimit(const dataset::DatasetInfo& info, const dataset::Trajectory& estimate,
@@ -73,7 +67,7 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 // figures and the timelines.
 struct FrameExtras {
   std::optional<Eigen::Vector3d> normalized_innovation;
-  Eigen::Vector2d calibration{kNaN, kNaN};  ///< CalibrationShown
+  Eigen::Vector2d calibration{kNaN, kNaN};  ///< CalibrationErrorsShown
 };
 
 // What a replay mode records frame by frame, and the report made of it.
@@ -131,36 +125,12 @@ class ReplayRecord {
     if (estimate_.empty() && reports_.empty()) {
       core::ThrowInvalidInput(options.dataset.string() + ": no frame falls within the encoder samples");
     }
-    dataset::Metrics metrics;
+    dataset::Metrics metrics = known_;  // what the modes noted on the way
     metrics.frames = frames_;
     metrics.fixes = fixes_;
     metrics.fix_rate = static_cast<double>(fixes_) / static_cast<double>(frames_);
     metrics.lock_losses = lock_losses;
     metrics.relocalizations = relocalizations;
-    metrics.wheel_scale_left_percent = known_.wheel_scale_left_percent;
-    metrics.wheel_scale_right_percent = known_.wheel_scale_right_percent;
-    metrics.drive_wheel_scale_percent = known_.drive_wheel_scale_percent;
-    metrics.steering_offset_error_deg = known_.steering_offset_error_deg;
-    metrics.frames_to_first_fix = known_.frames_to_first_fix;
-    metrics.first_fix_s = known_.first_fix_s;
-    metrics.kidnap_frames_to_fix = known_.kidnap_frames_to_fix;
-    metrics.map_extension_segments = known_.map_extension_segments;
-    metrics.map_extension_closed = known_.map_extension_closed;
-    metrics.map_extension_keyframes = known_.map_extension_keyframes;
-    metrics.map_extension_tiles = known_.map_extension_tiles;
-    metrics.map_extension_unanchored = known_.map_extension_unanchored;
-    metrics.map_extension_closure_max_mm = known_.map_extension_closure_max_mm;
-    metrics.map_extension_pose_rms_mm = known_.map_extension_pose_rms_mm;
-    metrics.map_extension_pose_max_mm = known_.map_extension_pose_max_mm;
-    metrics.map_extension_overspeed_frames = known_.map_extension_overspeed_frames;
-    metrics.map_extension_speed_max_mps = known_.map_extension_speed_max_mps;
-    metrics.map_update = known_.map_update;
-    metrics.revisit_repeatability_mm = known_.revisit_repeatability_mm;
-    metrics.revisit_places = known_.revisit_places;
-    metrics.revisit_visits = known_.revisit_visits;
-    metrics.revisit_failures = known_.revisit_failures;
-    metrics.skipped_frames = known_.skipped_frames;
-    metrics.skipped_encoder_samples = known_.skipped_encoder_samples;
     dataset::AddTruthFreeFigures(reports_, estimate_, innovations_, &metrics);
     if (groundtruth_) {
       // Every fix checked against the truth: a lock that never broke proves nothing if it held
@@ -568,7 +538,7 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
     }
     FrameExtras extras;
     if (outcome.nis) extras.normalized_innovation = outcome.normalized_innovation;
-    if (localizer.initialized()) extras.calibration = CalibrationShown(localizer.wheel_scale_error(), info.vehicle.kind);
+    if (localizer.initialized()) extras.calibration = CalibrationErrorsShown(localizer.wheel_scale_error(), info.vehicle.kind).values;
     record.Report(FrameReportOf(frame->time, outcome), view_mapped, extras);
     if (!outcome.fixed) {
       const core::Pose2& f = outcome.fix_world_from_vehicle;
@@ -592,8 +562,8 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
   summary.wheel_scale_error = localizer.wheel_scale_error();
   summary.wheel_scale_sigma = localizer.wheel_scale_sigma();
   core::Log().info("map cache: {} tiles loaded, {} relocalizations", summary.tiles_loaded, summary.relocalizations);
-  const Eigen::Vector2d learnt = CalibrationShown(summary.wheel_scale_error, info.vehicle.kind);
-  const Eigen::Vector2d sigma = CalibrationShown(summary.wheel_scale_sigma, info.vehicle.kind);
+  const Eigen::Vector2d learnt = CalibrationErrorsShown(summary.wheel_scale_error, info.vehicle.kind).values;
+  const Eigen::Vector2d sigma = CalibrationErrorsShown(summary.wheel_scale_sigma, info.vehicle.kind).values;
   if (info.vehicle.kind == core::DriveKind::kTricycle) {
     record.known().drive_wheel_scale_percent = learnt.x();
     record.known().steering_offset_error_deg = learnt.y();

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <system_error>
+#include <utility>
 
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/dataset/plots.hpp"
@@ -21,69 +22,7 @@ dataset::Metrics WriteReport(const std::filesystem::path& directory, const datas
   if (groundtruth && !estimate.empty()) {
     const dataset::Evaluation evaluation = dataset::Evaluate(estimate, *groundtruth, dataset::EvaluationOptions{});
     // Keep what the caller measured; take the accuracy figures from the evaluation.
-    dataset::Metrics merged = evaluation.metrics;
-    const auto keep = [](auto& target, const auto& known) {
-      if (known) target = known;
-    };
-    keep(merged.frames, metrics.frames);
-    keep(merged.fixes, metrics.fixes);
-    keep(merged.fix_rate, metrics.fix_rate);
-    keep(merged.lock_losses, metrics.lock_losses);
-    keep(merged.wrong_fixes, metrics.wrong_fixes);
-    keep(merged.max_wrong_fix_mm, metrics.max_wrong_fix_mm);
-    keep(merged.fix_error_rms_mm, metrics.fix_error_rms_mm);
-    keep(merged.off_map_frames, metrics.off_map_frames);
-    keep(merged.off_map_max_error_mm, metrics.off_map_max_error_mm);
-    keep(merged.skipped_frames, metrics.skipped_frames);
-    keep(merged.skipped_encoder_samples, metrics.skipped_encoder_samples);
-    keep(merged.reentries, metrics.reentries);
-    keep(merged.reentry_frames_to_fix_max, metrics.reentry_frames_to_fix_max);
-    keep(merged.reentry_first_fix_error_max_mm, metrics.reentry_first_fix_error_max_mm);
-    keep(merged.relocalizations, metrics.relocalizations);
-    keep(merged.wheel_scale_left_percent, metrics.wheel_scale_left_percent);
-    keep(merged.wheel_scale_right_percent, metrics.wheel_scale_right_percent);
-    keep(merged.drive_wheel_scale_percent, metrics.drive_wheel_scale_percent);
-    keep(merged.steering_offset_error_deg, metrics.steering_offset_error_deg);
-    keep(merged.frames_to_first_fix, metrics.frames_to_first_fix);
-    keep(merged.first_fix_s, metrics.first_fix_s);
-    keep(merged.kidnap_frames_to_fix, metrics.kidnap_frames_to_fix);
-    keep(merged.map_extension_segments, metrics.map_extension_segments);
-    keep(merged.map_extension_closed, metrics.map_extension_closed);
-    keep(merged.map_extension_keyframes, metrics.map_extension_keyframes);
-    keep(merged.map_extension_tiles, metrics.map_extension_tiles);
-    keep(merged.map_extension_unanchored, metrics.map_extension_unanchored);
-    keep(merged.map_extension_closure_max_mm, metrics.map_extension_closure_max_mm);
-    keep(merged.map_extension_pose_rms_mm, metrics.map_extension_pose_rms_mm);
-    keep(merged.map_extension_pose_max_mm, metrics.map_extension_pose_max_mm);
-    keep(merged.map_extension_overspeed_frames, metrics.map_extension_overspeed_frames);
-    keep(merged.map_extension_speed_max_mps, metrics.map_extension_speed_max_mps);
-    keep(merged.map_update, metrics.map_update);
-    keep(merged.processing_fps, metrics.processing_fps);
-    keep(merged.latency_p50_ms, metrics.latency_p50_ms);
-    keep(merged.latency_p99_ms, metrics.latency_p99_ms);
-    keep(merged.overlap_speed_limit_mps, metrics.overlap_speed_limit_mps);
-    keep(merged.height_error_rms_mm, metrics.height_error_rms_mm);
-    keep(merged.height_error_max_mm, metrics.height_error_max_mm);
-    // The figures that need no truth are the caller's.
-    merged.estimate_path_length_m = metrics.estimate_path_length_m;
-    merged.estimate_speed_mean_mps = metrics.estimate_speed_mean_mps;
-    merged.estimate_speed_p99_mps = metrics.estimate_speed_p99_mps;
-    merged.frames_by_state = metrics.frames_by_state;
-    merged.fixes_by_state = metrics.fixes_by_state;
-    merged.no_fix_reasons = metrics.no_fix_reasons;
-    merged.frames_by_mode = metrics.frames_by_mode;
-    merged.mode_switches = metrics.mode_switches;
-    merged.nis_fixes = metrics.nis_fixes;
-    merged.nis_inside_95_share = metrics.nis_inside_95_share;
-    merged.nis_mean = metrics.nis_mean;
-    merged.innovation_sigma_ratio = metrics.innovation_sigma_ratio;
-    merged.repeatability_camera_mm = metrics.repeatability_camera_mm;
-    merged.repeatability_camera_places = metrics.repeatability_camera_places;
-    merged.revisit_repeatability_mm = metrics.revisit_repeatability_mm;
-    merged.revisit_places = metrics.revisit_places;
-    merged.revisit_visits = metrics.revisit_visits;
-    merged.revisit_failures = metrics.revisit_failures;
-    metrics = merged;
+    metrics = dataset::WithEvaluation(std::move(metrics), evaluation.metrics);
     dataset::WritePlots(directory, evaluation, title);
   }
   dataset::WriteMetricsJson(directory / "metrics.json", metrics);

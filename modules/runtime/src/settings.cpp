@@ -54,4 +54,12 @@ Eigen::Matrix3d StartCovariance(double start_sigma_mm, double start_sigma_deg) {
       .asDiagonal();
 }
 
+CalibrationErrors CalibrationErrorsShown(const Eigen::Vector2d& states, core::DriveKind kind) {
+  if (kind == core::DriveKind::kTricycle) {
+    return {{"drive_wheel_scale_percent", "steering_offset_error_deg"},
+            {100.0 * states.x(), states.y() * 180.0 / std::numbers::pi}};
+  }
+  return {{"wheel_scale_left_percent", "wheel_scale_right_percent"}, 100.0 * states};
+}
+
 }  // namespace mosaicloc::runtime

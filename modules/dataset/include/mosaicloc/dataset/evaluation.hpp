@@ -203,6 +203,10 @@ double Percentile(const std::vector<double>& sorted, double percent);
 Evaluation Evaluate(const Trajectory& estimate, const Trajectory& groundtruth,
                     const EvaluationOptions& options);
 
+/// The caller's metrics with an evaluation's figures against the truth (what Evaluate fills),
+/// the caller's frame count kept where it has one.
+Metrics WithEvaluation(Metrics metrics, const Metrics& evaluated);
+
 /// Places passed more than once along `positions` (time order), found as Evaluate's
 /// repeatability finds them (steps 1 and 2): for every place, the indices of the positions that
 /// stand for its visits.

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <array>
 #include <cstddef>
 
 #include "mosaicloc/core/pose2.hpp"
@@ -48,6 +49,17 @@ mosaic::PrefetchOptions PrefetchOptionsFor(const LocalizationSettings& settings,
 /// Asks `prefetcher` for the tiles along the path the motion state predicts for the camera.
 void PredictTiles(mosaic::TilePrefetcher& prefetcher, const estimation::MotionState& motion,
                   const core::Pose2& vehicle_from_camera);
+
+/// The filter's two calibration states (localizer::Localizer::wheel_scale_error) as a user
+/// reads them, under the names metrics.json and a run's summary give them: a differential
+/// drive's wheel scale errors in % (wheel_scale_left_percent, wheel_scale_right_percent), a
+/// tricycle's drive wheel scale error in % and steering offset error in degrees
+/// (drive_wheel_scale_percent, steering_offset_error_deg).
+struct CalibrationErrors {
+  std::array<const char*, 2> names;
+  Eigen::Vector2d values;
+};
+CalibrationErrors CalibrationErrorsShown(const Eigen::Vector2d& states, core::DriveKind kind);
 
 /// The starting pose's covariance from the settings' start uncertainty.
 Eigen::Matrix3d StartCovariance(double start_sigma_mm, double start_sigma_deg);
