@@ -5,7 +5,9 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <optional>
+#include <string>
 
 #include <nlohmann/json.hpp>
 
@@ -251,17 +253,17 @@ void RunVehicle(const VehicleArgs& args, const GlobalOptions& global) {
   const calibration::VehicleParameters& sigma = drive.sigma;
   if (!args.out.empty()) calibration::WriteVehicleCalibration(args.out, drive, args.dataset);
   const std::optional<calibration::VehicleParameters>& truth = drive.truth;
-  const char* names[6] = {"camera x mm", "camera y mm", "camera yaw deg", "left radius mm", "right radius mm",
-                          "track width mm"};
-  const double unit[6] = {1.0, 1.0, 180.0 / M_PI, 1.0, 1.0, 1.0};
+  const calibration::VehicleParameterNames& shown = calibration::ParameterNamesOf(drive.kind);
+  const auto& names = shown.labels;
+  const auto& unit = shown.shown_per_value;
   if (global.json) {
     nlohmann::json out = {{"frames", drive.frames}, {"steps", drive.steps}, {"consecutive_steps", drive.consecutive_steps},
                           {"not_registered", drive.not_registered},
                           {"iterations", result.iterations},
                           {"rms_translation_mm", result.rms_translation_mm},
                           {"rms_rotation_deg", result.rms_rotation_rad * 180.0 / M_PI}};
-    const char* keys[6] = {"x_mm", "y_mm", "yaw_deg", "left_wheel_radius_mm", "right_wheel_radius_mm",
-                           "track_width_mm"};
+    out["kind"] = core::ToString(drive.kind);
+    const auto& keys = shown.keys;
     for (std::size_t i = 0; i < 6; ++i) {
       out[keys[i]] = {{"value", value[i] * unit[i]}, {"sigma", sigma[i] * unit[i]}};
       if (truth) {
@@ -276,11 +278,11 @@ void RunVehicle(const VehicleArgs& args, const GlobalOptions& global) {
   std::printf("%d of %d consecutive frame pairs registered, %d pairs in all; residuals %.4f mm, %.5f deg per pair\n",
               drive.consecutive_steps, drive.frames - 1, drive.steps, result.rms_translation_mm,
               result.rms_rotation_rad * 180.0 / M_PI);
-  std::printf("  %-16s %14s %12s", "", "calibrated", "sigma");
+  std::printf("  %-20s %14s %12s", "", "calibrated", "sigma");
   if (truth) std::printf(" %14s %12s", "truth", "error");
   std::printf("\n");
   for (std::size_t i = 0; i < 6; ++i) {
-    std::printf("  %-16s %14.4f %12.4f", names[i], value[i] * unit[i], sigma[i] * unit[i]);
+    std::printf("  %-20s %14.4f %12.4f", names[i], value[i] * unit[i], sigma[i] * unit[i]);
     if (truth) std::printf(" %14.4f %12.4f", (*truth)[i] * unit[i], (value[i] - (*truth)[i]) * unit[i]);
     std::printf("\n");
   }
@@ -289,6 +291,7 @@ void RunVehicle(const VehicleArgs& args, const GlobalOptions& global) {
 
 struct DriveArgs {
   std::filesystem::path out;
+  core::DriveKind kind = core::DriveKind::kDifferential;
   std::uint64_t seed = 1;
   double mounting_yaw_deg = sim::CalibrationDriveOptions{}.vehicle_from_camera.yaw_rad() * 180.0 / M_PI;
   double ramp_frames = 0.0;
@@ -296,7 +299,7 @@ struct DriveArgs {
 };
 
 void RunSimulateDrive(const DriveArgs& args, const GlobalOptions& global) {
-  sim::CalibrationDriveOptions options;
+  sim::CalibrationDriveOptions options = sim::CalibrationDriveFor(args.kind);
   options.seed = args.seed;
   options.floor.seed = args.seed;
   options.vehicle_from_camera = core::Pose2(options.vehicle_from_camera.x_mm(), options.vehicle_from_camera.y_mm(),
@@ -306,8 +309,10 @@ void RunSimulateDrive(const DriveArgs& args, const GlobalOptions& global) {
   if (global.json) {
     PrintJson(nlohmann::json{{"dataset", args.out.string()}, {"frames", summary.frames}});
   } else {
-    std::printf("calibration drive %s: %d frames, a %.0f mm straight run then a %.0f deg turn in place\n",
-                args.out.string().c_str(), summary.frames, options.straight_mm, options.turn_rad * 180.0 / M_PI);
+    std::printf("calibration drive %s (%s): %d frames, a %.0f mm straight run then a %.0f deg turn in place%s\n",
+                args.out.string().c_str(), core::ToString(args.kind), summary.frames, options.straight_mm,
+                options.turn_rad * 180.0 / M_PI,
+                args.kind == core::DriveKind::kTricycle ? ", the steered wheel across" : "");
   }
 }
 
@@ -426,6 +431,11 @@ Action AddCalibrateCommand(CLI::App& app, const GlobalOptions& global) {
   auto drive_args = std::make_shared<DriveArgs>();
   CLI::App* drive = command->add_subcommand("simulate-drive", "A simulated calibration drive with known truth");
   drive->add_option("--out", drive_args->out, "Dataset directory to write")->required();
+  std::map<std::string, core::DriveKind> kinds;
+  for (const core::DriveKind kind : core::kDriveKinds) kinds[core::ToString(kind)] = kind;
+  drive->add_option("--kind", drive_args->kind,
+                    "The vehicle: differential (the default) or tricycle, which pivots with its steered wheel across")
+      ->transform(CLI::CheckedTransformer(kinds));
   drive->add_option("--seed", drive_args->seed, "Floor and noise seed")->capture_default_str();
   drive->add_option("--mounting-yaw-deg", drive_args->mounting_yaw_deg, "The camera's true yaw on the vehicle, deg")
       ->capture_default_str()

@@ -31,7 +31,16 @@ expect_in "$SCRATCH/err" "route.curvature_transition_m must be > 0 for a tricycl
 printf 'vehicle: {kind: tricycle, track_width_mm: 500.0}\n' > "$SCRATCH/mixed.yaml"
 expect_exit 2 "$MOSAICLOC" --quiet simulate --out "$SCRATCH/x" --config "$SCRATCH/mixed.yaml"
 expect_in "$SCRATCH/err" "track_width_mm"
-expect_exit 2 "$MOSAICLOC" --quiet calibrate vehicle --dataset "$SCRATCH/drive" --out "$SCRATCH/v.yaml"
-expect_in "$SCRATCH/err" "vehicle.kind is tricycle"
 [ ! -e "$SCRATCH/x" ] || fail "a refused simulation left a dataset"
+
+# Calibration: the drive wheel's radius, the wheelbase and the steering zero from a straight
+# run and a pivot with the steered wheel across; the file holds the tricycle's keys.
+expect_exit 0 "$MOSAICLOC" --quiet calibrate simulate-drive --kind tricycle --out "$SCRATCH/cal"
+expect_exit 0 "$MOSAICLOC" --quiet --json calibrate vehicle --dataset "$SCRATCH/cal" --out "$SCRATCH/vehicle.yaml"
+cp "$SCRATCH/out" "$SCRATCH/vehicle.json"
+json_check "$SCRATCH/vehicle.json" 'd["kind"] == "tricycle"' 'abs(d["steering_offset_deg"]["error"]) < 0.05' \
+  'abs(d["wheelbase_mm"]["error"]) < 0.5' 'abs(d["drive_wheel_radius_mm"]["error"]) < 0.1' \
+  'abs(d["y_mm"]["error"]) < 0.5' 'abs(d["yaw_deg"]["error"]) < 0.05' 'd["steering_offset_deg"]["sigma"] < 0.05'
+expect_in "$SCRATCH/vehicle.yaml" "kind: tricycle"
+expect_in "$SCRATCH/vehicle.yaml" "steering_offset_deg:"
 finish

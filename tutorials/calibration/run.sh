@@ -11,6 +11,9 @@ mosaicloc calibrate rectify --ground ground.yaml --images 'captures/ground/*.png
 # 5. Mount: the camera's place on the vehicle from a calibration drive.
 mosaicloc calibrate simulate-drive --out drive
 mosaicloc --quiet calibrate vehicle --dataset drive --out vehicle.yaml
+#    A tricycle's: a straight run, then a pivot with the steered wheel across.
+mosaicloc calibrate simulate-drive --kind tricycle --out tug-drive
+mosaicloc --quiet calibrate vehicle --dataset tug-drive --out tug.yaml
 # 6. Verify: a photograph the calibration did not use, rectified and measured.
 mosaicloc calibrate verify --ground ground.yaml --images 'captures/ground/floor-05.png' --board chessboard:9x6:10mm
 # ViSP's own calibration photographs, where the visp-images-data package is installed.

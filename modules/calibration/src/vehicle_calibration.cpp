@@ -9,32 +9,47 @@
 namespace mosaicloc::calibration {
 namespace {
 
-using Parameters = Eigen::Matrix<double, 6, 1>;  // x_mm, y_mm, yaw_rad, r_l, r_r, b
+// x_mm, y_mm, yaw_rad of vehicle_from_camera, then the kind's: r_l, r_r, b (differential) or
+// r, l, steering offset in rad (tricycle).
+using Parameters = Eigen::Matrix<double, 6, 1>;
 
-core::Pose2 Arc(double left_wheel_rad, double right_wheel_rad, const Parameters& p) {
-  const double d_l = p(3) * left_wheel_rad, d_r = p(4) * right_wheel_rad;
-  const double d = 0.5 * (d_l + d_r), theta = (d_r - d_l) / p(5);
+core::Pose2 Arc(const WheelTurn& turn, core::DriveKind kind, const Parameters& p) {
+  double d = 0.0, theta = 0.0;
+  if (kind == core::DriveKind::kTricycle) {
+    const double d_w = p(3) * turn.drive_wheel_rad, psi = turn.steering_rad + p(5);
+    d = d_w * std::cos(psi);
+    theta = d_w * std::sin(psi) / p(4);
+  } else {
+    const double d_l = p(3) * turn.left_wheel_rad, d_r = p(4) * turn.right_wheel_rad;
+    d = 0.5 * (d_l + d_r);
+    theta = (d_r - d_l) / p(5);
+  }
   // sin(theta)/theta and (1 - cos(theta))/theta, by series near zero.
   const double a = std::abs(theta) < 1e-6 ? 1.0 - theta * theta / 6.0 : std::sin(theta) / theta;
   const double b = std::abs(theta) < 1e-6 ? 0.5 * theta : (1.0 - std::cos(theta)) / theta;
   return {d * a, d * b, theta};
 }
 
-core::Pose2 VehicleMotion(const DriveStep& step, const Parameters& p) {
-  if (step.arcs.empty()) return Arc(step.left_wheel_rad, step.right_wheel_rad, p);
+core::Pose2 VehicleMotion(const DriveStep& step, core::DriveKind kind, const Parameters& p) {
   core::Pose2 motion;
-  for (const WheelTurn& turn : step.arcs) motion = motion * Arc(turn.left_wheel_rad, turn.right_wheel_rad, p);
+  for (const WheelTurn& turn : step.arcs) motion = motion * Arc(turn, kind, p);
   return motion;
 }
 
-WheelTurn Total(const DriveStep& step) {
-  if (step.arcs.empty()) return {step.left_wheel_rad, step.right_wheel_rad};
-  WheelTurn total;
+// Whether a step drove straight ahead under the initial geometry: both wheels alike, or the
+// steered wheel within 1 degree of straight.
+bool Straight(const DriveStep& step, core::DriveKind kind, const Parameters& p) {
+  double forward = 0.0, turned = 0.0;
   for (const WheelTurn& turn : step.arcs) {
-    total.left_wheel_rad += turn.left_wheel_rad;
-    total.right_wheel_rad += turn.right_wheel_rad;
+    if (kind == core::DriveKind::kTricycle) {
+      if (std::abs(turn.steering_rad + p(5)) > M_PI / 180.0) return false;
+      forward += turn.drive_wheel_rad;
+    } else {
+      forward += turn.left_wheel_rad + turn.right_wheel_rad;
+      turned += turn.right_wheel_rad - turn.left_wheel_rad;
+    }
   }
-  return total;
+  return forward > 0.0 && std::abs(turned) < 0.02 * forward;
 }
 
 Eigen::VectorXd Residuals(const std::vector<DriveStep>& steps, const Parameters& p,
@@ -43,7 +58,8 @@ Eigen::VectorXd Residuals(const std::vector<DriveStep>& steps, const Parameters&
   const core::Pose2 camera_from_vehicle = vehicle_from_camera.Inverse();
   Eigen::VectorXd r(3 * static_cast<long>(steps.size()));
   for (std::size_t i = 0; i < steps.size(); ++i) {
-    const core::Pose2 predicted = camera_from_vehicle * VehicleMotion(steps[i], p) * vehicle_from_camera;
+    const core::Pose2 predicted =
+        camera_from_vehicle * VehicleMotion(steps[i], options.initial_wheels.kind, p) * vehicle_from_camera;
     const core::Pose2 error = predicted.Inverse() * steps[i].previous_from_current_camera;
     const long k = 3 * static_cast<long>(i);
     r(k) = error.x_mm() / options.registration_sigma_mm;
@@ -55,8 +71,10 @@ Eigen::VectorXd Residuals(const std::vector<DriveStep>& steps, const Parameters&
 
 Eigen::MatrixXd Jacobian(const std::vector<DriveStep>& steps, const Parameters& p,
                          const VehicleCalibrationOptions& options) {
-  // Central differences with steps scaled to each parameter (mm, rad, mm).
-  const double h[6] = {1e-4, 1e-4, 1e-7, 1e-5, 1e-5, 1e-4};
+  // Central differences with steps scaled to each parameter (mm, rad, mm; a tricycle's
+  // steering offset in rad).
+  const bool tricycle = options.initial_wheels.kind == core::DriveKind::kTricycle;
+  const double h[6] = {1e-4, 1e-4, 1e-7, 1e-5, tricycle ? 1e-4 : 1e-5, tricycle ? 1e-7 : 1e-4};
   Eigen::MatrixXd j(3 * static_cast<long>(steps.size()), 6);
   for (int c = 0; c < 6; ++c) {
     Parameters plus = p, minus = p;
@@ -69,16 +87,17 @@ Eigen::MatrixXd Jacobian(const std::vector<DriveStep>& steps, const Parameters& 
 
 // The mounting yaw seen by the straight steps: the vehicle moves along its x axis, so the
 // camera translates along R(-yaw) (1, 0).
-double InitialYaw(const std::vector<DriveStep>& steps, double fallback) {
+double InitialYaw(const std::vector<DriveStep>& steps, core::DriveKind kind, const Parameters& p, double fallback) {
   Eigen::Vector2d sum = Eigen::Vector2d::Zero();
   for (const DriveStep& step : steps) {
-    const WheelTurn total = Total(step);
-    const double forward = total.left_wheel_rad + total.right_wheel_rad;
-    if (forward > 0.0 && std::abs(total.right_wheel_rad - total.left_wheel_rad) < 0.02 * forward) {
-      sum += step.previous_from_current_camera.translation_mm();
-    }
+    if (Straight(step, kind, p)) sum += step.previous_from_current_camera.translation_mm();
   }
   return sum.norm() > 0.0 ? -std::atan2(sum.y(), sum.x()) : fallback;
+}
+
+// Whether the kind's wheel parameters can be what a vehicle has (lengths > 0).
+bool Possible(const Parameters& p, core::DriveKind kind) {
+  return p(3) > 0.0 && p(4) > 0.0 && (kind == core::DriveKind::kTricycle || p(5) > 0.0);
 }
 
 }  // namespace
@@ -116,10 +135,17 @@ VehicleCalibrationResult CalibrateVehicle(const std::vector<DriveStep>& steps,
     result.message = "a calibration drive needs at least 4 registered steps";
     return result;
   }
+  const core::WheelGeometry& initial = options.initial_wheels;
+  const core::DriveKind kind = initial.kind;
   Parameters p;
-  p << options.initial_vehicle_from_camera.x_mm(), options.initial_vehicle_from_camera.y_mm(),
-      InitialYaw(steps, options.initial_vehicle_from_camera.yaw_rad()), options.initial_wheels.left_wheel_radius_mm,
-      options.initial_wheels.right_wheel_radius_mm, options.initial_wheels.track_width_mm;
+  if (kind == core::DriveKind::kTricycle) {
+    p << 0.0, 0.0, 0.0, initial.drive_wheel_radius_mm, initial.wheelbase_mm, initial.steering_offset_deg * M_PI / 180.0;
+  } else {
+    p << 0.0, 0.0, 0.0, initial.left_wheel_radius_mm, initial.right_wheel_radius_mm, initial.track_width_mm;
+  }
+  p(0) = options.initial_vehicle_from_camera.x_mm();
+  p(1) = options.initial_vehicle_from_camera.y_mm();
+  p(2) = InitialYaw(steps, kind, p, options.initial_vehicle_from_camera.yaw_rad());
   Eigen::VectorXd r = Residuals(steps, p, options);
   double cost = r.squaredNorm();
   double lambda = 1e-4;
@@ -134,7 +160,7 @@ VehicleCalibrationResult CalibrateVehicle(const std::vector<DriveStep>& steps,
       damped.diagonal() += lambda * jtj.diagonal().cwiseMax(1e-12);
       const Parameters delta = -damped.ldlt().solve(g);
       const Parameters candidate = p + delta;
-      if (candidate(3) <= 0.0 || candidate(4) <= 0.0 || candidate(5) <= 0.0) {
+      if (!Possible(candidate, kind)) {
         lambda *= 10.0;
         continue;
       }
@@ -179,7 +205,10 @@ VehicleCalibrationResult CalibrateVehicle(const std::vector<DriveStep>& steps,
   const Eigen::FullPivLU<Eigen::Matrix<double, 6, 6>> lu(jtj);
   if (!determined || lu.rank() < 6) {
     result.converged = false;
-    result.message = "the drive does not determine every parameter: it needs a straight run and a turn in place";
+    result.message = kind == core::DriveKind::kTricycle
+                         ? "the drive does not determine every parameter: it needs a straight run and a turn in "
+                           "place (the steered wheel across, pivoting about the fixed axle)"
+                         : "the drive does not determine every parameter: it needs a straight run and a turn in place";
   } else {
     const long dof = std::max<long>(1, r.size() - 6);
     double variance = cost / static_cast<double>(dof);
@@ -189,10 +218,16 @@ VehicleCalibrationResult CalibrateVehicle(const std::vector<DriveStep>& steps,
     result.sigma = (lu.inverse().diagonal() * variance).cwiseSqrt();
   }
   result.vehicle_from_camera = core::Pose2(p(0), p(1), std::remainder(p(2), 2.0 * M_PI));
-  result.wheels = core::WheelGeometry{};
-  result.wheels.left_wheel_radius_mm = p(3);
-  result.wheels.right_wheel_radius_mm = p(4);
-  result.wheels.track_width_mm = p(5);
+  result.wheels = initial;
+  if (kind == core::DriveKind::kTricycle) {
+    result.wheels.drive_wheel_radius_mm = p(3);
+    result.wheels.wheelbase_mm = p(4);
+    result.wheels.steering_offset_deg = p(5) * 180.0 / M_PI;
+  } else {
+    result.wheels.left_wheel_radius_mm = p(3);
+    result.wheels.right_wheel_radius_mm = p(4);
+    result.wheels.track_width_mm = p(5);
+  }
   double sum_t = 0.0, sum_r = 0.0;
   for (long i = 0; i < r.size() / 3; ++i) {
     sum_t += (r(3 * i) * r(3 * i) + r(3 * i + 1) * r(3 * i + 1)) * options.registration_sigma_mm * options.registration_sigma_mm;

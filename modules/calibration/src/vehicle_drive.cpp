@@ -22,39 +22,63 @@
 namespace mosaicloc::calibration {
 namespace {
 
-// Unwrapped wheel angles (the PLC's int32 counters may wrap) at each encoder sample,
+// What the encoders read at each sample, as angles: the two wheels' unwrapped (the PLC's
+// int32 counters may wrap) from the first sample (differential), or the drive wheel's so and
+// the steering angle as its absolute encoder reads it, before the offset (tricycle);
 // interpolated at any time inside the recording.
 class WheelAngles {
  public:
-  WheelAngles(std::vector<dataset::EncoderSample> samples, std::int64_t ticks_per_revolution)
-      : samples_(std::move(samples)),
-        rad_per_tick_(2.0 * M_PI / static_cast<double>(ticks_per_revolution)),
-        left_(samples_.size()),
-        right_(samples_.size()) {
-    for (std::size_t i = 1; i < samples_.size(); ++i) {
-      left_[i] = left_[i - 1] + estimation::TickDelta(samples_[i - 1].left_ticks, samples_[i].left_ticks);
-      right_[i] = right_[i - 1] + estimation::TickDelta(samples_[i - 1].right_ticks, samples_[i].right_ticks);
+  WheelAngles(std::vector<dataset::EncoderSample> samples, const core::WheelGeometry& wheels)
+      : samples_(std::move(samples)), kind_(wheels.kind), angles_(samples_.size(), Eigen::Vector2d::Zero()) {
+    const double rad_per_tick = 2.0 * M_PI / static_cast<double>(wheels.ticks_per_revolution);
+    const double steering_rad_per_tick = 2.0 * M_PI / static_cast<double>(wheels.steering_ticks_per_revolution);
+    double first = 0.0, second = 0.0;  // unwrapped tick counts
+    for (std::size_t i = 0; i < samples_.size(); ++i) {
+      const dataset::EncoderSample& s = samples_[i];
+      if (kind_ == core::DriveKind::kTricycle) {
+        if (i > 0) first += estimation::TickDelta(samples_[i - 1].drive_ticks, s.drive_ticks);
+        angles_[i] = {rad_per_tick * first, steering_rad_per_tick * s.steering_ticks};
+      } else {
+        if (i > 0) {
+          first += estimation::TickDelta(samples_[i - 1].left_ticks, s.left_ticks);
+          second += estimation::TickDelta(samples_[i - 1].right_ticks, s.right_ticks);
+        }
+        angles_[i] = rad_per_tick * Eigen::Vector2d(first, second);
+      }
     }
   }
 
-  /// Left and right wheel angle at `time`, rad from the first sample; nothing outside.
+  /// The two angles at `time`, rad; nothing outside the recording.
   std::optional<Eigen::Vector2d> At(core::Timestamp time) const {
     const auto after = std::lower_bound(samples_.begin(), samples_.end(), time,
                                         [](const dataset::EncoderSample& s, core::Timestamp t) { return s.time < t; });
     if (after == samples_.end()) return std::nullopt;
     const std::size_t j = static_cast<std::size_t>(after - samples_.begin());
-    if (after->time == time) return rad_per_tick_ * Eigen::Vector2d(left_[j], right_[j]);
+    if (after->time == time) return angles_[j];
     if (j == 0) return std::nullopt;
     const double a = static_cast<double>((time - samples_[j - 1].time).count()) /
                      static_cast<double>((samples_[j].time - samples_[j - 1].time).count());
-    return rad_per_tick_ * Eigen::Vector2d(left_[j - 1] + a * (left_[j] - left_[j - 1]),
-                                           right_[j - 1] + a * (right_[j] - right_[j - 1]));
+    return angles_[j - 1] + a * (angles_[j] - angles_[j - 1]);
+  }
+
+  /// What the wheels did between two readings of At: each wheel's turn, or the drive wheel's
+  /// and the steering angle's mean over the interval.
+  WheelTurn Between(const Eigen::Vector2d& before, const Eigen::Vector2d& after) const {
+    WheelTurn turn;
+    if (kind_ == core::DriveKind::kTricycle) {
+      turn.drive_wheel_rad = after(0) - before(0);
+      turn.steering_rad = 0.5 * (before(1) + after(1));
+    } else {
+      turn.left_wheel_rad = after(0) - before(0);
+      turn.right_wheel_rad = after(1) - before(1);
+    }
+    return turn;
   }
 
  private:
   std::vector<dataset::EncoderSample> samples_;
-  double rad_per_tick_;
-  std::vector<double> left_, right_;
+  core::DriveKind kind_;
+  std::vector<Eigen::Vector2d> angles_;
 };
 
 // Share of the frame both images show, from the displacement of the frame's corners.
@@ -74,9 +98,17 @@ double Overlap(const core::Pose2& motion, double width_mm, double height_mm) {
 // its chord: the prior of a registration, not a measurement).
 core::Pose2 NominalMotion(const VehicleCalibrationOptions& nominal, const WheelTurn& turn) {
   const core::WheelGeometry& w = nominal.initial_wheels;
-  const double d = 0.5 * (w.left_wheel_radius_mm * turn.left_wheel_rad + w.right_wheel_radius_mm * turn.right_wheel_rad);
-  const double theta =
-      (w.right_wheel_radius_mm * turn.right_wheel_rad - w.left_wheel_radius_mm * turn.left_wheel_rad) / w.track_width_mm;
+  double d = 0.0, theta = 0.0;
+  if (w.kind == core::DriveKind::kTricycle) {
+    const double d_w = w.drive_wheel_radius_mm * turn.drive_wheel_rad;
+    const double psi = turn.steering_rad + w.steering_offset_deg * M_PI / 180.0;
+    d = d_w * std::cos(psi);
+    theta = d_w * std::sin(psi) / w.wheelbase_mm;
+  } else {
+    d = 0.5 * (w.left_wheel_radius_mm * turn.left_wheel_rad + w.right_wheel_radius_mm * turn.right_wheel_rad);
+    theta = (w.right_wheel_radius_mm * turn.right_wheel_rad - w.left_wheel_radius_mm * turn.left_wheel_rad) /
+            w.track_width_mm;
+  }
   const core::Pose2& x = nominal.initial_vehicle_from_camera;
   return x.Inverse() * core::Pose2(d, 0.0, theta) * x;
 }
@@ -119,16 +151,10 @@ VehicleDriveResult CalibrateVehicleFromDrive(const std::filesystem::path& datase
   if (!options.Check(&why)) core::ThrowInvalidInput(why);
   const dataset::DatasetReader reader(dataset_dir);
   const dataset::DatasetInfo& info = reader.info();
-  if (info.vehicle.kind != core::DriveKind::kDifferential) {
-    core::ThrowInvalidInput(dataset_dir.string() + "/dataset.yaml: vehicle.kind is " + core::ToString(info.vehicle.kind) +
-                            ": the calibration drive calibrates a differential drive's wheels; a tricycle's wheelbase "
-                            "and steering offset are taken as measured, and the localizer learns the offset's error "
-                            "and the drive wheel's scale from its fixes");
-  }
   std::vector<dataset::EncoderSample> encoders;
   for (auto stream = reader.Encoders(); auto sample = stream.Next();) encoders.push_back(*sample);
   if (encoders.size() < 2) core::ThrowInvalidInput(dataset_dir.string() + ": the drive has no encoder samples");
-  const WheelAngles wheels(std::move(encoders), info.vehicle.ticks_per_revolution);
+  const WheelAngles wheels(std::move(encoders), info.vehicle);
 
   camera::IdealCameraOptions camera_options;
   camera_options.width_px = info.camera.width_px;
@@ -178,9 +204,8 @@ VehicleDriveResult CalibrateVehicleFromDrive(const std::filesystem::path& datase
     Kept current{DivideByGain(frame->image, gain), {}, core::Pose2()};
     if (!window.empty()) {
       DriveStep step;
-      step.left_wheel_rad = (*angles)(0) - previous_angles(0);
-      step.right_wheel_rad = (*angles)(1) - previous_angles(1);
-      current.turn = {step.left_wheel_rad, step.right_wheel_rad};
+      current.turn = wheels.Between(previous_angles, *angles);
+      step.arcs = {current.turn};
       // The prior: the last registered motion (the drive is smooth), or the nominal odometry.
       const core::Pose2 prior = last_motion.value_or(NominalMotion(fit, current.turn));
       const tracking::TrackResult r =
@@ -232,6 +257,7 @@ VehicleDriveResult CalibrateVehicleFromDrive(const std::filesystem::path& datase
                             " (" + std::to_string(result.consecutive_steps) + " consecutive frame pairs registered, " +
                             std::to_string(result.not_registered) + " not)");
   }
+  result.kind = info.vehicle.kind;
   result.value = ToVehicleParameters(result.calibration.vehicle_from_camera, result.calibration.wheels);
   for (std::size_t i = 0; i < result.sigma.size(); ++i) result.sigma[i] = result.calibration.sigma(static_cast<int>(i));
   if (const std::optional<dataset::VehicleTruth> truth = dataset::RecordedVehicleTruth(info)) {
@@ -240,8 +266,25 @@ VehicleDriveResult CalibrateVehicleFromDrive(const std::filesystem::path& datase
   return result;
 }
 
+const VehicleParameterNames& ParameterNamesOf(core::DriveKind kind) {
+  constexpr double kDeg = 180.0 / M_PI;
+  static const VehicleParameterNames differential{
+      {"camera x mm", "camera y mm", "camera yaw deg", "left radius mm", "right radius mm", "track width mm"},
+      {"x_mm", "y_mm", "yaw_deg", "left_wheel_radius_mm", "right_wheel_radius_mm", "track_width_mm"},
+      {1.0, 1.0, kDeg, 1.0, 1.0, 1.0}};
+  static const VehicleParameterNames tricycle{
+      {"camera x mm", "camera y mm", "camera yaw deg", "drive radius mm", "wheelbase mm", "steering offset deg"},
+      {"x_mm", "y_mm", "yaw_deg", "drive_wheel_radius_mm", "wheelbase_mm", "steering_offset_deg"},
+      {1.0, 1.0, kDeg, 1.0, 1.0, kDeg}};
+  return kind == core::DriveKind::kTricycle ? tricycle : differential;
+}
+
 VehicleParameters ToVehicleParameters(const core::Pose2& vehicle_from_camera, const core::WheelGeometry& wheels) {
   const core::Pose2& x = vehicle_from_camera;
+  if (wheels.kind == core::DriveKind::kTricycle) {
+    return {x.x_mm(), x.y_mm(), x.yaw_rad(), wheels.drive_wheel_radius_mm, wheels.wheelbase_mm,
+            wheels.steering_offset_deg * M_PI / 180.0};
+  }
   return {x.x_mm(), x.y_mm(), x.yaw_rad(), wheels.left_wheel_radius_mm, wheels.right_wheel_radius_mm,
           wheels.track_width_mm};
 }
@@ -261,15 +304,20 @@ void WriteVehicleCalibration(const std::filesystem::path& file, const VehicleCal
     yaml << YAML::Key << "x_mm" << YAML::Value << x_mm << YAML::Key << "y_mm" << YAML::Value << y_mm;
     yaml << YAML::Key << "yaw_rad" << YAML::Value << yaw_rad << YAML::EndMap;
   };
+  yaml << YAML::Key << "kind" << YAML::Value << core::ToString(w.kind);
   pose("vehicle_from_camera", x.x_mm(), x.y_mm(), x.yaw_rad());
   pose("vehicle_from_camera_sigma", sigma[0], sigma[1], sigma[2]);
-  yaml << YAML::Key << "left_wheel_radius_mm" << YAML::Value << w.left_wheel_radius_mm;
-  yaml << YAML::Key << "right_wheel_radius_mm" << YAML::Value << w.right_wheel_radius_mm;
-  yaml << YAML::Key << "track_width_mm" << YAML::Value << w.track_width_mm;
+  // The kind's three, under the keys a dataset's and a run's `vehicle:` give them.
+  const VehicleParameterNames& names = ParameterNamesOf(w.kind);
+  const VehicleParameters value = ToVehicleParameters(x, w);
+  for (std::size_t i = 3; i < 6; ++i) {
+    yaml << YAML::Key << names.keys[i] << YAML::Value << value[i] * names.shown_per_value[i];
+  }
   yaml << YAML::Key << "wheel_sigma" << YAML::Value << YAML::Flow << YAML::BeginMap;
-  yaml << YAML::Key << "left_wheel_radius_mm" << YAML::Value << sigma[3];
-  yaml << YAML::Key << "right_wheel_radius_mm" << YAML::Value << sigma[4];
-  yaml << YAML::Key << "track_width_mm" << YAML::Value << sigma[5] << YAML::EndMap;
+  for (std::size_t i = 3; i < 6; ++i) {
+    yaml << YAML::Key << names.keys[i] << YAML::Value << sigma[i] * names.shown_per_value[i];
+  }
+  yaml << YAML::EndMap;
   yaml << YAML::EndMap;
   if (!yaml.good()) core::ThrowRuntime(file.string() + ": cannot write YAML: " + yaml.GetLastError());
   core::WriteFileAtomically(file, std::string(yaml.c_str()) + "\n");
@@ -304,14 +352,19 @@ VehicleCalibrationFile ReadVehicleCalibration(const std::filesystem::path& file)
   mounting_sigma.Required("y_mm", &c.sigma[1], core::NonNegative());
   mounting_sigma.Required("yaw_rad", &c.sigma[2], core::NonNegative());
   mounting_sigma.Finish();
-  root.Required("left_wheel_radius_mm", &c.wheels.left_wheel_radius_mm);
-  root.Required("right_wheel_radius_mm", &c.wheels.right_wheel_radius_mm);
-  root.Required("track_width_mm", &c.wheels.track_width_mm);
+  root.OptionalEnum("kind", &c.wheels.kind, core::kDriveKinds);  // differential when absent
+  const VehicleParameterNames& names = ParameterNamesOf(c.wheels.kind);
+  double* const wheel_values[2][3] = {
+      {&c.wheels.left_wheel_radius_mm, &c.wheels.right_wheel_radius_mm, &c.wheels.track_width_mm},
+      {&c.wheels.drive_wheel_radius_mm, &c.wheels.wheelbase_mm, &c.wheels.steering_offset_deg}};
+  const int kind_index = c.wheels.kind == core::DriveKind::kTricycle ? 1 : 0;
+  for (std::size_t i = 3; i < 6; ++i) root.Required(names.keys[i], wheel_values[kind_index][i - 3]);
   root.Check(c.wheels);
   core::YamlMap wheel_sigma = root.RequiredMap("wheel_sigma");
-  wheel_sigma.Required("left_wheel_radius_mm", &c.sigma[3], core::NonNegative());
-  wheel_sigma.Required("right_wheel_radius_mm", &c.sigma[4], core::NonNegative());
-  wheel_sigma.Required("track_width_mm", &c.sigma[5], core::NonNegative());
+  for (std::size_t i = 3; i < 6; ++i) {
+    wheel_sigma.Required(names.keys[i], &c.sigma[i], core::NonNegative());
+    c.sigma[i] /= names.shown_per_value[i];
+  }
   wheel_sigma.Finish();
   root.Finish();
   problems.ThrowIfAny();

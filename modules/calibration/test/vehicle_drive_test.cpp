@@ -15,6 +15,7 @@ namespace mosaicloc::calibration {
 namespace {
 
 using ::testing::HasSubstr;
+using ::testing::Not;
 
 std::string ErrorOf(const std::function<void()>& run) {
   try {
@@ -63,6 +64,33 @@ TEST(VehicleDrive, ASimulatedDriveGivesTheTrueMountingAndWheels) {
   EXPECT_NEAR(result.calibration.wheels.track_width_mm, truth[5], 2.0);
 }
 
+// A tug: its drive wheel's radius, the wheelbase and the steering encoder's zero from a
+// straight run and a pivot with the steered wheel across, within the targets (0.5 mm, 0.05
+// degree) and the truth within four of the stated sigmas.
+TEST(VehicleDrive, ASimulatedTricycleDriveGivesItsWheelbaseAndSteeringOffset) {
+  test::ScratchDir scratch;
+  sim::CalibrationDriveOptions drive = sim::CalibrationDriveFor(core::DriveKind::kTricycle);
+  drive.turn_rad = 1.5;  // quicker under the sanitizers; the straight run stays as long
+  sim::WriteCalibrationDrive(drive, scratch / "drive", false);
+  VehicleDriveOptions options;
+  options.baselines = 3;
+  const VehicleDriveResult result = CalibrateVehicleFromDrive(scratch / "drive", options);
+  ASSERT_TRUE(result.calibration.converged) << result.calibration.message;
+  EXPECT_EQ(result.kind, core::DriveKind::kTricycle);
+  EXPECT_EQ(result.not_registered, 0);
+  ASSERT_TRUE(result.truth.has_value());
+  const VehicleParameters& truth = *result.truth;
+  EXPECT_NEAR(truth[4], drive.vehicle.wheelbase_mm, 1e-9);
+  EXPECT_NEAR(truth[5], drive.vehicle.steering_offset_deg * M_PI / 180.0, 1e-9);
+  const double bound[6] = {0.5, 0.5, 0.05 * M_PI / 180.0, 0.1, 0.5, 0.05 * M_PI / 180.0};
+  for (std::size_t i = 0; i < 6; ++i) {
+    const double error = result.value[i] - truth[i];
+    EXPECT_LT(std::abs(error), bound[i]) << ParameterNamesOf(result.kind).labels[i] << " sigma " << result.sigma[i] << " error " << error;
+    EXPECT_LT(std::abs(error), 4.0 * result.sigma[i]) << ParameterNamesOf(result.kind).labels[i];
+  }
+  EXPECT_NEAR(result.calibration.wheels.steering_offset_deg * M_PI / 180.0, result.value[5], 1e-12);
+}
+
 TEST(VehicleDrive, ADriveWithoutEncodersIsBadInputNamingIt) {
   test::ScratchDir scratch;
   dataset::DatasetInfo info;
@@ -94,6 +122,36 @@ TEST(VehicleCalibrationFile, RoundTripsExactly) {
   EXPECT_EQ(read.wheels.left_wheel_radius_mm, written.wheels.left_wheel_radius_mm);
   EXPECT_EQ(read.wheels.track_width_mm, written.wheels.track_width_mm);
   EXPECT_EQ(read.sigma, written.sigma);
+}
+
+// A tricycle's file names its kind and its three, the steering offset and its sigma in degrees.
+TEST(VehicleCalibrationFile, RoundTripsATricycle) {
+  test::ScratchDir scratch;
+  VehicleCalibrationFile written;
+  written.vehicle_from_camera = core::Pose2(212.5, -14.0, 0.035);
+  written.wheels.kind = core::DriveKind::kTricycle;
+  written.wheels.drive_wheel_radius_mm = 100.35;
+  written.wheels.wheelbase_mm = 1206.5;
+  written.wheels.steering_offset_deg = 0.42;
+  written.sigma = {0.02, 0.25, 6e-5, 0.004, 0.1, 2.2e-4};
+  WriteVehicleCalibration(scratch / "vehicle.yaml", written, "a tug");
+  const std::string text = test::ReadFile(scratch / "vehicle.yaml");
+  EXPECT_THAT(text, HasSubstr("kind: tricycle"));
+  EXPECT_THAT(text, HasSubstr("steering_offset_deg: 0.41999999999999998"));
+  EXPECT_THAT(text, Not(HasSubstr("track_width_mm")));
+  const VehicleCalibrationFile read = ReadVehicleCalibration(scratch / "vehicle.yaml");
+  EXPECT_EQ(read.wheels.kind, core::DriveKind::kTricycle);
+  EXPECT_EQ(read.wheels.drive_wheel_radius_mm, 100.35);
+  EXPECT_EQ(read.wheels.wheelbase_mm, 1206.5);
+  EXPECT_EQ(read.wheels.steering_offset_deg, 0.42);
+  for (std::size_t i = 0; i < 6; ++i) EXPECT_NEAR(read.sigma[i], written.sigma[i], 1e-15 * written.sigma[i]) << i;
+  // A differential drive's key in a tricycle's file is named.
+  std::string mixed = text;
+  mixed.replace(mixed.find("wheelbase_mm:"), std::string("wheelbase_mm:").size(), "track_width_mm:");
+  test::WriteFile(scratch / "vehicle.yaml", mixed);
+  const std::string error = ErrorOf([&] { ReadVehicleCalibration(scratch / "vehicle.yaml"); });
+  EXPECT_THAT(error, HasSubstr("wheelbase_mm: missing required key"));
+  EXPECT_THAT(error, HasSubstr("track_width_mm: unknown key"));
 }
 
 TEST(VehicleCalibrationFile, BadInputNamesTheFileLineAndKey) {

@@ -469,6 +469,25 @@ DatasetInfo DerivedInfo(const DatasetReader& reader, const CameraInfo& camera, c
   return info;
 }
 
+namespace {
+
+// The provenance keys of a kind's three true wheel values, and where they go.
+struct TruthKeys {
+  const char* keys[3];
+  double core::WheelGeometry::*fields[3];
+};
+TruthKeys TruthKeysOf(core::DriveKind kind) {
+  using W = core::WheelGeometry;
+  if (kind == core::DriveKind::kTricycle) {
+    return {{"truth_drive_wheel_radius_mm", "truth_wheelbase_mm", "truth_steering_offset_deg"},
+            {&W::drive_wheel_radius_mm, &W::wheelbase_mm, &W::steering_offset_deg}};
+  }
+  return {{"truth_left_wheel_radius_mm", "truth_right_wheel_radius_mm", "truth_track_width_mm"},
+          {&W::left_wheel_radius_mm, &W::right_wheel_radius_mm, &W::track_width_mm}};
+}
+
+}  // namespace
+
 void RecordVehicleTruth(const VehicleTruth& truth, DatasetInfo* info) {
   const auto number = [](double value) {
     std::ostringstream out;
@@ -478,14 +497,14 @@ void RecordVehicleTruth(const VehicleTruth& truth, DatasetInfo* info) {
   };
   const core::Pose2& x = truth.vehicle_from_camera;
   info->provenance["truth_vehicle_from_camera"] = number(x.x_mm()) + " " + number(x.y_mm()) + " " + number(x.yaw_rad());
-  info->provenance["truth_left_wheel_radius_mm"] = number(truth.wheels.left_wheel_radius_mm);
-  info->provenance["truth_right_wheel_radius_mm"] = number(truth.wheels.right_wheel_radius_mm);
-  info->provenance["truth_track_width_mm"] = number(truth.wheels.track_width_mm);
+  const TruthKeys keys = TruthKeysOf(truth.wheels.kind);
+  for (int i = 0; i < 3; ++i) info->provenance[keys.keys[i]] = number(truth.wheels.*keys.fields[i]);
 }
 
 std::optional<VehicleTruth> RecordedVehicleTruth(const DatasetInfo& info) {
-  const char* const keys[] = {"truth_vehicle_from_camera", "truth_left_wheel_radius_mm", "truth_right_wheel_radius_mm",
-                              "truth_track_width_mm"};
+  // The truth of the dataset's kind of vehicle.
+  const TruthKeys wheel_keys = TruthKeysOf(info.vehicle.kind);
+  const char* const keys[] = {"truth_vehicle_from_camera", wheel_keys.keys[0], wheel_keys.keys[1], wheel_keys.keys[2]};
   const std::size_t values[] = {3, 1, 1, 1};
   double v[6] = {};
   std::size_t next = 0;
@@ -503,9 +522,7 @@ std::optional<VehicleTruth> RecordedVehicleTruth(const DatasetInfo& info) {
   VehicleTruth truth;
   truth.vehicle_from_camera = core::Pose2(v[0], v[1], v[2]);
   truth.wheels = info.vehicle;
-  truth.wheels.left_wheel_radius_mm = v[3];
-  truth.wheels.right_wheel_radius_mm = v[4];
-  truth.wheels.track_width_mm = v[5];
+  for (int i = 0; i < 3; ++i) truth.wheels.*wheel_keys.fields[i] = v[3 + i];
   return truth;
 }
 

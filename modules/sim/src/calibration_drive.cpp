@@ -63,7 +63,34 @@ bool CalibrationDriveOptions::Check(std::string* why) const {
     return false;
   }
   if (!vehicle.Check(why) || !nominal_vehicle.Check(why)) return false;
+  if (vehicle.kind != nominal_vehicle.kind) {
+    *why = "calibration drive: the vehicle and its nominal values must be of one kind";
+    return false;
+  }
   return true;
+}
+
+CalibrationDriveOptions CalibrationDriveFor(core::DriveKind kind) {
+  CalibrationDriveOptions options;
+  if (kind == core::DriveKind::kTricycle) {
+    dataset::VehicleInfo nominal;
+    nominal.kind = core::DriveKind::kTricycle;
+    nominal.drive_wheel_radius_mm = 100.0;
+    nominal.wheelbase_mm = 1200.0;
+    nominal.ticks_per_revolution = 4096;
+    nominal.steering_ticks_per_revolution = 65536;
+    nominal.steering_offset_deg = 0.0;
+    options.nominal_vehicle = nominal;
+    options.vehicle = nominal;
+    options.vehicle.drive_wheel_radius_mm = 100.35;
+    options.vehicle.wheelbase_mm = 1206.5;
+    options.vehicle.steering_offset_deg = 0.42;
+    // The steering offset shows only as the heading a straight run gains from it (0.05 degree
+    // over a 1.2 m wheelbase: 0.7 mrad per metre), and a pivot cannot tell it from a sideways
+    // lever arm: a longer straight run than a differential drive needs.
+    options.straight_mm = 1000.0;
+  }
+  return options;
 }
 
 CalibrationDriveSummary WriteCalibrationDrive(const CalibrationDriveOptions& options,
@@ -80,12 +107,16 @@ CalibrationDriveSummary WriteCalibrationDrive(const CalibrationDriveOptions& opt
   info.camera.mm_per_px = options.camera.mm_per_px;
   info.camera.vehicle_from_camera = options.nominal_vehicle_from_camera;
   info.vehicle = options.nominal_vehicle;
-  info.provenance = {{"generator", "calibration drive: straight run, then turn in place"}, {"floor", floor->Describe()}};
+  const bool tricycle = options.vehicle.kind == core::DriveKind::kTricycle;
+  info.provenance = {{"generator", tricycle ? "calibration drive: straight run, then a pivot turn about the fixed axle"
+                                            : "calibration drive: straight run, then turn in place"},
+                     {"floor", floor->Describe()}};
   dataset::RecordVehicleTruth({options.vehicle_from_camera, options.vehicle}, &info);
   dataset::DatasetWriter writer(out, info, overwrite);
 
-  // Wheel angles accumulate exactly; the encoders count whole ticks of the true wheels.
-  double left_rad = 0.0, right_rad = 0.0;
+  // Wheel angles accumulate exactly; the encoders count whole ticks of the true wheels (a
+  // tricycle's steering encoder reads the true angle less its true offset).
+  double left_rad = 0.0, right_rad = 0.0, drive_rad = 0.0, steering_rad = 0.0;
   core::Pose2 world_from_vehicle;
   dataset::Trajectory truth;
   const double ticks_per_rad = static_cast<double>(options.vehicle.ticks_per_revolution) / (2.0 * M_PI);
@@ -93,16 +124,26 @@ CalibrationDriveSummary WriteCalibrationDrive(const CalibrationDriveOptions& opt
   const std::vector<double> turn_at = Profile(options.turn_rad, options.turn_step_rad, options.ramp_frames);
   const int straight_frames = static_cast<int>(straight_at.size());
   const int turn_frames = static_cast<int>(turn_at.size());
-  const int frames = 1 + straight_frames + turn_frames;
+  // A tricycle stands for one frame between the two while its steered wheel swings across.
+  const int swing_frames = tricycle ? 1 : 0;
+  const int frames = 1 + straight_frames + swing_frames + turn_frames;
   for (int i = 0; i < frames; ++i) {
     if (i > 0) {
       const bool straight = i <= straight_frames;
+      const int turn_index = i - 1 - straight_frames - swing_frames;  // < 0: not turning yet
       const auto step = [](const std::vector<double>& at, int j) { return at[j] - (j > 0 ? at[j - 1] : 0.0); };
       const double forward = straight ? step(straight_at, i - 1) : 0.0;
-      const double turn = straight ? 0.0 : step(turn_at, i - 1 - straight_frames);
-      const double half_track = 0.5 * options.vehicle.track_width_mm;
-      left_rad += (forward - half_track * turn) / options.vehicle.left_wheel_radius_mm;
-      right_rad += (forward + half_track * turn) / options.vehicle.right_wheel_radius_mm;
+      const double turn = turn_index >= 0 ? step(turn_at, turn_index) : 0.0;
+      if (tricycle) {
+        // Straight ahead the drive wheel rolls as far as the axle moves; across, it rolls the
+        // wheelbase times the angle turned about the axle.
+        steering_rad = straight ? 0.0 : M_PI / 2.0;
+        drive_rad += (forward + options.vehicle.wheelbase_mm * turn) / options.vehicle.drive_wheel_radius_mm;
+      } else {
+        const double half_track = 0.5 * options.vehicle.track_width_mm;
+        left_rad += (forward - half_track * turn) / options.vehicle.left_wheel_radius_mm;
+        right_rad += (forward + half_track * turn) / options.vehicle.right_wheel_radius_mm;
+      }
       world_from_vehicle = world_from_vehicle * core::Pose2(forward, 0.0, turn);
     }
     const core::Timestamp time = core::Timestamp::FromSeconds(1.0 + i / options.frame_rate_hz);
@@ -111,8 +152,15 @@ CalibrationDriveSummary WriteCalibrationDrive(const CalibrationDriveOptions& opt
                                         options.seed * 1000003ULL + static_cast<std::uint64_t>(i)));
     dataset::EncoderSample sample;
     sample.time = time;
-    sample.left_ticks = static_cast<std::int32_t>(std::lround(left_rad * ticks_per_rad));
-    sample.right_ticks = static_cast<std::int32_t>(std::lround(right_rad * ticks_per_rad));
+    if (tricycle) {
+      sample.drive_ticks = static_cast<std::int32_t>(std::lround(drive_rad * ticks_per_rad));
+      const double read_rad = steering_rad - options.vehicle.steering_offset_deg * M_PI / 180.0;
+      sample.steering_ticks = static_cast<std::int32_t>(
+          std::lround(read_rad * static_cast<double>(options.vehicle.steering_ticks_per_revolution) / (2.0 * M_PI)));
+    } else {
+      sample.left_ticks = static_cast<std::int32_t>(std::lround(left_rad * ticks_per_rad));
+      sample.right_ticks = static_cast<std::int32_t>(std::lround(right_rad * ticks_per_rad));
+    }
     writer.AddEncoderSample(sample);
     truth.push_back({time, world_from_vehicle});
   }

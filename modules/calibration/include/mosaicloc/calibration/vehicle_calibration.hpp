@@ -10,23 +10,24 @@
 
 namespace mosaicloc::calibration {
 
-/// How far each wheel turned between two encoder samples, rad.
+/// What the encoders said of the wheels between two samples, by the vehicle's kind: how far
+/// each wheel turned (differential), or how far the drive wheel turned and the steering angle
+/// as its encoder read it over the interval, before the calibrated offset is added (tricycle).
 struct WheelTurn {
   double left_wheel_rad = 0.0;
   double right_wheel_rad = 0.0;
+  double drive_wheel_rad = 0.0;
+  double steering_rad = 0.0;
 };
 
-/// One step of a calibration drive, between two frames: how far each wheel turned (from the
-/// encoder ticks) and how the camera moved (registration of the two ideal images).
+/// One step of a calibration drive, between two frames: what the wheels did over each
+/// encoder interval between them, in order (one for neighbouring frames), and how the camera
+/// moved (registration of the two ideal images). The vehicle's motion is the composition of
+/// the intervals' arcs, so the path between two frames further apart (a longer baseline)
+/// need not be one arc.
 struct DriveStep {
-  double left_wheel_rad = 0.0;
-  double right_wheel_rad = 0.0;
-  core::Pose2 previous_from_current_camera;  ///< camera floor frame C, mm and rad
-  /// For two frames further apart (a longer baseline): the wheel turns of each interval
-  /// between them, in order. The vehicle's motion is then the composition of their arcs, so
-  /// the path between the frames need not be one arc; left_wheel_rad and right_wheel_rad
-  /// are ignored.
   std::vector<WheelTurn> arcs;
+  core::Pose2 previous_from_current_camera;  ///< camera floor frame C, mm and rad
 };
 
 struct VehicleCalibrationOptions {
@@ -48,10 +49,11 @@ struct VehicleCalibrationResult {
   std::string message;  ///< why not, when not converged
   int iterations = 0;
   core::Pose2 vehicle_from_camera;
-  core::WheelGeometry wheels;
+  core::WheelGeometry wheels;  ///< the initial wheels with the kind's calibrated values
   /// One-sigma uncertainties from the residuals (covariance s^2 (J^T J)^-1, s^2 the
   /// residual variance per degree of freedom): x_mm, y_mm, yaw_rad of vehicle_from_camera,
-  /// then left radius, right radius, track width (mm).
+  /// then the kind's three: left radius, right radius, track width (mm); or the drive wheel's
+  /// radius, the wheelbase (mm) and the steering offset (rad).
   Eigen::Matrix<double, 6, 1> sigma = Eigen::Matrix<double, 6, 1>::Zero();
   double rms_translation_mm = 0.0;  ///< per-step registration residuals after the fit
   double rms_rotation_rad = 0.0;
@@ -59,19 +61,23 @@ struct VehicleCalibrationResult {
 };
 
 /// Camera mounting and wheel geometry from a calibration drive: a straight run (its
-/// direction in the camera frame gives the mounting yaw, its length the wheel radii) and a
-/// turn in place (the camera's circle around the axle centre gives the lever arm, the angle
-/// turned the track width).
+/// direction in the camera frame gives the mounting yaw, its length the wheel radii; a
+/// tricycle's steering reading on it, the steering offset) and a turn in place (the camera's
+/// circle around the axle centre gives the lever arm, the angle turned the track width; a
+/// tricycle pivots about its fixed axle with the steered wheel across, which gives the
+/// wheelbase).
 ///
-/// Model: a step's wheel arcs d_l = r_l phi_l, d_r = r_r phi_r move the vehicle along a
-/// circular arc of length d = (d_l + d_r)/2 turning by theta = (d_r - d_l)/b (Siegwart &
-/// Nourbakhsh, "Introduction to Autonomous Mobile Robots", section 5.2.4):
+/// Model: a differential drive's wheel arcs d_l = r_l phi_l, d_r = r_r phi_r move the vehicle
+/// along a circular arc of length d = (d_l + d_r)/2 turning by theta = (d_r - d_l)/b (Siegwart
+/// & Nourbakhsh, "Introduction to Autonomous Mobile Robots", section 5.2.4); a tricycle's drive
+/// wheel arc d_w = r phi_w at steering angle psi = psi_read + offset moves its axle centre
+/// d = d_w cos(psi), turning by theta = d_w sin(psi) / l (l the wheelbase). Either way
 ///   A_V = (d sin(theta)/theta, d (1 - cos(theta))/theta, theta),
 /// and the camera, rigidly mounted at X = vehicle_from_camera, moves by
 ///   A_C = X^-1 A_V X        (the SE(2) hand-eye equation AX = XB).
 /// The residual of a step is Log(A_C_predicted^-1 A_C_measured), translation divided by
 /// registration_sigma_mm and rotation by registration_sigma_rad; Levenberg-Marquardt
-/// minimises their sum of squares over (X, r_l, r_r, b).
+/// minimises their sum of squares over X and the kind's three: (r_l, r_r, b) or (r, l, offset).
 /// Never throws for data that does not constrain the solution: the result says so.
 VehicleCalibrationResult CalibrateVehicle(const std::vector<DriveStep>& steps, const VehicleCalibrationOptions& options);
 

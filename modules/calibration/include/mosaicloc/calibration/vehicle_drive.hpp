@@ -28,10 +28,23 @@ struct VehicleDriveOptions {
 };
 
 /// The six calibrated values in the order of VehicleCalibrationResult::sigma: x_mm, y_mm,
-/// yaw_rad of vehicle_from_camera, left radius, right radius, track width (mm).
+/// yaw_rad of vehicle_from_camera, then left radius, right radius, track width (mm) of a
+/// differential drive, or drive wheel radius, wheelbase (mm) and steering offset (rad) of a
+/// tricycle.
 using VehicleParameters = std::array<double, 6>;
 
+/// How a kind's six values are shown: a label for a table, the key of the calibration file
+/// and of `calibrate vehicle --json` (the yaw and the steering offset in degrees), and the
+/// factor from the value to the unit shown.
+struct VehicleParameterNames {
+  std::array<const char*, 6> labels;
+  std::array<const char*, 6> keys;
+  std::array<double, 6> shown_per_value;
+};
+const VehicleParameterNames& ParameterNamesOf(core::DriveKind kind);
+
 struct VehicleDriveResult {
+  core::DriveKind kind = core::DriveKind::kDifferential;
   VehicleCalibrationResult calibration;
   int frames = 0;                ///< frames of the drive
   int steps = 0;                 ///< registered pairs, all baselines
@@ -47,7 +60,8 @@ struct VehicleDriveResult {
 VehicleParameters ToVehicleParameters(const core::Pose2& vehicle_from_camera, const core::WheelGeometry& wheels);
 
 /// Calibrates the camera's place on the vehicle and the wheel geometry from a recorded
-/// calibration drive (ideal images and encoders: a straight run, then a turn in place).
+/// calibration drive (ideal images and encoders: a straight run, then a turn in place; a
+/// tricycle's with its steered wheel across, pivoting about the fixed axle).
 /// The lens's vignetting is estimated from the drive and divided out; each frame is
 /// registered to the one before and to earlier overlapping frames with the tracker's matcher
 /// set for accuracy (the whole frame in templates, a wider low-pass), and CalibrateVehicle
@@ -60,8 +74,8 @@ VehicleDriveResult CalibrateVehicleFromDrive(const std::filesystem::path& datase
 /// A vehicle calibration file (`mosaicloc calibrate vehicle --out`, design.md section 4).
 struct VehicleCalibrationFile {
   core::Pose2 vehicle_from_camera;
-  core::WheelGeometry wheels;                    ///< ticks_per_revolution is not part of it
-  VehicleParameters sigma{};                     ///< one-sigma uncertainties, as the result's
+  core::WheelGeometry wheels;  ///< its kind and the kind's three values (no encoder counts per turn)
+  VehicleParameters sigma{};   ///< one-sigma uncertainties, as the result's
 };
 
 /// Writes the file atomically; `comment` goes at its top.

@@ -185,9 +185,10 @@ class DatasetWriter {
 /// or rectified): its info with `camera` in place and `note` as provenance "calibration".
 DatasetInfo DerivedInfo(const DatasetReader& reader, const CameraInfo& camera, const std::string& note);
 /// The vehicle a simulated drive was really driven with, as the simulator records it in the
-/// provenance (truth_vehicle_from_camera "x_mm y_mm yaw_rad", truth_left_wheel_radius_mm,
-/// truth_right_wheel_radius_mm, truth_track_width_mm): what a calibration is checked
-/// against. Localization never reads it.
+/// provenance (truth_vehicle_from_camera "x_mm y_mm yaw_rad", then the kind's
+/// truth_left_wheel_radius_mm, truth_right_wheel_radius_mm, truth_track_width_mm or
+/// truth_drive_wheel_radius_mm, truth_wheelbase_mm, truth_steering_offset_deg): what a
+/// calibration is checked against. Localization never reads it.
 struct VehicleTruth {
   core::Pose2 vehicle_from_camera;
   core::WheelGeometry wheels;  ///< ticks_per_revolution is the dataset's

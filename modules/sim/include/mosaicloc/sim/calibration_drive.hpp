@@ -15,7 +15,9 @@ namespace mosaicloc::sim {
 /// A calibration drive over a procedural floor, for `mosaicloc calibrate vehicle`: a straight
 /// run, then a turn in place, driven by a vehicle whose true mounting and wheels differ from
 /// the nominal values written in the dataset (which is what an integrator knows before
-/// calibrating). One encoder sample per frame, at the frame's time.
+/// calibrating). One encoder sample per frame, at the frame's time. A tricycle drives the
+/// straight run with its steered wheel straight ahead, then, standing, turns it across
+/// (90 degrees) and pivots about its fixed axle.
 struct CalibrationDriveOptions {
   ProceduralFloorOptions floor;
   camera::IdealCameraOptions camera;
@@ -38,6 +40,11 @@ struct CalibrationDriveOptions {
   std::uint64_t seed = 1;
   bool Check(std::string* why) const;
 };
+
+/// The defaults for a vehicle of `kind`: a differential drive's as above, or a tug's tricycle
+/// (a 100 mm drive wheel 1.2 m ahead of its axle, a 16-bit absolute steering encoder), whose
+/// true wheel radius, wheelbase and steering zero are a little off the nominal ones.
+CalibrationDriveOptions CalibrationDriveFor(core::DriveKind kind);
 
 struct CalibrationDriveSummary {
   int frames = 0;
