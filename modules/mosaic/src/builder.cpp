@@ -29,8 +29,8 @@ MapBuilder::MapBuilder(const MapGrid& grid, Blend blend) : grid_(grid), blend_(b
 void MapBuilder::AddFrame(const cv::Mat& image, const core::Pose2& world_from_camera, double mm_per_px) {
   if (image.type() != CV_8UC1 || image.empty()) core::ThrowInvalidInput("map builder: frames must be 8-bit grey");
   ++frames_;
-  // Each map pixel takes the frame's bicubic value at its centre (in float) and the frame's
-  // tent weight evaluated there (internal::PaintRow). Bicubic, not bilinear: the map is
+  // Each map pixel takes the frame's bicubic (Catmull-Rom) value at its centre (in float) and
+  // the frame's tent weight evaluated there (internal::PaintRow). Bicubic, not bilinear: the map is
   // rendered by a second (bilinear) interpolation, and two bilinear passes blur pixel-scale
   // texture (real asphalt: frame-to-view ZNCC 0.970 -> 0.997).
   // The tent reaches zero half a pixel beyond the frame's edge, not at it: a view rendered

@@ -12,8 +12,14 @@
 namespace mosaicloc::mosaic::internal {
 namespace {
 
-// OpenCV's bicubic kernel (imgproc interpolateCubic, A = -0.75) at fractional offset x.
-constexpr float kA = -0.75f;
+// The cubic convolution kernel at fractional offset x, with Keys' A = -0.5 (Catmull-Rom): the
+// one value of A for which interpolation reproduces a linear ramp exactly. OpenCV's -0.75
+// samples a ramp at x + 0.5 phi (1 - phi) (1 - 2 phi) instead (up to 0.048 px), a shift that
+// averages out over the frames painting a pixel only where they land at spread phases; where
+// a drive's yaw holds still they land at one phase, and the map's texture was shifted by up to
+// 0.03 px, swinging every 166 mm: a rotation of 1.5e-4 rad to the tracker, whose fixes the
+// filter's gate then refused.
+constexpr float kA = -0.5f;
 // Weights below this (pixels) paint nothing: a position computed in float that should lie
 // exactly on the zero of the tent must not mark a pixel mapped.
 constexpr float kMinWeight = 1e-3f;
