@@ -642,10 +642,15 @@ TEST(TileStore, KilledWriterLeavesEveryTileOldOrNew) {
   }
   int updated = 0;
   for (int attempt = 0; attempt < 5; ++attempt) {
+    // The child says when its first pass is committed: then it is killed at some moment of a
+    // later one, however slowly it runs (a sanitizer build).
+    int committed[2];
+    ASSERT_EQ(pipe(committed), 0);
     const pid_t child = fork();
     ASSERT_GE(child, 0);
     if (child == 0) {
       // Rewrites all tiles again and again, each pass in one transaction, new value per pass.
+      close(committed[0]);
       auto store = TileStore::Open(file, true);
       for (int pass = 0;; ++pass) {
         std::vector<TileWrite> tiles;
@@ -653,9 +658,17 @@ TEST(TileStore, KilledWriterLeavesEveryTileOldOrNew) {
           tiles.push_back({TileKey{0, c, 0}, cv::Mat(64, 64, CV_8UC1, cv::Scalar(20 + pass % 200))});
         }
         store->Write(tiles);
+        if (pass == 0) {
+          const char one = 1;
+          if (write(committed[1], &one, 1) != 1) _exit(1);
+        }
       }
     }
-    usleep(20000 + 15000 * attempt);
+    close(committed[1]);
+    char one = 0;
+    ASSERT_EQ(read(committed[0], &one, 1), 1) << "the writer died before its first commit";
+    close(committed[0]);
+    usleep(3000 + 7000 * attempt);
     kill(child, SIGKILL);
     waitpid(child, nullptr, 0);
     auto store = TileStore::Open(file, false);
