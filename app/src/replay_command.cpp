@@ -22,6 +22,7 @@ struct ReplayArgs {
   std::string mode;  // empty: mosaic with --map, else an error
   std::optional<double> required_overlap;
   std::vector<double> start_offset;  // dx_mm, dy_mm, dyaw_deg in the start's vehicle frame
+  std::vector<double> truth_from_map;  // x_mm, y_mm, yaw_deg of a built map in the truth's frame
   bool prefetch = false;             // load tiles ahead on the prefetcher's threads, as `run` does
   bool relocalize = false;           // the start is not to be trusted: relocalize without it
   bool unknown_start = false;
@@ -53,6 +54,10 @@ void Run(const ReplayArgs& args, const GlobalOptions& global) {
   if (!args.start_offset.empty()) {
     options.start_offset =
         core::Pose2(args.start_offset[0], args.start_offset[1], args.start_offset[2] * std::numbers::pi / 180.0);
+  }
+  if (!args.truth_from_map.empty()) {
+    options.truth_from_map = core::Pose2(args.truth_from_map[0], args.truth_from_map[1],
+                                         args.truth_from_map[2] * std::numbers::pi / 180.0);
   }
   options.relocalize = args.relocalize;
   options.unknown_start = args.unknown_start;
@@ -107,6 +112,12 @@ Action AddReplayCommand(CLI::App& app, const GlobalOptions& global) {
   command->add_option("--start-offset", args->start_offset,
                       "mosaic mode: start this far from the true start, dx_mm,dy_mm,dyaw_deg in the vehicle "
                       "frame (a kidnapped vehicle; relocalization must find it)")
+      ->delimiter(',')
+      ->expected(3);
+  command->add_option("--truth-from-map", args->truth_from_map,
+                      "x_mm,y_mm,yaw_deg: where a map built from a drive's own frames and encoders lies in the "
+                      "ground truth's frame (its mapping report's truth_from_map): the truth is taken into the "
+                      "map's frame before the start is taken from it and the fixes are checked against it")
       ->delimiter(',')
       ->expected(3);
   command->add_flag("--relocalize", args->relocalize,

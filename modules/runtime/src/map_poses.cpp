@@ -48,6 +48,7 @@ std::optional<AlignedError> Aligned(const std::vector<core::Pose2>& estimate, co
   const core::Pose2 rotation(0.0, 0.0, angle);
   const core::Pose2 truth_from_estimate(mean_to - rotation.Rotation() * mean_from, angle);
   AlignedError e;
+  e.truth_from_estimate = truth_from_estimate;
   double sum = 0.0, sum_yaw = 0.0;
   for (std::size_t i = 0; i < estimate.size(); ++i) {
     const core::Pose2 aligned = truth_from_estimate * estimate[i];
@@ -95,7 +96,11 @@ nlohmann::json JsonOf(const SeamFigures& f) {
 
 nlohmann::json JsonOf(const std::optional<AlignedError>& e) {
   if (!e) return nullptr;
-  return {{"rms_mm", e->rms_mm}, {"max_mm", e->max_mm}, {"heading_rms_deg", e->heading_rms_deg}};
+  const core::Pose2& t = e->truth_from_estimate;
+  return {{"rms_mm", e->rms_mm},
+          {"max_mm", e->max_mm},
+          {"heading_rms_deg", e->heading_rms_deg},
+          {"truth_from_map", {{"x_mm", t.x_mm()}, {"y_mm", t.y_mm()}, {"yaw_deg", t.yaw_rad() * 180.0 / std::numbers::pi}}}};
 }
 
 // Where the map's residuals are: the drive's path, each frame coloured by the largest residual

@@ -63,6 +63,16 @@ std::optional<double> OverlapSpeedLimit(const dataset::DatasetInfo& info, const 
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
+// The dataset's ground truth, in the map's frame when the options place the map in the truth's.
+std::optional<dataset::Trajectory> TruthInMapFrame(const dataset::DatasetReader& reader, const ReplayOptions& options) {
+  std::optional<dataset::Trajectory> truth = GroundTruthOf(reader);
+  if (truth && options.truth_from_map) {
+    const core::Pose2 map_from_truth = options.truth_from_map->Inverse();
+    for (dataset::StampedPose& pose : *truth) pose.world_from_vehicle = map_from_truth * pose.world_from_vehicle;
+  }
+  return truth;
+}
+
 // What the localizer knew after a frame beyond its row of fixes.csv, for the consistency
 // figures and the timelines.
 struct FrameExtras {
@@ -397,7 +407,7 @@ void RecordUpdates(const mapping::UpdateSummary& s, const std::optional<dataset:
 ReplaySummary ReplayDeadReckoning(const ReplayOptions& options, const std::function<void(double)>& progress) {
   const dataset::DatasetReader reader(options.dataset);
   const dataset::DatasetInfo& info = reader.info();
-  const std::optional<dataset::Trajectory> groundtruth = GroundTruthOf(reader);
+  const std::optional<dataset::Trajectory> groundtruth = TruthInMapFrame(reader, options);
   ReplaySummary summary;
   summary.report = options.out;
   // The start is known (as a localizer would be told at installation): the first ground
@@ -436,7 +446,7 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
   const LocalizationSettings& settings = options.settings;
   const dataset::DatasetReader reader(options.dataset);
   const dataset::DatasetInfo& info = reader.info();
-  const std::optional<dataset::Trajectory> groundtruth = GroundTruthOf(reader);
+  const std::optional<dataset::Trajectory> groundtruth = TruthInMapFrame(reader, options);
 
   // With prefetching the map's tiles along the predicted path are loaded on threads of their
   // own, as `run` loads them, and the frames' processing times are the tracking thread's. The
@@ -600,7 +610,7 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
 ReplaySummary ReplayVisualOdometry(const ReplayOptions& options, const std::function<void(double)>& progress) {
   const dataset::DatasetReader reader(options.dataset);
   const dataset::DatasetInfo& info = reader.info();
-  const std::optional<dataset::Trajectory> groundtruth = GroundTruthOf(reader);
+  const std::optional<dataset::Trajectory> groundtruth = TruthInMapFrame(reader, options);
   const core::Pose2 vehicle_from_camera = info.camera.vehicle_from_camera;
   ReplaySummary summary;
   summary.report = options.out;

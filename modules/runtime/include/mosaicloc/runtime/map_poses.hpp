@@ -50,6 +50,8 @@ struct AlignedError {
   double rms_mm = 0.0;
   double max_mm = 0.0;
   double heading_rms_deg = 0.0;
+  /// That alignment: the trajectory's frame (a built map's) in the truth's.
+  core::Pose2 truth_from_estimate;
 };
 
 struct MapPosesSummary {

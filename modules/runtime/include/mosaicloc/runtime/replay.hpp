@@ -35,6 +35,12 @@ struct ReplayOptions {
   /// kMosaic: start this far from the true start, in the start's vehicle frame (a kidnapped
   /// vehicle; relocalization must find it).
   std::optional<core::Pose2> start_offset;
+  /// A map built from a drive's own frames and encoders has a frame of its own, placed on the
+  /// floor only as well as the first frames' poses were known: its pose in the truth's frame
+  /// (a mapping report's truth_from_map). With it the ground truth is taken into the map's
+  /// frame before the start is taken from it and anything is evaluated against it, so the
+  /// figures (and the wrong fixes) are the localization's and not the map's placement.
+  std::optional<core::Pose2> truth_from_map;
   /// kMosaic: the start is not to be trusted; relocalize without it.
   bool relocalize = false;
   /// kMosaic: the start is not known at all: search the whole map (Localizer::InitializeUnknown).
