@@ -5,7 +5,8 @@
 # mosaicloc_<name>_test from TESTS, registered with CTest under the label "unit".
 
 # mosaicloc_target_options(<target> [STANDARD <n>]): C++20 unless told otherwise (the
-# ViSP-facing C++17 island), warnings as errors, sanitizers when MOSAICLOC_SANITIZE is on.
+# ViSP-facing C++17 island), warnings as errors, sanitizers when MOSAICLOC_SANITIZE (address,
+# undefined) or MOSAICLOC_TSAN (thread) is on.
 function(mosaicloc_target_options target)
   cmake_parse_arguments(ARG "" "STANDARD" "" ${ARGN})
   if(NOT ARG_STANDARD)
@@ -23,6 +24,10 @@ function(mosaicloc_target_options target)
     target_compile_options(${target} PUBLIC -fsanitize=address,undefined
       -fno-sanitize-recover=undefined -fno-omit-frame-pointer)
     target_link_options(${target} PUBLIC -fsanitize=address,undefined)
+  endif()
+  if(MOSAICLOC_TSAN)
+    target_compile_options(${target} PUBLIC -fsanitize=thread -fno-omit-frame-pointer)
+    target_link_options(${target} PUBLIC -fsanitize=thread)
   endif()
   if(MOSAICLOC_FUZZ)
     # Coverage for the fuzzers' guidance in every library they reach.
