@@ -12,7 +12,7 @@ json_check() {
   python3 - "$file" "$@" <<'PY' || fail "$file: $*"
 import json, sys
 d = json.load(open(sys.argv[1]))
-print(sys.argv[1], {k: v for k, v in d.items() if k.startswith("map_extension") or k in ("fix_rate", "lock_losses", "wrong_fixes", "repeatability_camera_mm", "frames_by_mode")})
+print(sys.argv[1], {k: v for k, v in d.items() if k.startswith("map_extension") or k in ("fix_rate", "lock_losses", "wrong_fixes", "max_wrong_fix_mm", "repeatability_camera_mm", "frames_by_mode")})
 for check in sys.argv[2:]:
     assert eval(check), check
 PY
@@ -39,10 +39,16 @@ expect_exit 0 "$MOSAICLOC" --quiet map check "$SCRATCH/site.mosaic"
 expect_exit 0 "$MOSAICLOC" --quiet --json map info "$SCRATCH/site.mosaic"
 json_check "$SCRATCH/out" 'd["place_index"]["features"] > 1000' 'd["quality"]["cells"] > 50'
 
+# The floor was mapped by visual odometry: its own poses lie up to map_extension_pose_max_mm
+# (about 1 mm) off the truth, and a fix that agrees with the map is that far off too. A fix on
+# it is wrong when it lies further from the truth than the map itself does (plus 0.5 mm).
+BOUND=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['map_extension_pose_max_mm'] + 0.5)" \
+  "$SCRATCH/mapped/metrics.json")
+
 # The next lap, twice as fast, tracks the map the first one made.
 expect_exit 0 "$MOSAICLOC" --quiet --json replay --dataset "$SCRATCH/drive" --map "$SCRATCH/site.mosaic" \
   --out "$SCRATCH/tracked" --revisit-places 0
-json_check "$SCRATCH/tracked/metrics.json" 'd["fix_rate"] >= 0.97' 'd["lock_losses"] == 0' \
+json_check "$SCRATCH/tracked/metrics.json" 'd["fix_rate"] >= 0.97' 'd["lock_losses"] == 0' "d['max_wrong_fix_mm'] < $BOUND" \
   'd["repeatability_camera_mm"] <= 0.01' 'd["frames_by_mode"]["track"] >= 0.97 * d["frames"]'
 
 # The map's self-test (made with its place index when the mapping ended): the procedural floor
@@ -54,13 +60,13 @@ expect_exit 0 "$MOSAICLOC" map info "$SCRATCH/site.mosaic"
 expect_in "$SCRATCH/out" "floor: does not repeat"
 expect_exit 0 "$MOSAICLOC" --quiet --json replay --dataset "$SCRATCH/drive" --map "$SCRATCH/site.mosaic" \
   --out "$SCRATCH/carried" --revisit-places 0 --kidnap-at-s 5 --kidnap-offset 0,-400,0
-json_check "$SCRATCH/carried/metrics.json" 'd["wrong_fixes"] == 0' 'd["kidnap_frames_to_fix"] <= 12' \
+json_check "$SCRATCH/carried/metrics.json" "d['max_wrong_fix_mm'] < $BOUND" 'd["kidnap_frames_to_fix"] <= 12' \
   'd["off_map_frames"] <= 12'
 # Carried 1.5 m back along its lane: the view half matches where the estimate puts it, which
 # on this floor without copies is evidence of the move; the search without the prior finds it.
 expect_exit 0 "$MOSAICLOC" --quiet --json replay --dataset "$SCRATCH/drive" --map "$SCRATCH/site.mosaic" \
   --out "$SCRATCH/carried_back" --revisit-places 0 --kidnap-at-s 5 --kidnap-offset -1500,0,0
-json_check "$SCRATCH/carried_back/metrics.json" 'd["wrong_fixes"] == 0' 'd["kidnap_frames_to_fix"] <= 8' \
+json_check "$SCRATCH/carried_back/metrics.json" "d['max_wrong_fix_mm'] < $BOUND" 'd["kidnap_frames_to_fix"] <= 8' \
   'd["lock_losses"] == 0'
 
 # Mapping faster than the overlap speed limit (2.4 m/s along the view's long side at 30 Hz) is
