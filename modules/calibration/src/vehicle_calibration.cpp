@@ -14,16 +14,8 @@ namespace {
 using Parameters = Eigen::Matrix<double, 6, 1>;
 
 core::Pose2 Arc(const WheelTurn& turn, core::DriveKind kind, const Parameters& p) {
-  double d = 0.0, theta = 0.0;
-  if (kind == core::DriveKind::kTricycle) {
-    const double d_w = p(3) * turn.drive_wheel_rad, psi = turn.steering_rad + p(5);
-    d = d_w * std::cos(psi);
-    theta = d_w * std::sin(psi) / p(4);
-  } else {
-    const double d_l = p(3) * turn.left_wheel_rad, d_r = p(4) * turn.right_wheel_rad;
-    d = 0.5 * (d_l + d_r);
-    theta = (d_r - d_l) / p(5);
-  }
+  const Eigen::Vector2d moved = ArcLengthAndTurn(turn, kind, p.tail<3>());
+  const double d = moved.x(), theta = moved.y();
   // sin(theta)/theta and (1 - cos(theta))/theta, by series near zero.
   const double a = std::abs(theta) < 1e-6 ? 1.0 - theta * theta / 6.0 : std::sin(theta) / theta;
   const double b = std::abs(theta) < 1e-6 ? 0.5 * theta : (1.0 - std::cos(theta)) / theta;
@@ -101,6 +93,15 @@ bool Possible(const Parameters& p, core::DriveKind kind) {
 }
 
 }  // namespace
+
+Eigen::Vector2d ArcLengthAndTurn(const WheelTurn& turn, core::DriveKind kind, const Eigen::Vector3d& wheels) {
+  if (kind == core::DriveKind::kTricycle) {
+    const double d_w = wheels(0) * turn.drive_wheel_rad, psi = turn.steering_rad + wheels(2);
+    return {d_w * std::cos(psi), d_w * std::sin(psi) / wheels(1)};
+  }
+  const double d_l = wheels(0) * turn.left_wheel_rad, d_r = wheels(1) * turn.right_wheel_rad;
+  return {0.5 * (d_l + d_r), (d_r - d_l) / wheels(2)};
+}
 
 bool VehicleCalibrationOptions::Check(std::string* why) const {
   if (!initial_wheels.Check(why)) {

@@ -97,20 +97,11 @@ double Overlap(const core::Pose2& motion, double width_mm, double height_mm) {
 // The camera's motion for a wheel turn under the nominal geometry (one arc approximated by
 // its chord: the prior of a registration, not a measurement).
 core::Pose2 NominalMotion(const VehicleCalibrationOptions& nominal, const WheelTurn& turn) {
-  const core::WheelGeometry& w = nominal.initial_wheels;
-  double d = 0.0, theta = 0.0;
-  if (w.kind == core::DriveKind::kTricycle) {
-    const double d_w = w.drive_wheel_radius_mm * turn.drive_wheel_rad;
-    const double psi = turn.steering_rad + w.steering_offset_deg * M_PI / 180.0;
-    d = d_w * std::cos(psi);
-    theta = d_w * std::sin(psi) / w.wheelbase_mm;
-  } else {
-    d = 0.5 * (w.left_wheel_radius_mm * turn.left_wheel_rad + w.right_wheel_radius_mm * turn.right_wheel_rad);
-    theta = (w.right_wheel_radius_mm * turn.right_wheel_rad - w.left_wheel_radius_mm * turn.left_wheel_rad) /
-            w.track_width_mm;
-  }
+  const VehicleParameters wheels = ToVehicleParameters(nominal.initial_vehicle_from_camera, nominal.initial_wheels);
+  const Eigen::Vector2d moved =
+      ArcLengthAndTurn(turn, nominal.initial_wheels.kind, Eigen::Vector3d(wheels[3], wheels[4], wheels[5]));
   const core::Pose2& x = nominal.initial_vehicle_from_camera;
-  return x.Inverse() * core::Pose2(d, 0.0, theta) * x;
+  return x.Inverse() * core::Pose2(moved.x(), 0.0, moved.y()) * x;
 }
 
 // The tracker's matcher, set for accuracy rather than speed: the whole frame cut into

@@ -73,15 +73,22 @@ TEST(EvaluationOptions, CheckRejectsNonPositiveValues) {
   EXPECT_THROW(Evaluate(Circle(1), Circle(1), options), core::Error);
 }
 
-TEST(Evaluate, ConstantOffsetOfThreeMillimetres) {
-  const Trajectory groundtruth = Circle(1);
-  // Estimates half-way between ground-truth samples: the interpolated reference is exact on a
-  // circle.
+// Estimates half-way between the ground truth's samples, each 3 mm off (1.8, -2.4) in its
+// own frame.
+Trajectory OffsetByThreeMillimetres(const Trajectory& groundtruth) {
   Trajectory estimate;
   for (std::size_t i = 0; i + 1 < groundtruth.size(); ++i) {
     const double t_s = (static_cast<double>(i) + 0.5) * kLapS / kSamplesPerLap;
     estimate.push_back({At(t_s), Shifted(CirclePose(t_s), 1.8, -2.4)});
   }
+  return estimate;
+}
+
+TEST(Evaluate, ConstantOffsetOfThreeMillimetres) {
+  const Trajectory groundtruth = Circle(1);
+  // Estimates half-way between ground-truth samples: the interpolated reference is exact on a
+  // circle.
+  const Trajectory estimate = OffsetByThreeMillimetres(groundtruth);
   const Evaluation evaluation = Evaluate(estimate, groundtruth, {});
   const Metrics& metrics = evaluation.metrics;
   ASSERT_EQ(evaluation.samples.size(), estimate.size());
@@ -112,11 +119,7 @@ TEST(Evaluate, ConstantOffsetOfThreeMillimetres) {
 // A report's metrics: what the caller measured, and the evaluation's figures against the truth.
 TEST(Evaluate, WithEvaluationKeepsTheCallersFiguresAndTakesTheTruths) {
   const Trajectory groundtruth = Circle(1);
-  Trajectory estimate;
-  for (std::size_t i = 0; i + 1 < groundtruth.size(); ++i) {
-    const double t_s = (static_cast<double>(i) + 0.5) * kLapS / kSamplesPerLap;
-    estimate.push_back({At(t_s), Shifted(CirclePose(t_s), 1.8, -2.4)});
-  }
+  const Trajectory estimate = OffsetByThreeMillimetres(groundtruth);
   const Metrics evaluated = Evaluate(estimate, groundtruth, {}).metrics;
   Metrics caller;
   caller.fixes = 7;

@@ -30,6 +30,11 @@ struct DriveStep {
   core::Pose2 previous_from_current_camera;  ///< camera floor frame C, mm and rad
 };
 
+/// How far a wheel turn moves the vehicle's origin along its arc and how far it turns it
+/// (d mm, theta rad; the model below), for the kind's three wheel parameters in the order of
+/// VehicleCalibrationResult::sigma: (r_l, r_r, b) or (r, l, steering offset in rad).
+Eigen::Vector2d ArcLengthAndTurn(const WheelTurn& turn, core::DriveKind kind, const Eigen::Vector3d& wheels);
+
 struct VehicleCalibrationOptions {
   /// Where the solver starts (the nominal, as-designed values).
   core::WheelGeometry initial_wheels;
