@@ -2,6 +2,7 @@
 
 #include <cstdio>
 #include <fstream>
+#include <map>
 #include <optional>
 #include <string>
 #include <type_traits>
@@ -67,6 +68,20 @@ void PrintMetrics(const std::filesystem::path& directory, const dataset::Metrics
   show("path length (estimate)", metrics.estimate_path_length_m, "m");
   show("mean speed", metrics.estimate_speed_mean_mps, "m/s");
   show("speed p99", metrics.estimate_speed_p99_mps, "m/s");
+  // Fixes of frames, per lock state and per mode: where the drive lost its fixes.
+  const auto per = [](const char* name, const std::map<std::string, std::int64_t>& frames,
+                      const std::map<std::string, std::int64_t>& fixes) {
+    if (frames.empty()) return;
+    std::string text;
+    for (const auto& [what, count] : frames) {
+      const auto fixed = fixes.find(what);
+      text += (text.empty() ? "" : ", ") + what + " " + std::to_string(fixed == fixes.end() ? 0 : fixed->second) +
+              "/" + std::to_string(count);
+    }
+    std::printf("  %-24s %s\n", name, text.c_str());
+  };
+  per("fixes/frames by state", metrics.frames_by_state, metrics.fixes_by_state);
+  per("fixes/frames by mode", metrics.frames_by_mode, metrics.fixes_by_mode);
   if (!metrics.no_fix_reasons.empty()) {
     std::string reasons;
     for (const auto& [reason, count] : metrics.no_fix_reasons) {

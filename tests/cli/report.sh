@@ -42,7 +42,7 @@ print("with truth:   ", {k: t[k] for k in ("repeatability_mm", "repeatability_ca
 print("without truth:", {k: b[k] for k in ("fix_rate", "revisit_repeatability_mm", "revisit_places", "revisit_failures",
                                           "estimate_path_length_m", "no_fix_reasons", "frames_by_state")})
 for key in ("estimate_path_length_m", "estimate_speed_mean_mps", "estimate_speed_p99_mps", "frames_by_state",
-            "fixes_by_state", "nis_fixes", "nis_inside_95_share", "nis_mean", "innovation_sigma_ratio",
+            "fixes_by_state", "frames_by_mode", "fixes_by_mode", "nis_fixes", "nis_inside_95_share", "nis_mean", "innovation_sigma_ratio",
             "revisit_repeatability_mm", "revisit_places", "revisit_visits", "revisit_failures", "processing_fps"):
     assert b[key] is not None, key
 for key in ("wrong_fixes", "position_rms_mm", "repeatability_mm", "repeatability_camera_mm", "path_length_m"):

@@ -410,6 +410,7 @@ void WriteMetricsJson(const std::filesystem::path& file, const Metrics& metrics)
   json["fixes_by_state"] = ToJson(metrics.fixes_by_state);
   json["no_fix_reasons"] = ToJson(metrics.no_fix_reasons);
   json["frames_by_mode"] = ToJson(metrics.frames_by_mode);
+  json["fixes_by_mode"] = ToJson(metrics.fixes_by_mode);
   json["mode_switches"] = ToJson(metrics.mode_switches);
   json["nis_fixes"] = ToJson(metrics.nis_fixes);
   json["nis_inside_95_share"] = ToJson(metrics.nis_inside_95_share);

@@ -42,6 +42,7 @@ void AddTruthFreeFigures(const std::vector<FrameReport>& reports, const Trajecto
   metrics->fixes_by_state.clear();
   metrics->no_fix_reasons.clear();
   metrics->frames_by_mode.clear();
+  metrics->fixes_by_mode.clear();
   metrics->mode_switches.reset();
   const std::string* last_mode = nullptr;
   double nis_sum = 0.0;
@@ -58,6 +59,7 @@ void AddTruthFreeFigures(const std::vector<FrameReport>& reports, const Trajecto
     }
     if (report.fixed) {
       ++metrics->fixes_by_state[state];
+      if (!report.mode.empty()) ++metrics->fixes_by_mode[report.mode];
     } else {
       ++metrics->no_fix_reasons[report.reason.empty() ? std::string("unknown") : report.reason];
     }

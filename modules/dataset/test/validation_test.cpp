@@ -38,6 +38,8 @@ TEST(TruthFreeFigures, CountsStatesReasonsSpeedsAndNis) {
                                       Row(0.2, 200.0, 2, false, 20.0, "rejected"),
                                       Row(0.3, 300.0, 4, false, std::nullopt, "off-map"),
                                       Row(0.4, 400.0, 1, true, 9.0, "")};
+  for (FrameReport& r : reports) r.mode = "track";
+  reports[3].mode = "visual-odometry";
   Trajectory estimate;
   for (const FrameReport& r : reports) estimate.push_back({r.time, r.world_from_vehicle});
   const std::vector<Eigen::Vector3d> innovations = {{1.0, -1.0, 0.0}, {-1.0, 1.0, 0.0}};
@@ -52,6 +54,11 @@ TEST(TruthFreeFigures, CountsStatesReasonsSpeedsAndNis) {
   EXPECT_EQ(metrics.fixes_by_state.at("tracking"), 3);
   EXPECT_EQ(metrics.fixes_by_state.count("degraded"), 0U);
   EXPECT_EQ(metrics.no_fix_reasons.at("rejected"), 1);
+  EXPECT_EQ(metrics.frames_by_mode.at("track"), 4);
+  EXPECT_EQ(metrics.frames_by_mode.at("visual-odometry"), 1);
+  EXPECT_EQ(metrics.fixes_by_mode.at("track"), 3);
+  EXPECT_EQ(metrics.fixes_by_mode.count("visual-odometry"), 0U) << "a frame off the map has no fix";
+  EXPECT_EQ(*metrics.mode_switches, 2);
   EXPECT_EQ(metrics.no_fix_reasons.at("off-map"), 1);
   // Four judged fixes (the rejected one included); 1 and 2 inside 7.81, 20 and 9 outside.
   EXPECT_EQ(*metrics.nis_fixes, 4);

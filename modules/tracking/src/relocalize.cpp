@@ -7,6 +7,7 @@
 #include <utility>
 
 #include <Eigen/Cholesky>
+#include <fmt/format.h>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -118,19 +119,28 @@ TrackResult Relocalizer::Search(const cv::Mat& frame, const core::Pose2& prior,
     // Only a place the prediction allows: one period of a repeating floor away is not.
     std::vector<TrackResult> allowed;
     double nearest_mm = std::numeric_limits<double>::infinity();
+    double nearest_deg = 0.0;
+    double nearest_nis = 0.0;
     for (TrackResult& r : verified) {
       const Eigen::Vector3d offset(r.world_from_camera.x_mm() - prior.x_mm(), r.world_from_camera.y_mm() - prior.y_mm(),
                                    core::WrapAngle(r.world_from_camera.yaw_rad() - prior.yaw_rad()));
       const Eigen::Matrix3d both = prior_covariance + gate->covariance_scale * r.covariance;
-      nearest_mm = std::min(nearest_mm, offset.head<2>().norm());
-      if (offset.dot(both.ldlt().solve(offset)) <= gate->chi2) allowed.push_back(std::move(r));
+      const double nis = offset.dot(both.ldlt().solve(offset));
+      if (offset.head<2>().norm() < nearest_mm) {
+        nearest_mm = offset.head<2>().norm();
+        nearest_deg = offset.z() * 180.0 / std::numbers::pi;
+        nearest_nis = nis;
+      }
+      if (nis <= gate->chi2) allowed.push_back(std::move(r));
     }
     if (allowed.empty()) {
       const double sigma_mm = std::sqrt(std::max(prior_covariance(0, 0), prior_covariance(1, 1)));
       none.reason = "relocalization: " + std::to_string(verified.size()) +
                     " places match the frame, none within the prediction's uncertainty (the nearest " +
                     std::to_string(static_cast<int>(std::lround(nearest_mm))) + " mm off, sigma " +
-                    std::to_string(static_cast<int>(std::lround(sigma_mm))) + " mm)";
+                    std::to_string(static_cast<int>(std::lround(sigma_mm))) + " mm; " +
+                    fmt::format("{:.2f} deg off, sigma {:.2f} deg; NIS {:.1f} against {:.1f})", nearest_deg,
+                                std::sqrt(prior_covariance(2, 2)) * 180.0 / std::numbers::pi, nearest_nis, gate->chi2);
       return none;
     }
     verified = std::move(allowed);

@@ -55,6 +55,7 @@ TEST(Relocalizer, FindsTheFrameWithinTheRadiusAndKeepsToTheGate) {
   EXPECT_EQ(gated.failure, TrackFailure::kNoMatch);
   EXPECT_NE(gated.reason.find("none within the prediction's uncertainty (the nearest 36 mm off"), std::string::npos)
       << gated.reason;
+  EXPECT_NE(gated.reason.find(" against 11.8)"), std::string::npos) << "the gate it failed, named: " << gated.reason;
 }
 
 TEST(Relocalizer, RejectsBadOptions) {

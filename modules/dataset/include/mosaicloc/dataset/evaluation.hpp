@@ -133,8 +133,9 @@ struct Metrics {
   std::map<std::string, std::int64_t> frames_by_state;
   std::map<std::string, std::int64_t> fixes_by_state;
   std::map<std::string, std::int64_t> no_fix_reasons;
-  /// Frames per mode (fixes.csv's mode column), and how often the mode changed.
+  /// Frames and fixes per mode (fixes.csv's mode column), and how often the mode changed.
   std::map<std::string, std::int64_t> frames_by_mode;
+  std::map<std::string, std::int64_t> fixes_by_mode;
   std::optional<std::int64_t> mode_switches;
   /// The filter's consistency: fixes it judged, the share of their normalized innovation
   /// squared (NIS) inside the chi-square 95 % bound for 3 degrees of freedom (7.81), the mean
