@@ -124,6 +124,9 @@ bool LocalizerOptions::Check(std::string* why) const {
   if (!(odometry_timing_sigma_ms >= 0.0) || odometry_timing_sigma_ms > 1000.0) {
     return fail("odometry_timing_sigma_ms must be in [0, 1000]");
   }
+  if (!(map_distortion_mm_per_m >= 0.0 && map_distortion_mm_per_m <= 100.0)) {
+    return fail("map_distortion_mm_per_m must be in [0, 100]");
+  }
   if (!(scale_sigma > 0.0 && scale_sigma <= 0.2)) return fail("scale_sigma must be in (0, 0.2]");
   if (!(scale_drift_per_sqrt_s >= 0.0 && scale_drift_per_sqrt_s <= 0.1)) {
     return fail("scale_drift_per_sqrt_s must be in [0, 0.1]");
@@ -179,6 +182,8 @@ void Localizer::Initialize(core::Timestamp time, const core::Pose2& world_from_v
                            const Eigen::Matrix3d& covariance) {
   filter_.emplace(options_.filter, time, world_from_vehicle, covariance);
   keyframe_.reset();
+  off_map_path_mm_ = 0.0;
+  last_predicted_.reset();
   rejected_run_ = 0;
   unmatched_run_ = 0;
   kidnapped_ = false;
@@ -242,20 +247,31 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   if (!filter_) core::ThrowRuntime("localizer: ProcessFrame before Initialize");
   filter_->Coast(time);
   const core::Pose2 predicted = filter_->PoseAt(time);
-  // Time-stamp uncertainty of the odometry: a time-stamp error dt puts the pose dt times the
-  // motion off, v dt along the heading and omega dt in heading; the last fix anchored the state
-  // with the motion then, so the prediction here carries both, independent.
-  Eigen::Matrix3d timing = Eigen::Matrix3d::Zero();
+  // What the filter's covariance does not carry, added to the prediction's for the search and
+  // the gate. Time-stamp uncertainty of the odometry: a time-stamp error dt puts the pose dt
+  // times the motion off, v dt along the heading and omega dt in heading; the last fix anchored
+  // the state with the motion then, so the prediction here carries both, independent.
+  Eigen::Matrix3d unmodelled = Eigen::Matrix3d::Zero();
   if (options_.odometry_timing_sigma_ms > 0.0) {
     const double sigma_s = options_.odometry_timing_sigma_ms * 1e-3;
     const auto& latest = filter_->Latest();
     for (const auto& [v, omega] : {std::pair{latest.forward_speed_mm_per_s, latest.yaw_rate_rad_per_s},
                                    std::pair{fix_speed_mm_per_s_, fix_yaw_rate_rad_per_s_}}) {
       const Eigen::Vector3d motion(v * std::cos(predicted.yaw_rad()), v * std::sin(predicted.yaw_rad()), omega);
-      timing += sigma_s * sigma_s * motion * motion.transpose();
+      unmodelled += sigma_s * sigma_s * motion * motion.transpose();
     }
   }
-  const Eigen::Matrix3d predicted_covariance = filter_->CovarianceAt(time) + timing;
+  // The map's own distortion between where the vehicle left it and where it is now
+  // (LocalizerOptions::map_distortion_mm_per_m): the path counts while the last frame was off
+  // the map.
+  if (mode_ == Mode::kVisualOdometry || mode_ == Mode::kDeadReckoning) {
+    if (last_predicted_) off_map_path_mm_ += (predicted.translation_mm() - last_predicted_->translation_mm()).norm();
+  }
+  last_predicted_ = predicted;
+  const double distortion_mm = options_.map_distortion_mm_per_m * off_map_path_mm_ * 1e-3;
+  unmodelled(0, 0) += distortion_mm * distortion_mm;
+  unmodelled(1, 1) += distortion_mm * distortion_mm;
+  const Eigen::Matrix3d predicted_covariance = filter_->CovarianceAt(time) + unmodelled;
   if (!scale_time_ || time > *scale_time_) {
     const double drift = options_.scale_drift_per_sqrt_s;
     if (scale_time_) scale_variance_ += drift * drift * core::ToSeconds(time - *scale_time_);
@@ -337,7 +353,7 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
       // A verified relocalization replaces the prediction it contradicts.
       Restart(time, fix, fix_covariance, &outcome);
     } else {
-      const estimation::FixOutcome applied = filter_->Correct(time, fix, fix_covariance, timing);
+      const estimation::FixOutcome applied = filter_->Correct(time, fix, fix_covariance, unmodelled);
       outcome.fixed = applied.accepted;
       if (applied.innovation_covariance(0, 0) > 0.0) {
         outcome.nis = applied.mahalanobis2;
@@ -355,7 +371,7 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
                                      core::WrapAngle(fix.yaw_rad() - predicted.yaw_rad()));
         if (!gated) {
           rejected_run_ = 0;
-        } else if (RejectedAgain(time, offset, fix_covariance + timing)) {
+        } else if (RejectedAgain(time, offset, fix_covariance + unmodelled)) {
       Restart(time, fix, fix_covariance, &outcome);
         }
       }
@@ -374,6 +390,7 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   outcome.scale_sigma = std::sqrt(scale_variance_);
   estimation::FrameVerdict verdict = estimation::FrameVerdict::kFixed;
   if (outcome.fixed) {
+    off_map_path_mm_ = 0.0;
     unmatched_run_ = 0;
     lost_frames_ = 0;
     off_map_frames_ = 0;

@@ -36,6 +36,8 @@ class Drive : public ::testing::Test {
   virtual int MapCols() const { return 14; }
   virtual int MapRows() const { return 6; }
   virtual bool Mapped(int /*col*/) const { return true; }
+  /// Texels the map's tiles of a column are painted shifted by (a map that is not rigid).
+  virtual cv::Point2i PaintedShift(int /*col*/) const { return {0, 0}; }
 
   void SetUp() override {
     const auto texture = test::SharedTexture("asphalt_02_2048.jpg");
@@ -68,7 +70,8 @@ class Drive : public ::testing::Test {
     for (int row = 0; row < MapRows(); ++row) {    // y from 0 down (-384 mm for 6 rows)
       for (int col = 0; col < MapCols(); ++col) {  // x from 0 (to 896 mm for 14 columns)
         if (!Mapped(col)) continue;
-        cv::Mat texels = floor_->Render(2 * 256 * col, 2 * 256 * row, 512, 512), pixels;
+        const cv::Point2i shift = PaintedShift(col);
+        cv::Mat texels = floor_->Render(2 * 256 * col + shift.x, 2 * 256 * row + shift.y, 512, 512), pixels;
         cv::resize(texels, pixels, cv::Size(256, 256), 0, 0, cv::INTER_AREA);
         cv::max(pixels, 1, pixels);
         tiles.push_back({mosaic::TileKey{0, col, row}, pixels});
@@ -101,6 +104,8 @@ class Drive : public ::testing::Test {
     std::vector<int> inliers;    ///< per frame: the templates the accepted fix rests on, 0 without one
     std::int64_t relocalizations = 0;
     int misses = 0;  ///< frames without a fix
+    int rejected = 0;  ///< frames whose fix the filter's gate refused
+    std::string first_rejection;  ///< the first of those, why
     estimation::LockState last_state = estimation::LockState::kTracking;
     std::vector<std::string> words;  ///< ReasonWord() of the first frames without a fix
   };
@@ -167,6 +172,9 @@ class Drive : public ::testing::Test {
       run.inliers.push_back(outcome.fixed ? outcome.track.inliers : 0);
       run.fix_errors_mm.push_back(outcome.fixed ? Distance(outcome.fix_world_from_vehicle, truth) : -1.0);
       if (!outcome.fixed && run.words.size() < 5) run.words.push_back(outcome.ReasonWord());
+      if (!outcome.fixed && outcome.ReasonWord() == "rejected" && run.rejected++ == 0) {
+        run.first_rejection = outcome.reason;
+      }
       if (!outcome.fixed && run.reasons.size() < 5) {
         const Pose2& found = outcome.track.world_from_camera;
         run.reasons.push_back(outcome.reason + " (camera found at " + std::to_string(found.x_mm()) + ", " +
@@ -475,6 +483,48 @@ TEST_F(RepeatingExcursion, AViewPartlyOffTheMapIsRegisteredAgainWithMoreTemplate
   EXPECT_LE(four.inliers[a], 4);
   EXPECT_GT(sixteen.inliers[b], 4);
   EXPECT_LT(sixteen.fix_errors_mm[b], 0.02);
+}
+
+// A map that is not rigid, as one built from a mapping drive that closed no loop between two
+// lanes: the lane beyond the unmapped band is painted 1.5 mm to the side of where it lies. Off
+// the map, visual odometry follows the true motion; back on it, the map's own error there is
+// not the one where the vehicle left it. The prediction carries the map's distortion over the
+// path driven off it (map_distortion_mm_per_m), so the first view back on the map is fixed,
+// in the map's frame there.
+class DistortedExcursion : public Drive {
+ protected:
+  int MapCols() const override { return 20; }
+  int MapRows() const override { return 8; }
+  bool Mapped(int col) const override { return col < 7 || col > 14; }
+  cv::Point2i PaintedShift(int col) const override { return {0, col > 14 ? 12 : 0}; }  // 12 x 0.125 mm
+};
+
+TEST_F(DistortedExcursion, TheMapsDistortionOverTheExcursionIsInTheGate) {
+  const auto back_on_the_map = [](const Run& run) {
+    std::size_t i = 0;
+    while (i < run.cameras.size() && run.cameras[i].x_mm() - 80.0 < 960.0) ++i;  // the whole view past the band
+    return i;
+  };
+  options_.map_distortion_mm_per_m = 0.0;
+  const Run rigid = Localize(1.6, 0.5, Pose2());
+  options_.map_distortion_mm_per_m = LocalizerOptions{}.map_distortion_mm_per_m;
+  const Run widened = Localize(1.6, 0.5, Pose2());
+  for (const Run* run : {&rigid, &widened}) {
+    const std::size_t back = back_on_the_map(*run);
+    ASSERT_LT(back + 5, run->fix_errors_mm.size());
+    EXPECT_EQ(run->lock_losses, 0);
+    // After the return every fix is the map's, 1.5 mm to the side of the truth.
+    for (std::size_t i = back + 5; i < run->fix_errors_mm.size(); ++i) {
+      if (run->fix_errors_mm[i] >= 0.0) {
+        EXPECT_NEAR(run->fix_errors_mm[i], 1.5, 0.05) << "frame " << i + 1;
+      }
+    }
+  }
+  EXPECT_GE(rigid.rejected, 1) << "a rigid map's prediction refuses the map's own error";
+  EXPECT_EQ(widened.rejected, 0) << widened.first_rejection;
+  RecordProperty("first_rejection_without_the_distortion", rigid.first_rejection);
+  const std::size_t back = back_on_the_map(widened);
+  EXPECT_GE(widened.fix_errors_mm[back], 0.0) << "the first view wholly back on the map is fixed";
 }
 
 TEST(CovarianceTransfer, CameraAndVehicleCovariancesAreInverse) {

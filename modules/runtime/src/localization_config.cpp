@@ -83,6 +83,7 @@ void ReadLocalizerConfig(const YAML::Node& node, const std::string& file_name, L
   filter.Optional("fix_sigma_floor_mm", &o.fix_sigma_floor_mm);
   filter.Optional("fix_sigma_floor_rad", &o.fix_sigma_floor_rad);
   filter.Optional("fix_covariance_scale", &o.fix_covariance_scale);
+  filter.Optional("map_distortion_mm_per_m", &o.map_distortion_mm_per_m);
   filter.Optional("wheel_variance_mm", &o.odometry.wheel_variance_mm);
   filter.Optional("wheel_scale_sigma", &o.filter.wheel_scale_sigma);
   filter.Optional("wheel_scale_walk_per_sqrt_m", &o.filter.wheel_scale_walk_per_sqrt_m);

@@ -54,6 +54,7 @@ TEST(LocalizerConfig, DefaultFileEqualsCompiledDefaults) {
   EXPECT_EQ(l.fix_sigma_floor_mm, m.fix_sigma_floor_mm);
   EXPECT_EQ(l.fix_sigma_floor_rad, m.fix_sigma_floor_rad);
   EXPECT_EQ(l.fix_covariance_scale, m.fix_covariance_scale);
+  EXPECT_EQ(l.map_distortion_mm_per_m, m.map_distortion_mm_per_m);
   EXPECT_EQ(l.odometry.wheel_variance_mm, m.odometry.wheel_variance_mm);
   EXPECT_EQ(l.lock.degraded_after_misses, m.lock.degraded_after_misses);
   EXPECT_EQ(l.lock.lost_after_misses, m.lock.lost_after_misses);

@@ -75,6 +75,14 @@ struct LocalizerOptions {
   /// omega * dt off while the vehicle turns. The prediction is widened by that much, for the
   /// search and for the gate.
   double odometry_timing_sigma_ms = 0.0;
+  /// A map is not rigid: one built from a mapping drive is off the true geometry by a few mm
+  /// over tens of metres where its loops could not all be closed, so two of its places d
+  /// apart may be up to a few thousandths of d off each other. Odometry and visual odometry
+  /// measure the true motion; a prediction carried off the map meets it again where the map's
+  /// own error is not the one it had where the vehicle left it. The prediction is widened in
+  /// position by this times the path driven off the map (visual odometry or dead reckoning)
+  /// since the last fix, one standard deviation, mm per m: for the search and for the gate.
+  double map_distortion_mm_per_m = 1.0;
   /// Relocalization, when the prediction is too uncertain for the tracker's search range or
   /// a kidnap is known (below): the frame is searched for on the coarse map around the
   /// prediction (tracking::Relocalizer). Without a known kidnap the search covers the
@@ -313,6 +321,10 @@ class Localizer {
   std::optional<core::Pose2> last_vo_camera_;  ///< the camera pose of the last frame visual odometry registered
   Mode mode_ = Mode::kTrack;
   std::int64_t mode_switches_ = 0;
+  /// The path driven since the last fix while off the map (map_distortion_mm_per_m), and the
+  /// prediction it was measured along, at the last frame.
+  double off_map_path_mm_ = 0.0;
+  std::optional<core::Pose2> last_predicted_;
   // The image scale's estimate, its variance, and the time it was last brought to.
   double scale_ = 1.0;
   double scale_variance_ = 0.0;
