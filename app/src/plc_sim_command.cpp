@@ -31,10 +31,10 @@ void RunPlcSim(PlcSimArgs args, const GlobalOptions& global) {
   }
   const runtime::PlcSimulatorOptions& o = args.options;
   runtime::PlcSimulatorCallbacks callbacks;
-  callbacks.serving = [&](const std::filesystem::path& played) {
+  callbacks.serving = [&](const std::string& played) {
     if (!global.quiet) {
       std::fprintf(stderr, "plc-sim: serving holding registers on %s:%d (unit %d), playing %s\n", o.host.c_str(),
-                   o.port, o.unit, played.string().c_str());
+                   o.port, o.unit, played.c_str());
     }
   };
   callbacks.every_second = [&](const runtime::PlcSimulatorStatus& s) {

@@ -23,7 +23,7 @@ YAML
 PORT=$(free_port)
 printf 'map: %s\ncamera: {source: simulator, simulator: {config: %s}}\nplc: {port: %s}\n' \
   "$SCRATCH/site.mosaic" "$SCRATCH/drive.yaml" "$PORT" > "$SCRATCH/run.yaml"
-START=$(start_in 12.0)  # both sides render the drive first, which must be done by then
+START=$(start_in 5.0)  # both sides plan the drive first (its path), which must be done by then
 "$MOSAICLOC" --quiet --json plc-sim --simulate "$SCRATCH/drive.yaml" --port "$PORT" --start-unix "$START" \
   --request-period-ms 200 >"$SCRATCH/plc.json" 2>"$SCRATCH/plc.err" &
 PLC=$!

@@ -788,12 +788,14 @@ LiveSource OpenLiveSource(const LiveRunOptions& config) {
   source.camera = config.camera;
   source.vehicle = config.vehicle;
   if (config.camera_source == "simulator") {
-    source.drive = std::make_unique<SimulatedDrive>(sim::SimulatorConfigOrDefaults(config.simulator_config));
-  }
-  if (config.camera_source == "dataset" || source.drive) {
-    // A recording (or a simulated drive) carries its own camera and vehicle calibration.
-    auto played = std::make_unique<DatasetFrameSource>(source.drive ? source.drive->directory() : config.dataset,
-                                                       config.dataset_start_unix_s);
+    // The simulated drive carries its own camera and vehicle calibration.
+    source.drive = std::make_shared<const sim::PlannedDrive>(sim::SimulatorConfigOrDefaults(config.simulator_config));
+    source.camera = source.drive->info().camera;
+    source.vehicle = source.drive->info().vehicle;
+    source.frames = std::make_unique<SimulatedFrameSource>(source.drive, config.dataset_start_unix_s);
+  } else if (config.camera_source == "dataset") {
+    // A recording carries its own camera and vehicle calibration.
+    auto played = std::make_unique<DatasetFrameSource>(config.dataset, config.dataset_start_unix_s);
     source.camera = played->info().camera;
     source.vehicle = played->info().vehicle;
     source.frames = std::move(played);

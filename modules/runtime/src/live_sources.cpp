@@ -5,8 +5,6 @@
 #include <cmath>
 #include <thread>
 
-#include <unistd.h>
-
 #include <fmt/format.h>
 
 #include "mosaicloc/core/error.hpp"
@@ -21,10 +19,15 @@ Playback Playback::Of(const dataset::DatasetReader& reader, double start_unix_s)
   const auto first_frame = frames.Next(/*decode=*/false);
   const auto first_sample = encoders.Next();
   if (!first_frame && !first_sample) core::ThrowInvalidInput(reader.directory().string() + ": the dataset is empty");
+  return Starting(first_frame && first_sample ? std::min(first_frame->time, first_sample->time)
+                  : first_frame               ? first_frame->time
+                                              : first_sample->time,
+                  start_unix_s);
+}
+
+Playback Playback::Starting(core::Timestamp origin, double start_unix_s) {
   Playback playback;
-  playback.origin = first_frame && first_sample ? std::min(first_frame->time, first_sample->time)
-                    : first_frame               ? first_frame->time
-                                                : first_sample->time;
+  playback.origin = origin;
   const core::Timestamp now = io::MonotonicNow();
   playback.start = now;
   if (start_unix_s > 0.0) {
@@ -44,15 +47,23 @@ bool SleepUntil(core::Timestamp when, const std::atomic<bool>& stop) {
   return false;
 }
 
-SimulatedDrive::SimulatedDrive(const sim::SimulatorOptions& options) {
-  directory_ = std::filesystem::temp_directory_path() / fmt::format("mosaicloc-drive-{}", getpid());
-  core::Log().info("simulating the drive into {}", directory_.string());
-  sim::Simulate(options, directory_, /*overwrite=*/true);
+SimulatedFrameSource::SimulatedFrameSource(std::shared_ptr<const sim::PlannedDrive> drive, double start_unix_s)
+    : drive_(std::move(drive)), playback_(Playback::Starting(core::Timestamp(), start_unix_s)) {}
+
+std::optional<io::CapturedFrame> SimulatedFrameSource::Next() {
+  if (stop_ || next_ >= drive_->capture_s().size()) return std::nullopt;
+  io::CapturedFrame captured;
+  captured.time = playback_.ToMonotonic(core::Timestamp::FromSeconds(drive_->capture_s()[next_]));
+  captured.image = drive_->RenderFrame(next_);
+  if (!SleepUntil(captured.time, stop_)) return std::nullopt;
+  captured.sequence = static_cast<std::int64_t>(next_++);
+  return captured;
 }
 
-SimulatedDrive::~SimulatedDrive() {
-  std::error_code ec;
-  std::filesystem::remove_all(directory_, ec);
+std::string SimulatedFrameSource::Describe() const {
+  const dataset::CameraInfo& camera = drive_->info().camera;
+  return fmt::format("the simulator, {} frames rendered as they are due ({}x{}, {:.0f} s)", drive_->capture_s().size(),
+                     camera.width_px, camera.height_px, drive_->capture_s().back());
 }
 
 DatasetFrameSource::DatasetFrameSource(const std::filesystem::path& directory, double start_unix_s)

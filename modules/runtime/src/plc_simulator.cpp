@@ -13,7 +13,6 @@
 #include <vector>
 
 #include <fmt/format.h>
-#include <fmt/format.h>
 
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/file.hpp"
@@ -22,6 +21,7 @@
 #include "mosaicloc/io/register_server.hpp"
 #include "mosaicloc/runtime/live_sources.hpp"
 #include "mosaicloc/sim/config.hpp"
+#include "mosaicloc/sim/simulator.hpp"
 
 namespace mosaicloc::runtime {
 namespace {
@@ -39,20 +39,46 @@ std::uint32_t Masked(std::uint32_t value, const io::RegisterField& field) {
 }  // namespace
 
 PlcSimulatorSummary RunPlcSimulator(const PlcSimulatorOptions& args, const PlcSimulatorCallbacks& callbacks) {
-  std::unique_ptr<SimulatedDrive> drive;
-  if (args.simulate) drive = std::make_unique<SimulatedDrive>(sim::SimulatorConfigOrDefaults(*args.simulate));
-  const std::filesystem::path played = drive ? drive->directory() : args.dataset;
-  if (played.empty()) core::ThrowInvalidInput("plc-sim: give --dataset DIR or --simulate [YAML]");
-  const dataset::DatasetReader reader(played);
+  // The drive played: a recording's encoder samples and truth, or the simulator's, each
+  // computed when it is due (no recording: a drive of hours starts at once).
+  std::unique_ptr<sim::PlannedDrive> plan;
+  std::unique_ptr<dataset::DatasetReader> reader;
+  std::optional<dataset::Trajectory> groundtruth;
+  std::optional<sim::PlannedDrive::EncoderStream> simulated_samples;
+  std::optional<dataset::DatasetReader::EncoderStream> recorded_samples;
+  std::string played;
+  core::DriveKind kind = core::DriveKind::kDifferential;
+  Playback playback;
+  if (args.simulate) {
+    plan = std::make_unique<sim::PlannedDrive>(sim::SimulatorConfigOrDefaults(*args.simulate));
+    played = "a simulated drive (" + (args.simulate->empty() ? std::string("the built-in defaults") : args.simulate->string()) +
+             fmt::format(", {:.0f} s)", plan->capture_s().back());
+    kind = plan->info().vehicle.kind;
+    simulated_samples.emplace(plan->Encoders());
+    playback = Playback::Starting(core::Timestamp(), args.start_unix_s);  // the drive's clock starts at 0
+  } else {
+    if (args.dataset.empty()) core::ThrowInvalidInput("plc-sim: give --dataset DIR or --simulate [YAML]");
+    reader = std::make_unique<dataset::DatasetReader>(args.dataset);
+    played = args.dataset.string();
+    kind = reader->info().vehicle.kind;
+    if (reader->HasGroundTruth()) groundtruth = reader->GroundTruth();
+    recorded_samples.emplace(reader->Encoders());
+    playback = Playback::Of(*reader, args.start_unix_s);
+  }
+  const auto next_sample = [&]() -> std::optional<dataset::EncoderSample> {
+    return simulated_samples ? simulated_samples->Next() : recorded_samples->Next();
+  };
+  const auto truth_at = [&](core::Timestamp time) -> std::optional<core::Pose2> {
+    if (plan) return plan->TruthAt(core::ToSeconds(time - core::Timestamp()));
+    if (groundtruth) return dataset::PoseAt(*groundtruth, time, std::chrono::milliseconds(200));
+    return std::nullopt;
+  };
   // The counters of the vehicle the drive was recorded on.
   io::RegisterMap map = args.registers;
-  map.kind = reader.info().vehicle.kind;
+  map.kind = kind;
   if (std::string why; !map.Check(&why)) {
     core::ThrowInvalidInput("plc-sim: the register map for a " + std::string(core::ToString(map.kind)) + ": " + why);
   }
-  const std::optional<dataset::Trajectory> groundtruth =
-      reader.HasGroundTruth() ? std::optional<dataset::Trajectory>(reader.GroundTruth()) : std::nullopt;
-  const Playback playback = Playback::Of(reader, args.start_unix_s);
 
   std::vector<const io::RegisterField*> fields = map.Inputs();
   const std::vector<const io::RegisterField*> outputs = map.Outputs();
@@ -93,9 +119,8 @@ PlcSimulatorSummary RunPlcSimulator(const PlcSimulatorOptions& args, const PlcSi
   io::RegisterServer& server = *server_owner;
   if (callbacks.serving) callbacks.serving(played);
 
-  auto encoders = reader.Encoders();
-  std::optional<dataset::EncoderSample> pending = encoders.Next();
-  if (!pending) core::ThrowInvalidInput(played.string() + ": no encoder samples");
+  std::optional<dataset::EncoderSample> pending = next_sample();
+  if (!pending) core::ThrowInvalidInput(played + ": no encoder samples");
   dataset::EncoderSample current = *pending;  // the counters hold the first sample until playback starts
   core::Timestamp last_sample_time = current.time;
   std::uint32_t heartbeat = 0, request = 0;
@@ -130,8 +155,7 @@ PlcSimulatorSummary RunPlcSimulator(const PlcSimulatorOptions& args, const PlcSi
           answer_ms.push_back(std::chrono::duration<double, std::milli>(r.time - *request_time).count());
         }
         const core::Timestamp dataset_time = playback.ToDataset(r.time);
-        std::optional<core::Pose2> truth;
-        if (groundtruth) truth = dataset::PoseAt(*groundtruth, dataset_time, std::chrono::milliseconds(200));
+        const std::optional<core::Pose2> truth = truth_at(dataset_time);
         double error = std::nan("");
         if (truth && r.fix.status != 0) {
           error = std::hypot(r.fix.x_mm - truth->x_mm(), r.fix.y_mm - truth->y_mm());
@@ -150,7 +174,7 @@ PlcSimulatorSummary RunPlcSimulator(const PlcSimulatorOptions& args, const PlcSi
     while (pending && playback.ToMonotonic(pending->time) <= now) {
       current = *pending;
       last_sample_time = pending->time;
-      pending = encoders.Next();
+      pending = next_sample();
     }
     if (!pending && !ended) ended = now;
     if (now >= next_heartbeat) {

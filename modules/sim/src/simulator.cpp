@@ -255,60 +255,63 @@ cv::Mat FrameRenderer::Render(double t, std::uint64_t frame_seed, dataset::Camer
 
 std::uint64_t FrameSeed(std::uint64_t seed, std::uint64_t k) { return Mix(seed, k + 1); }
 
-SimulationSummary Simulate(const SimulatorOptions& options, const std::filesystem::path& out, bool overwrite,
-                           const ProgressCallback& progress) {
+namespace {
+
+// The frames Simulate captures: as many as the laps take, or options.frames.
+int LapsOf(const SimulatorOptions& options) {
   std::string why;
   if (!options.Check(&why)) core::ThrowInvalidInput("simulate: " + why);
-  const int laps = options.laps > 0 ? options.laps
-                                    : Drive::LapsForFrames(options.route, options.frames, options.frame_rate_hz);
-  const Drive drive(options.route, laps, options.seed);
-  const FrameRenderer renderer(options, drive);
-  const CameraPlacement& placement = renderer.placement();
-  EncoderModel encoders(options.encoders, options.seed);
+  return options.laps > 0 ? options.laps
+                          : Drive::LapsForFrames(options.route, options.frames, options.frame_rate_hz);
+}
 
-  const double period_s = 1.0 / options.frame_rate_hz;
-  const std::int64_t frames = options.laps > 0
-                                  ? static_cast<std::int64_t>(std::floor(drive.duration_s() / period_s)) + 1
-                                  : options.frames;
+}  // namespace
+
+PlannedDrive::PlannedDrive(const SimulatorOptions& options)
+    : options_(options), laps_(LapsOf(options)), drive_(options_.route, laps_, options_.seed) {
+  renderer_ = std::make_unique<FrameRenderer>(options_, drive_);
+  const CameraPlacement& placement = renderer_->placement();
+  const double period_s = 1.0 / options_.frame_rate_hz;
+  const std::int64_t frames = options_.laps > 0
+                                  ? static_cast<std::int64_t>(std::floor(drive_.duration_s() / period_s)) + 1
+                                  : options_.frames;
 
   // Capture instants (with jitter) and which frames are lost, drawn up front so they do
   // not depend on rendering order.
-  std::mt19937_64 rng(Mix(options.seed, 0xf4a3e5ULL));
-  std::normal_distribution<double> jitter(0.0, options.timestamp_jitter_ms * 1e-3);
+  std::mt19937_64 rng(Mix(options_.seed, 0xf4a3e5ULL));
+  std::normal_distribution<double> jitter(0.0, options_.timestamp_jitter_ms * 1e-3);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
-  std::vector<double> capture_s;
-  capture_s.reserve(static_cast<std::size_t>(frames));
-  SimulationSummary summary;
+  capture_s_.reserve(static_cast<std::size_t>(frames));
   for (std::int64_t k = 0; k < frames; ++k) {
     const double j = std::clamp(jitter(rng), -0.25 * period_s, 0.25 * period_s);
-    const bool dropped = unit(rng) < options.drop_probability;
+    const bool dropped = unit(rng) < options_.drop_probability;
     if (dropped) {
-      ++summary.frames_dropped;
+      ++frames_dropped_;
       continue;
     }
-    capture_s.push_back(std::max(0.0, static_cast<double>(k) * period_s + j));
+    capture_s_.push_back(std::max(0.0, static_cast<double>(k) * period_s + j));
   }
-  if (capture_s.empty()) core::ThrowInvalidInput("simulate: every frame was dropped; lower drop_probability");
+  if (capture_s_.empty()) core::ThrowInvalidInput("simulate: every frame was dropped; lower drop_probability");
 
-  dataset::DatasetInfo info;
-  info.camera.width_px = options.camera.width_px;
-  info.camera.height_px = options.camera.height_px;
-  info.camera.mm_per_px = options.camera.mm_per_px;
-  info.camera.vehicle_from_camera = options.vehicle_from_camera;
-  info.vehicle = options.encoders.nominal;
+  dataset::DatasetInfo& info = info_;
+  info.camera.width_px = options_.camera.width_px;
+  info.camera.height_px = options_.camera.height_px;
+  info.camera.mm_per_px = options_.camera.mm_per_px;
+  info.camera.vehicle_from_camera = options_.vehicle_from_camera;
+  info.vehicle = options_.encoders.nominal;
   auto& p = info.provenance;
   p["source"] = "mosaicloc simulate";
-  p["floor"] = renderer.DescribeFloor();
-  p["route"] = options.route.name;
-  p["laps"] = std::to_string(laps);
-  p["speed_mps"] = Number(options.route.speed_mps);
-  p["seed"] = std::to_string(options.seed);
-  p["frame_rate_hz"] = Number(options.frame_rate_hz);
-  p["exposure_us"] = Number(options.imaging.exposure_us);
-  p["noise_std_dn"] = Number(options.imaging.noise_std_dn);
-  p["lateral_deviation_mm"] = Number(options.route.lateral_deviation_mm);
-  p["encoder_rate_hz"] = Number(options.encoders.rate_hz);
-  const EncoderOptions& e = options.encoders;
+  p["floor"] = renderer_->DescribeFloor();
+  p["route"] = options_.route.name;
+  p["laps"] = std::to_string(laps_);
+  p["speed_mps"] = Number(options_.route.speed_mps);
+  p["seed"] = std::to_string(options_.seed);
+  p["frame_rate_hz"] = Number(options_.frame_rate_hz);
+  p["exposure_us"] = Number(options_.imaging.exposure_us);
+  p["noise_std_dn"] = Number(options_.imaging.noise_std_dn);
+  p["lateral_deviation_mm"] = Number(options_.route.lateral_deviation_mm);
+  p["encoder_rate_hz"] = Number(options_.encoders.rate_hz);
+  const EncoderOptions& e = options_.encoders;
   if (e.nominal.kind == core::DriveKind::kTricycle) {
     p["true_drive_wheel_radius_mm"] = Number(e.nominal.drive_wheel_radius_mm * (1.0 + e.drive_radius_error));
     p["true_wheelbase_mm"] = Number(e.nominal.wheelbase_mm * (1.0 + e.wheelbase_error));
@@ -319,43 +322,68 @@ SimulationSummary Simulate(const SimulatorOptions& options, const std::filesyste
     p["true_right_wheel_radius_mm"] = Number(e.nominal.right_wheel_radius_mm * (1.0 + e.right_radius_error));
     p["true_track_width_mm"] = Number(e.nominal.track_width_mm * (1.0 + e.track_width_error));
   }
-  p["wheel_slip_std"] = Number(options.encoders.slip_std);
-  p["camera_height_mm"] = Number(options.camera_height_mm);
-  p["height_offset_mm"] = Number(options.height_offset_mm);
+  p["wheel_slip_std"] = Number(options_.encoders.slip_std);
+  p["camera_height_mm"] = Number(options_.camera_height_mm);
+  p["height_offset_mm"] = Number(options_.height_offset_mm);
   if (!placement.straight_down()) {
-    p["height_drift_mm_per_min"] = Number(options.height_drift_mm_per_min);
-    p["residual_k1"] = Number(options.residual_k1);
-    p["unevenness_mm"] = Number(options.floor.unevenness_mm);
-    p["unevenness_wavelength_m"] = Number(options.floor.unevenness_wavelength_m);
-    p["pitch_deg_per_mps2"] = Number(options.suspension.pitch_deg_per_mps2);
-    p["roll_deg_per_mps2"] = Number(options.suspension.roll_deg_per_mps2);
-    p["pivot_height_mm"] = Number(options.suspension.pivot_height_mm);
-    p["caster_x_mm"] = Number(options.suspension.caster_x_mm);
+    p["height_drift_mm_per_min"] = Number(options_.height_drift_mm_per_min);
+    p["residual_k1"] = Number(options_.residual_k1);
+    p["unevenness_mm"] = Number(options_.floor.unevenness_mm);
+    p["unevenness_wavelength_m"] = Number(options_.floor.unevenness_wavelength_m);
+    p["pitch_deg_per_mps2"] = Number(options_.suspension.pitch_deg_per_mps2);
+    p["roll_deg_per_mps2"] = Number(options_.suspension.roll_deg_per_mps2);
+    p["pivot_height_mm"] = Number(options_.suspension.pivot_height_mm);
+    p["caster_x_mm"] = Number(options_.suspension.caster_x_mm);
   }
-  if (options.relief.any()) {
-    p["relief_depth_mm"] = Number(options.relief.depth_mm);
-    p["relief_source"] = options.relief.source == "image" ? options.relief.height_image.string() : "albedo";
-    p["relief_low_fraction"] = Number(options.relief.low_fraction);
-    p["relief_slope_fraction"] = Number(options.relief.slope_fraction);
-    p["relief_smoothing_mm"] = Number(options.relief.smoothing_mm);
+  if (options_.relief.any()) {
+    p["relief_depth_mm"] = Number(options_.relief.depth_mm);
+    p["relief_source"] = options_.relief.source == "image" ? options_.relief.height_image.string() : "albedo";
+    p["relief_low_fraction"] = Number(options_.relief.low_fraction);
+    p["relief_slope_fraction"] = Number(options_.relief.slope_fraction);
+    p["relief_smoothing_mm"] = Number(options_.relief.smoothing_mm);
   }
-  if (options.light.any()) {
-    p["light_sources"] = std::to_string(options.light.sources);
-    p["light_ring_radius_mm"] = Number(options.light.ring_radius_mm);
-    p["light_height_over_lens_mm"] = Number(options.light.height_over_lens_mm);
-    p["light_ambient"] = Number(options.light.ambient);
-    p["light_ring_gain"] = Number(options.light.ring_gain);
+  if (options_.light.any()) {
+    p["light_sources"] = std::to_string(options_.light.sources);
+    p["light_ring_radius_mm"] = Number(options_.light.ring_radius_mm);
+    p["light_height_over_lens_mm"] = Number(options_.light.height_over_lens_mm);
+    p["light_ambient"] = Number(options_.light.ambient);
+    p["light_ring_gain"] = Number(options_.light.ring_gain);
   }
+}
 
-  dataset::DatasetWriter writer(out, info, overwrite);
+PlannedDrive::~PlannedDrive() = default;
 
-  // Encoder samples from the start to just past the last frame.
-  const double end_s = capture_s.back() + period_s;
-  const double encoder_period_s = 1.0 / options.encoders.rate_hz;
-  for (std::int64_t j = 0; static_cast<double>(j) * encoder_period_s <= end_s; ++j) {
-    const double t = static_cast<double>(j) * encoder_period_s;
-    writer.AddEncoderSample(encoders.Step(core::Timestamp::FromSeconds(t), drive.At(t).world_from_vehicle,
-                                          drive.At(t + kSteeringInstantS).world_from_vehicle));
+cv::Mat PlannedDrive::RenderFrame(std::size_t k, dataset::CameraTruth* truth) const {
+  return renderer_->Render(capture_s_.at(k), FrameSeed(options_.seed, k), truth);
+}
+
+core::Pose2 PlannedDrive::TruthAt(double t_s) const { return drive_.At(t_s).world_from_vehicle; }
+
+PlannedDrive::EncoderStream::EncoderStream(const PlannedDrive& plan)
+    : plan_(plan), model_(plan.options_.encoders, plan.options_.seed) {}
+
+std::optional<dataset::EncoderSample> PlannedDrive::EncoderStream::Next() {
+  // Samples from the start to just past the last frame.
+  const double end_s = plan_.capture_s_.back() + 1.0 / plan_.options_.frame_rate_hz;
+  const double t = static_cast<double>(next_) / plan_.options_.encoders.rate_hz;
+  if (t > end_s) return std::nullopt;
+  ++next_;
+  return model_.Step(core::Timestamp::FromSeconds(t), plan_.drive_.At(t).world_from_vehicle,
+                     plan_.drive_.At(t + kSteeringInstantS).world_from_vehicle);
+}
+
+SimulationSummary Simulate(const SimulatorOptions& options, const std::filesystem::path& out, bool overwrite,
+                           const ProgressCallback& progress) {
+  const PlannedDrive plan(options);
+  const Drive& drive = plan.drive();
+  const std::vector<double>& capture_s = plan.capture_s();
+  SimulationSummary summary;
+  summary.frames_dropped = plan.frames_dropped();
+
+  dataset::DatasetWriter writer(out, plan.info(), overwrite);
+  PlannedDrive::EncoderStream encoders = plan.Encoders();
+  while (const std::optional<dataset::EncoderSample> sample = encoders.Next()) {
+    writer.AddEncoderSample(*sample);
     ++summary.encoder_samples;
   }
 
@@ -369,8 +397,7 @@ SimulationSummary Simulate(const SimulatorOptions& options, const std::filesyste
   for (std::size_t first = 0; first < capture_s.size(); first += batch) {
     const std::size_t count = std::min(batch, capture_s.size() - first);
     const auto render = [&](std::size_t i) {
-      const cv::Mat image = renderer.Render(capture_s[first + i], FrameSeed(options.seed, first + i), &camera_truth[i]);
-      encoded[i] = dataset::DatasetWriter::EncodeFrame(image);
+      encoded[i] = dataset::DatasetWriter::EncodeFrame(plan.RenderFrame(first + i, &camera_truth[i]));
     };
     std::vector<std::future<void>> workers;
     for (int w = 0; w < options.threads; ++w) {
@@ -382,7 +409,7 @@ SimulationSummary Simulate(const SimulatorOptions& options, const std::filesyste
     for (std::size_t i = 0; i < count; ++i) {
       const auto time = core::Timestamp::FromSeconds(capture_s[first + i]);
       writer.AddEncodedFrame(time, encoded[i]);
-      groundtruth.push_back({time, drive.At(capture_s[first + i]).world_from_vehicle});
+      groundtruth.push_back({time, plan.TruthAt(capture_s[first + i])});
       camera_csv += dataset::CameraTruthRow(time, camera_truth[i]);
     }
     if (progress) progress(static_cast<double>(first + count) / static_cast<double>(capture_s.size()));

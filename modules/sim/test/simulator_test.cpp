@@ -1,6 +1,7 @@
 #include "mosaicloc/sim/simulator.hpp"
 
 #include <gtest/gtest.h>
+#include <opencv2/core.hpp>
 
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/dataset/dataset.hpp"
@@ -41,6 +42,48 @@ TEST(Simulate, WritesADatasetTheReaderValidates) {
   EXPECT_EQ(validated.encoder_samples, summary.encoder_samples);
   EXPECT_EQ(reader.info().camera.width_px, 160);
   EXPECT_EQ(reader.info().provenance.at("route"), "loop");
+}
+
+// A live source plays the drive Simulate writes: the same frames at the same instants, the
+// same encoder samples and the same truth, computed as they are due.
+TEST(PlannedDrive, PlaysWhatSimulateWrites) {
+  test::ScratchDir scratch;
+  SimulatorOptions options = Small();
+  options.encoders.nominal.kind = core::DriveKind::kTricycle;  // the steering's backlash carries over samples
+  options.encoders.steering_backlash_deg = 0.2;
+  options.route.curvature_transition_m = 0.5;
+  Simulate(options, scratch / "ds", false);
+  const dataset::DatasetReader reader(scratch / "ds");
+  const PlannedDrive plan(options);
+  EXPECT_EQ(plan.info().provenance, reader.info().provenance);
+  EXPECT_EQ(plan.info().vehicle.kind, core::DriveKind::kTricycle);
+  std::size_t k = 0;
+  auto frames = reader.Frames();
+  while (const auto frame = frames.Next()) {
+    ASSERT_LT(k, plan.capture_s().size());
+    EXPECT_EQ(frame->time, core::Timestamp::FromSeconds(plan.capture_s()[k]));
+    const cv::Mat rendered = plan.RenderFrame(k);
+    ASSERT_EQ(rendered.size(), frame->image.size());
+    EXPECT_EQ(cv::norm(rendered, frame->image, cv::NORM_INF), 0.0) << "frame " << k;
+    EXPECT_EQ(Distance(plan.TruthAt(plan.capture_s()[k]), dataset::PoseAt(reader.GroundTruth(), frame->time,
+                                                                          std::chrono::milliseconds(1))
+                                                              .value()),
+              0.0);
+    ++k;
+  }
+  EXPECT_EQ(k, plan.capture_s().size());
+  auto recorded = reader.Encoders();
+  PlannedDrive::EncoderStream played = plan.Encoders();
+  std::int64_t samples = 0;
+  while (const auto sample = recorded.Next()) {
+    const auto computed = played.Next();
+    ASSERT_TRUE(computed) << "sample " << samples;
+    EXPECT_EQ(computed->time, sample->time);
+    EXPECT_EQ(computed->counts(), sample->counts()) << "sample " << samples;
+    ++samples;
+  }
+  EXPECT_FALSE(played.Next()) << "no sample past the recording's last";
+  EXPECT_GT(samples, 50);
 }
 
 TEST(Simulate, SameSeedGivesIdenticalBytesWhateverTheThreads) {

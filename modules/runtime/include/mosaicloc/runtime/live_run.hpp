@@ -17,6 +17,10 @@
 #include "mosaicloc/io/v4l2_camera.hpp"
 #include "mosaicloc/runtime/settings.hpp"
 
+namespace mosaicloc::sim {
+class PlannedDrive;
+}  // namespace mosaicloc::sim
+
 namespace mosaicloc::runtime {
 
 /// The live run's settings (config/default/run.yaml gives every key, its unit and default).
@@ -80,13 +84,12 @@ struct LiveRunOptions {
   bool Check(std::string* why) const;
 };
 
-class SimulatedDrive;
 
 /// The frames a live run localizes, as its configuration chooses them: a V4L2 camera, a
 /// recording played in real time or a simulated drive; raw frames made ideal when a ground
 /// calibration is given. A recording or a simulated drive brings its own camera and vehicle.
 struct LiveSource {
-  std::unique_ptr<SimulatedDrive> drive;  ///< the simulated drive's files (kept while it plays)
+  std::shared_ptr<const sim::PlannedDrive> drive;  ///< the simulated drive, when the simulator is the camera
   std::unique_ptr<io::FrameSource> frames;
   dataset::CameraInfo camera;   ///< the ideal camera the frames come from
   dataset::VehicleInfo vehicle;

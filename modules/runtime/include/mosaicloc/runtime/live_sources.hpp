@@ -23,6 +23,8 @@ struct Playback {
 
   /// start_unix_s: when to start, seconds since the Unix epoch (0: now).
   static Playback Of(const dataset::DatasetReader& reader, double start_unix_s);
+  /// Dataset time `origin` at start_unix_s (0: now).
+  static Playback Starting(core::Timestamp origin, double start_unix_s);
   core::Timestamp ToMonotonic(core::Timestamp dataset_time) const { return start + (dataset_time - origin); }
   core::Timestamp ToDataset(core::Timestamp monotonic) const { return origin + (monotonic - start); }
 };
@@ -31,20 +33,24 @@ struct Playback {
 /// `stop` is set.
 bool SleepUntil(core::Timestamp when, const std::atomic<bool>& stop);
 
-/// A drive of the built-in simulator, rendered up front into a temporary dataset (removed
-/// when this is destroyed) so it can be played in real time. The simulator is
-/// deterministic: `run` and `plc-sim` given the same simulator configuration play the same
-/// drive, frames on one side and encoder counts on the other.
-class SimulatedDrive {
+/// The frames of a drive of the built-in simulator, each rendered when it is due and delivered
+/// at its capture instant, stamped on the monotonic clock, as a camera would deliver them: no
+/// recording is written, so a drive of hours plays as well as one of seconds. `plc-sim
+/// --simulate` with the same simulator options plays the same drive's encoder counts (the
+/// simulator is deterministic; both count the drive's time from 0 at the same start instant).
+/// A frame that takes longer to render than the frame period comes late, as from a slow camera.
+class SimulatedFrameSource final : public io::FrameSource {
  public:
-  explicit SimulatedDrive(const sim::SimulatorOptions& options);
-  ~SimulatedDrive();
-  SimulatedDrive(const SimulatedDrive&) = delete;
-  SimulatedDrive& operator=(const SimulatedDrive&) = delete;
-  const std::filesystem::path& directory() const { return directory_; }
+  SimulatedFrameSource(std::shared_ptr<const sim::PlannedDrive> drive, double start_unix_s);
+  std::optional<io::CapturedFrame> Next() override;
+  void Stop() override { stop_ = true; }
+  std::string Describe() const override;
 
  private:
-  std::filesystem::path directory_;
+  std::shared_ptr<const sim::PlannedDrive> drive_;
+  Playback playback_;
+  std::size_t next_ = 0;
+  std::atomic<bool> stop_{false};
 };
 
 /// A recorded dataset's frames delivered in real time and stamped on the monotonic clock,

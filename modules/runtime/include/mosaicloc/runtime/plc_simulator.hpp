@@ -13,9 +13,9 @@
 namespace mosaicloc::runtime {
 
 /// `mosaicloc plc-sim`: a Modbus TCP server standing in for the PLC. It plays a dataset's
-/// encoder counters in real time (or a simulated drive's), beats its heartbeat, asks for a
-/// fix every request period, and records the fixes a `mosaicloc run` writes back against
-/// the dataset's ground truth.
+/// encoder counters in real time (or a simulated drive's, each sample computed when it is due,
+/// sim::PlannedDrive), beats its heartbeat, asks for a fix every request period, and records
+/// the fixes a `mosaicloc run` writes back against the drive's ground truth.
 struct PlcSimulatorOptions {
   std::filesystem::path dataset;                  ///< the drive to play, or
   std::optional<std::filesystem::path> simulate;  ///< a simulator configuration (empty path: the defaults)
@@ -41,7 +41,7 @@ struct PlcSimulatorStatus {
 };
 
 struct PlcSimulatorCallbacks {
-  std::function<void(const std::filesystem::path& played)> serving;  ///< once, when the server listens
+  std::function<void(const std::string& played)> serving;  ///< once, when the server listens: what it plays
   std::function<void(const PlcSimulatorStatus&)> every_second;
   std::function<bool()> stop;  ///< polled every millisecond; true ends the run early
 };

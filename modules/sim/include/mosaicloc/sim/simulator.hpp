@@ -4,7 +4,9 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include <opencv2/core/mat.hpp>
 
@@ -128,6 +130,58 @@ class FrameRenderer {
 
 /// Seeds for frame k of a drive seeded `seed` (SplitMix64), as Simulate draws them.
 std::uint64_t FrameSeed(std::uint64_t seed, std::uint64_t k);
+
+/// A drive as Simulate makes it, before anything is written: the route driven, the capture
+/// instants (jitter and drops drawn), what the dataset's header says, and the frames and
+/// encoder samples on demand. Simulate writes it; a live source plays it as it goes (each frame
+/// rendered when it is due, each encoder sample computed when it is), so that a drive of hours
+/// needs no recording on disk and both sides of a live run, given the same options, play the
+/// same drive. Memory: the drive's path (every 5 mm) and one time per frame.
+class PlannedDrive {
+ public:
+  /// Throws core::Error (invalid input) for bad options, or when every frame was dropped.
+  explicit PlannedDrive(const SimulatorOptions& options);
+  ~PlannedDrive();
+  PlannedDrive(const PlannedDrive&) = delete;
+  PlannedDrive& operator=(const PlannedDrive&) = delete;
+
+  const SimulatorOptions& options() const { return options_; }
+  const Drive& drive() const { return drive_; }
+  /// dataset.yaml's header: the camera, the vehicle as calibrated, the provenance.
+  const dataset::DatasetInfo& info() const { return info_; }
+  /// The frames' capture instants, s from the drive's start (the dropped ones left out).
+  const std::vector<double>& capture_s() const { return capture_s_; }
+  std::int64_t frames_dropped() const { return frames_dropped_; }
+  /// Frame k of capture_s(), rendered (thread-safe), and what a tracker could recover of it.
+  cv::Mat RenderFrame(std::size_t k, dataset::CameraTruth* truth = nullptr) const;
+  /// The vehicle's true pose t_s into the drive.
+  core::Pose2 TruthAt(double t_s) const;
+
+  /// The encoder samples, from the start to just past the last frame, in order (the encoder
+  /// model carries slip and backlash from one sample to the next). Each stream starts again
+  /// from the first sample.
+  class EncoderStream {
+   public:
+    explicit EncoderStream(const PlannedDrive& plan);
+    /// The next sample, or nothing after the last.
+    std::optional<dataset::EncoderSample> Next();
+
+   private:
+    const PlannedDrive& plan_;
+    EncoderModel model_;
+    std::int64_t next_ = 0;
+  };
+  EncoderStream Encoders() const { return EncoderStream(*this); }
+
+ private:
+  SimulatorOptions options_;
+  int laps_ = 1;
+  Drive drive_;
+  std::unique_ptr<FrameRenderer> renderer_;
+  std::vector<double> capture_s_;
+  std::int64_t frames_dropped_ = 0;
+  dataset::DatasetInfo info_;
+};
 
 /// Progress in [0, 1]; called from the calling thread.
 using ProgressCallback = std::function<void(double fraction)>;
