@@ -51,8 +51,9 @@ PlcSimulatorSummary RunPlcSimulator(const PlcSimulatorOptions& args, const PlcSi
   Playback playback;
   if (args.simulate) {
     plan = std::make_unique<sim::PlannedDrive>(sim::SimulatorConfigOrDefaults(*args.simulate));
-    played = "a simulated drive (" + (args.simulate->empty() ? std::string("the built-in defaults") : args.simulate->string()) +
-             fmt::format(", {:.0f} s)", plan->capture_s().back());
+    played = fmt::format("a simulated drive ({}, {:.0f} s)",
+                         args.simulate->empty() ? std::string("the built-in defaults") : args.simulate->string(),
+                         plan->capture_s().back());
     kind = plan->info().vehicle.kind;
     simulated_samples.emplace(plan->Encoders());
     playback = Playback::Starting(core::Timestamp(), args.start_unix_s);  // the drive's clock starts at 0
