@@ -40,6 +40,7 @@
 #include "mosaicloc/runtime/report.hpp"
 #include "mosaicloc/runtime/settings.hpp"
 #include "mosaicloc/sim/config.hpp"
+#include "latency_histogram.hpp"
 
 namespace mosaicloc::runtime {
 
@@ -75,6 +76,9 @@ namespace live_run_detail {
 using Clock = std::chrono::steady_clock;
 
 double Ms(core::Duration d) { return std::chrono::duration<double, std::milli>(d).count(); }
+
+// Frame latencies kept for the status line's median: a second's worth at any camera rate.
+constexpr std::size_t kRecentLatencies = 4096;
 
 // Writes what the run saw as a dataset (design.md section 4), on a thread of its own so PNG
 // encoding never delays tracking. Committed on a clean shutdown only: an interrupted
@@ -190,10 +194,11 @@ struct RunStats {
   std::array<std::atomic<std::int64_t>, 5> frames_by_mode{};  // by localizer::Mode (0 unused)
   std::atomic<bool> odometry_valid{false};
   std::atomic<bool> heartbeat_stale{false};
-  std::mutex mutex;                     // guards the lists below
-  std::vector<double> frame_latency_ms;  // capture to fix, every processed frame
-  std::vector<double> processing_ms;     // the tracking thread's own time for each frame
-  std::vector<double> answer_ms;         // request seen to answer written
+  std::mutex mutex;                   // guards what follows
+  LatencyHistogram frame_latency;      // capture to fix, every processed frame
+  LatencyHistogram processing;         // the tracking thread's own time for each frame
+  LatencyHistogram answers;            // request seen to answer written
+  std::vector<double> recent_latency_ms;  // capture to fix since the last status line
   io::PlcLinkStats link;
 };
 
@@ -486,7 +491,7 @@ class LiveRun::Impl {
           if (answer) {
             ++stats_.answered;
             const std::lock_guard lock(stats_.mutex);
-            stats_.answer_ms.push_back(Ms(io::MonotonicNow() - seen));
+            stats_.answers.Add(Ms(io::MonotonicNow() - seen));
           }
         }
         if (due) next_fix = now + fix_period;
@@ -586,8 +591,11 @@ class LiveRun::Impl {
       if (console_) console_->PublishPose(LivePoseOf(frame->time, outcome));
       const std::lock_guard lock(stats_.mutex);
       const auto done = io::MonotonicNow();
-      stats_.frame_latency_ms.push_back(Ms(done - frame->time));
-      stats_.processing_ms.push_back(Ms(done - processing_start));
+      stats_.frame_latency.Add(Ms(done - frame->time));
+      stats_.processing.Add(Ms(done - processing_start));
+      // The status line's window; without status lines, only the newest are kept.
+      if (stats_.recent_latency_ms.size() >= live_run_detail::kRecentLatencies) stats_.recent_latency_ms.clear();
+      stats_.recent_latency_ms.push_back(Ms(done - frame->time));
     }
     tracking_done_ = true;
   }
@@ -640,9 +648,7 @@ class LiveRun::Impl {
     io::PlcLinkStats link;
     {
       const std::lock_guard lock(stats_.mutex);
-      latencies.assign(stats_.frame_latency_ms.begin() + static_cast<std::ptrdiff_t>(status_latency_index_),
-                       stats_.frame_latency_ms.end());
-      status_latency_index_ = stats_.frame_latency_ms.size();
+      latencies.swap(stats_.recent_latency_ms);
       link = stats_.link;
     }
     std::sort(latencies.begin(), latencies.end());
@@ -673,16 +679,13 @@ class LiveRun::Impl {
 
   nlohmann::json Summary(const std::string& why) {
     const std::lock_guard lock(stats_.mutex);
-    std::vector<double> latency = stats_.frame_latency_ms;
-    std::vector<double> answers = stats_.answer_ms;
-    std::vector<double> processing = stats_.processing_ms;
-    std::sort(latency.begin(), latency.end());
-    std::sort(processing.begin(), processing.end());
-    std::sort(answers.begin(), answers.end());
-    const auto percentile = [](const std::vector<double>& v, double p) -> nlohmann::json {
-      if (v.empty()) return nullptr;
-      return dataset::Percentile(v, p);
+    const auto percentile = [](const LatencyHistogram& h, double p) -> nlohmann::json {
+      if (h.count() == 0) return nullptr;
+      return h.Percentile(p);
     };
+    const LatencyHistogram& latency = stats_.frame_latency;
+    const LatencyHistogram& processing = stats_.processing;
+    const LatencyHistogram& answers = stats_.answers;
     const io::PlcLinkStats& link = stats_.link;
     const std::int64_t processed = stats_.processed;
     double scale = 1.0;
@@ -713,7 +716,7 @@ class LiveRun::Impl {
             {"requests", stats_.requests.load()},
             {"answered", stats_.answered.load()},
             {"answer_p50_ms", percentile(answers, 50.0)},
-            {"answer_max_ms", answers.empty() ? nlohmann::json(nullptr) : nlohmann::json(answers.back())},
+            {"answer_max_ms", answers.count() == 0 ? nlohmann::json(nullptr) : nlohmann::json(answers.max_ms())},
             {"plc_reads", link.reads},
             {"plc_read_errors", link.read_errors},
             {"plc_writes", link.writes},
@@ -765,7 +768,6 @@ class LiveRun::Impl {
   RunStats stats_;
   std::int64_t status_frames_ = 0;
   std::int64_t status_fixes_ = 0;
-  std::size_t status_latency_index_ = 0;
 };
 
 LiveRun::LiveRun(const LiveRunOptions& options, std::unique_ptr<io::FrameSource> source,

@@ -16,6 +16,7 @@
 #include "mosaicloc/core/log.hpp"
 #include "mosaicloc/dataset/dataset.hpp"
 #include "mosaicloc/localizer/localizer.hpp"
+#include "latency_histogram.hpp"
 #include "mosaicloc/runtime/map_jobs.hpp"
 #include "mosaicloc/runtime/map_session.hpp"
 #include "mosaicloc/sim/encoders.hpp"
@@ -43,36 +44,6 @@ double Slope(const std::vector<double>& x, const std::vector<double>& y) {
   }
   return sxx > 0.0 ? sxy / sxx : 0.0;
 }
-
-// Processing times in 10 us buckets up to 500 ms (and one beyond): percentiles to 10 us in a
-// fixed 400 KiB, so the soak's own bookkeeping does not grow with the frames it measures.
-class LatencyHistogram {
- public:
-  void Add(double ms) {
-    const auto bucket = static_cast<std::size_t>(std::max(0.0, ms) / kBucketMs);
-    ++counts_[std::min(bucket, counts_.size() - 1)];
-    ++total_;
-    max_ms_ = std::max(max_ms_, ms);
-  }
-  // The upper edge of the bucket holding the p-th percentile, ms.
-  double Percentile(double p) const {
-    if (total_ == 0) return 0.0;
-    const auto rank = static_cast<std::int64_t>(std::ceil(p / 100.0 * static_cast<double>(total_)));
-    std::int64_t seen = 0;
-    for (std::size_t b = 0; b < counts_.size(); ++b) {
-      seen += counts_[b];
-      if (seen >= std::max<std::int64_t>(rank, 1)) return std::min(static_cast<double>(b + 1) * kBucketMs, max_ms_);
-    }
-    return max_ms_;
-  }
-  double max_ms() const { return max_ms_; }
-
- private:
-  static constexpr double kBucketMs = 0.01;
-  std::vector<std::int64_t> counts_ = std::vector<std::int64_t>(50'001, 0);
-  std::int64_t total_ = 0;
-  double max_ms_ = 0.0;
-};
 
 // The map the soak drives on: one slow lap of the route, painted at the true poses (the soak
 // measures the localizer over time, not the mapping).
