@@ -78,6 +78,15 @@ std::shared_ptr<const Tile> TileCache::MakeTile(const TileKey& key) {
   // Decode straight into a slot; the tile's deleter gives the slot back.
   cv::Mat slot = pool_->Take(store_.grid().tile_size_px);
   TileRead read = store_.Read(key, slot);
+  if (read.status != TileStatus::kOk) {
+    // No pixels: the slot goes back at once. Held by a tile the budget counts at a few hundred
+    // bytes, every unmapped tile a drive passed would keep 64 KiB of slab alive.
+    pool_->Give(slot);
+    auto tile = std::make_shared<Tile>();
+    tile->status = read.status;
+    tile->problem = std::move(read.problem);
+    return tile;
+  }
   std::weak_ptr<BufferPool> pool = pool_;
   auto* tile = new Tile();
   std::shared_ptr<Tile> shared(tile, [pool, slot](Tile* dying) {
@@ -85,11 +94,8 @@ std::shared_ptr<const Tile> TileCache::MakeTile(const TileKey& key) {
     if (const auto alive = pool.lock()) alive->Give(slot);
   });
   tile->status = read.status;
-  tile->problem = std::move(read.problem);
-  if (read.status == TileStatus::kOk) {
-    tile->pixels = std::move(read.pixels);
-    tile->fully_mapped = cv::countNonZero(tile->pixels) == static_cast<int>(tile->pixels.total());
-  }
+  tile->pixels = std::move(read.pixels);
+  tile->fully_mapped = cv::countNonZero(tile->pixels) == static_cast<int>(tile->pixels.total());
   return shared;
 }
 
@@ -132,6 +138,8 @@ TileCacheStats TileCache::stats() const {
   const std::lock_guard lock(mutex_);
   TileCacheStats copy = stats_;
   copy.tiles = entries_.size();
+  const std::lock_guard pool_lock(pool_->mutex);
+  for (const cv::Mat& slab : pool_->slabs) copy.pool_bytes += slab.total() * slab.elemSize();
   return copy;
 }
 

@@ -482,6 +482,28 @@ TEST(TileCache, StaysUnderBudgetAndCounts) {
   EXPECT_EQ(cache.stats().hits, 1);
 }
 
+// A drive past floor never mapped asks for many absent tiles, and the budget counts each at a
+// few hundred bytes: none may hold pixel memory, or the slabs grow without bound (a live run's
+// prefetcher reaching along unmapped lanes grew them by 1.5 GiB an hour).
+TEST(TileCache, AbsentTilesHoldNoPixelMemory) {
+  test::ScratchDir dir;
+  MapGrid grid;
+  grid.tile_size_px = 64;
+  auto store = TileStore::Create(dir / "a.mosaic", grid);
+  StoreImage(*store, SourceTexture(128));  // 2 x 2 tiles mapped
+  TileCache cache(*store);
+  for (int c = 0; c < 100; ++c) {
+    for (int r = 0; r < 100; ++r) {
+      const auto tile = cache.Get(TileKey{0, c, r});
+      EXPECT_EQ(tile->status, c < 2 && r < 2 ? TileStatus::kOk : TileStatus::kAbsent);
+    }
+  }
+  const TileCacheStats stats = cache.stats();
+  EXPECT_EQ(stats.tiles, 10000u) << "absent tiles are cached: the store is not asked again";
+  EXPECT_LE(stats.pool_bytes, std::size_t{64} * 64 * 64) << "one slab of 64 tiles: 4 mapped, 9996 absent";
+  EXPECT_EQ(cache.Get(TileKey{0, 1, 1})->pixels.rows, 64);
+}
+
 TEST(TileStore, ReadersSeeEachTileOldOrNewWhileItIsRewritten) {
   // Readers use pooled connections of their own; each must see every committed write, and
   // while a write is in progress the state before it, never a mixture.

@@ -34,6 +34,8 @@ struct TileCacheStats {
   double load_ms_max = 0.0;
   std::size_t bytes = 0;
   std::size_t tiles = 0;
+  /// The pixel slabs held (in use or free for reuse): what the decoded tiles really take.
+  std::size_t pool_bytes = 0;
 };
 
 /// Decoded tiles in an LRU bounded by a byte budget. Safe for concurrent readers and one
@@ -45,7 +47,8 @@ struct TileCacheStats {
 /// heap allocation per tile, the compressed blobs and decoder state allocated between them
 /// while loading left holes the heap kept (measured: 45 MiB held free beyond a 256 MiB
 /// budget). A tile's pixels are valid while the Tile is held; keep the shared_ptr, not a
-/// copy of the Mat header.
+/// copy of the Mat header. A tile without pixels (absent: floor never mapped; corrupt) holds
+/// no slot: it costs the budget next to nothing, so a drive past unmapped floor caches many.
 class TileCache {
  public:
   TileCache(const TileStore& store, std::size_t budget_bytes = std::size_t{256} << 20);
