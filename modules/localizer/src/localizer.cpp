@@ -214,7 +214,10 @@ void Localizer::RequestGlobalRelocalization() {
 
 bool Localizer::AddEncoders(core::Timestamp time, const core::EncoderCounts& counts) {
   const auto increment = odometry_.Update(time, counts);
-  if (!increment) return false;
+  if (!increment) {
+    encoder_failure_ = increment.error();
+    return false;
+  }
   if (filter_ && increment.value().dt > core::Duration::zero()) filter_->Predict(time, increment.value());
   return true;
 }

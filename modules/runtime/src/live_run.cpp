@@ -566,7 +566,13 @@ class LiveRun::Impl {
           localizer_->SuspendOdometry();
         } else if (!localizer_->AddEncoders(e.sample.time, e.sample.counts())) {
           ++stats_.encoder_rejected;
-          core::Log().warn("run: encoder sample rejected (ticks {}, {})", e.sample.left_ticks, e.sample.right_ticks);
+          const auto why = localizer_->last_encoder_failure();
+          const bool tricycle = vehicle_kind_ == core::DriveKind::kTricycle;
+          core::Log().warn("run: encoder sample rejected: {} (stamped {:.4f} s, counters {}, {})",
+                           why ? estimation::ToString(*why) : std::string("?"),
+                           core::ToSeconds(e.sample.time - core::Timestamp()),
+                           tricycle ? e.sample.drive_ticks : e.sample.left_ticks,
+                           tricycle ? e.sample.steering_ticks : e.sample.right_ticks);
         }
       }
       if (!frame) {

@@ -204,8 +204,9 @@ class Localizer {
   bool pose_unknown() const { return pose_unknown_; }
 
   /// One encoder sample (raw PLC counters, the vehicle kind's two). Returns false when the
-  /// sample was rejected.
+  /// sample was rejected; last_encoder_failure() says why.
   bool AddEncoders(core::Timestamp time, const core::EncoderCounts& counts);
+  std::optional<estimation::OdometryFailure> last_encoder_failure() const { return encoder_failure_; }
   /// Odometry is unavailable (the PLC link is down or its heartbeat stale): the next sample
   /// only re-seeds the counters, so wheel turns unseen or counters reset by a PLC restart
   /// are not taken for motion. Meanwhile frames coast the filter on the system model.
@@ -321,6 +322,7 @@ class Localizer {
   std::optional<core::Pose2> last_vo_camera_;  ///< the camera pose of the last frame visual odometry registered
   Mode mode_ = Mode::kTrack;
   std::int64_t mode_switches_ = 0;
+  std::optional<estimation::OdometryFailure> encoder_failure_;  ///< of the last sample rejected
   /// The path driven since the last fix while off the map (map_distortion_mm_per_m), and the
   /// prediction it was measured along, at the last frame.
   double off_map_path_mm_ = 0.0;
