@@ -1,20 +1,45 @@
 #include "mosaicloc/runtime/encoder_stamper.hpp"
 
+#include <algorithm>
+#include <chrono>
+#include <cstdlib>
+
+#include "mosaicloc/estimation/odometry.hpp"
+
 namespace mosaicloc::runtime {
 
 std::optional<dataset::EncoderSample> EncoderStamper::Take(const io::PlcInputs& read) {
   if (!read.fresh) return std::nullopt;
   // Polling: the counters changed since the previous read, within the PLC's last counter
   // period (CountersChangedAt); unchanged counters are passed on only once they have stood
-  // still for stationary_after. Served: when the PLC wrote them.
+  // still for stationary_after (a vehicle seen moving: moving_stop_factor times that). Served:
+  // when the PLC wrote them.
   const core::EncoderCounts ticks = read.counts();
   std::optional<core::Timestamp> stamp;
   if (!options_.polling || !have_ticks_) {
     stamp = read.time;
   } else if (ticks != last_ticks_) {
     stamp = io::CountersChangedAt(last_read_, read.time, options_.counter_period);
-  } else if (read.time - options_.counter_period - last_forwarded_ >= options_.stationary_after) {
-    stamp = read.time - options_.counter_period;
+  } else {
+    const core::Duration still_for = moving_ ? options_.moving_stop_factor * options_.stationary_after
+                                             : options_.stationary_after;
+    if (read.time - options_.counter_period - last_forwarded_ >= still_for) stamp = read.time - options_.counter_period;
+  }
+  if (!have_ticks_) {
+    moving_ = false;
+    last_change_ = read.time;
+  } else if (ticks != last_ticks_) {
+    // How fast the wheel counters moved since their last change, in ticks a counter period.
+    const auto moved = [](std::int32_t before, std::int32_t after) {
+      return std::abs(static_cast<std::int64_t>(estimation::TickDelta(before, after)));
+    };
+    const std::int64_t step = std::max({moved(last_ticks_.left_ticks, ticks.left_ticks),
+                                        moved(last_ticks_.right_ticks, ticks.right_ticks),
+                                        moved(last_ticks_.drive_ticks, ticks.drive_ticks)});
+    const core::Duration period = std::max<core::Duration>(options_.counter_period, std::chrono::milliseconds(1));
+    const double periods = std::max(1.0, core::ToSeconds(read.time - last_change_) / core::ToSeconds(period));
+    moving_ = static_cast<double>(step) / periods > static_cast<double>(options_.moving_ticks_per_period);
+    last_change_ = read.time;
   }
   last_ticks_ = ticks;
   have_ticks_ = true;

@@ -58,6 +58,37 @@ TEST(EncoderStamper, StandingStillIsPassedOnOnlyAfterStationaryAfter) {
   EXPECT_FALSE(stamper.Take(Read(170, 7, 7)));
 }
 
+// Counters that stop changing while the vehicle was seen moving fast are a PLC that has not
+// updated them (a stalled cycle), not a stop: held as standing still, the filter would keep the
+// vehicle in place and then make it jump, and the frames between would be predicted where it
+// was not (a live run lost its lock so). They are passed on only after ten times
+// stationary_after; a vehicle that slowed down first is passed on as before.
+TEST(EncoderStamper, AStallWhileMovingIsNotAStop) {
+  EncoderStamper stamper(Polling());
+  std::int32_t ticks = 1000;
+  int at = 100;
+  ASSERT_TRUE(stamper.Take(Read(at, ticks, ticks)));
+  for (int i = 0; i < 10; ++i) {  // 128 ticks every 10 ms: about 1.5 m/s
+    at += 10;
+    ticks += 128;
+    ASSERT_TRUE(stamper.Take(Read(at, ticks, ticks)));
+  }
+  for (int wait = 10; wait < 500; wait += 5) {
+    EXPECT_FALSE(stamper.Take(Read(at + wait, ticks, ticks))) << wait << " ms unchanged after moving";
+  }
+  const auto still = stamper.Take(Read(at + 515, ticks, ticks));
+  ASSERT_TRUE(still) << "unchanged for ten times stationary_after";
+  // The counters move again, slowly (1 tick every 10 ms), and stand still: passed on after 50 ms.
+  at += 515;
+  for (int i = 0; i < 5; ++i) {
+    at += 10;
+    ticks += 1;
+    ASSERT_TRUE(stamper.Take(Read(at, ticks, ticks)));
+  }
+  EXPECT_FALSE(stamper.Take(Read(at + 50, ticks, ticks)));
+  EXPECT_TRUE(stamper.Take(Read(at + 61, ticks, ticks))) << "creeping to a stop is a stop";
+}
+
 TEST(EncoderStamper, ServedReadsAreTheirOwnTimeAndStaleOnesNothing) {
   EncoderStamperOptions options = Polling();
   options.polling = false;

@@ -22,6 +22,14 @@ struct EncoderStamperOptions {
   core::Duration stationary_after{};
   /// The PLC's own delay between the wheels turning and its counters saying so.
   core::Duration latency{};
+  /// A vehicle whose counters last changed by more than this many ticks a counter period (of
+  /// its wheel counters, the steering's aside) was moving too fast to stop within
+  /// stationary_after: its counters standing still then are a PLC that has not updated them
+  /// (a stalled read, a late cycle), and are passed on only after moving_stop_factor times
+  /// stationary_after. Passed on sooner, the filter would hold the vehicle still and then make
+  /// it jump, and the frames between would be predicted where it was not.
+  std::int64_t moving_ticks_per_period = 2;
+  int moving_stop_factor = 10;
 };
 
 /// When the wheel counters the PLC reports took their values: the time stamp an encoder
@@ -43,6 +51,8 @@ class EncoderStamper {
   core::EncoderCounts last_ticks_;
   core::Timestamp last_read_;
   core::Timestamp last_forwarded_;
+  core::Timestamp last_change_;
+  bool moving_ = false;  // the last change was faster than moving_ticks_per_period
 };
 
 }  // namespace mosaicloc::runtime
