@@ -1,14 +1,16 @@
 #!/usr/bin/env bash
 # Localization by vehicle kinematics: a differential drive (wheels 2 % and 2.5 % larger than
-# calibrated) and a tricycle (drive wheel 2 % larger, steering 0.5 degrees off its calibrated
-# zero) on the same network route, its bends eased in over 0.5 m as a tricycle's guide path
+# calibrated), a tricycle (drive wheel 2 % larger, steering 0.5 degrees off its calibrated
+# zero) and a mecanum vehicle (wheels 2 % larger, rollers slipping 5 % sideways, crabbing up to
+# 45 degrees off the path every 4 m, on the mapping lap too, so that its camera sees the lanes
+# mapped) on the same network route, its bends eased in over 0.5 m as a tricycle's guide path
 # is. Each maps the route in one slow lap, then drives it at 1.5 and 7.2 m/s asked (the bends
 # cap the speed) and replays against a map painted at the mapping lap's true poses (what
 # the kinematics alone change) and one built from the lap's frames and encoders (what a site
 # gets; checked in the built map's own frame, placed on the truth by the mapping report's
 # best rigid alignment); dead reckoning beside them. Every row counts wrong fixes (more than
 # 1 mm from the truth).
-# Usage: benchmarks/vehicle_table.sh [MOSAICLOC] [WORK_DIR]
+# Usage: [KINDS='mecanum ...'] benchmarks/vehicle_table.sh [MOSAICLOC] [WORK_DIR]
 set -euo pipefail
 HERE="$(cd "$(dirname "$0")/.." && pwd)"
 MOSAICLOC=${1:-$HERE/build/release/app/mosaicloc}
@@ -16,15 +18,19 @@ WORK=${2:-$(mktemp -d)}
 mkdir -p "$WORK"
 route='route: {network_scale: 0.5, curvature_transition_m: 0.5}'
 tricycle='vehicle: {kind: tricycle, drive_wheel_radius_mm: 100.0, wheelbase_mm: 1200.0, ticks_per_revolution: 4096, steering_ticks_per_revolution: 65536}'
+mecanum='vehicle: {kind: mecanum, mecanum_wheel_radius_mm: 76.0, track_width_mm: 560.0, wheelbase_mm: 480.0, ticks_per_revolution: 4096}'
+crab='route: {network_scale: 0.5, curvature_transition_m: 0.5, crab_amplitude_deg: 45, crab_wavelength_m: 4}'
 printf '%s\n' "$route" > "$WORK/differential-map.yaml"
 printf '%s\nencoders: {left_radius_error: 0.02, right_radius_error: 0.025}\n' "$route" > "$WORK/differential-drive.yaml"
 printf '%s\n%s\n' "$route" "$tricycle" > "$WORK/tricycle-map.yaml"
 printf '%s\n%s\nencoders: {drive_radius_error: 0.02, steering_offset_error_deg: 0.5}\n' "$route" "$tricycle" \
   > "$WORK/tricycle-drive.yaml"
+printf '%s\n%s\n' "$crab" "$mecanum" > "$WORK/mecanum-map.yaml"
+printf '%s\n%s\nencoders: {mecanum_radius_error: 0.02, lateral_slip: 0.05}\n' "$crab" "$mecanum" > "$WORK/mecanum-drive.yaml"
 
 printf '%-12s %6s %-14s %8s %6s %6s %9s %10s %9s %8s\n' vehicle "m/s" map "fix %" losses wrong "rms mm" "max mm" \
   "NIS in95" "reloc"
-for kind in differential tricycle; do
+for kind in ${KINDS:-differential tricycle mecanum}; do
   "$MOSAICLOC" -q simulate --out "$WORK/$kind-map" --overwrite --config "$WORK/$kind-map.yaml" \
     --route network --laps 1 --speed-mps 0.5 --seed 81 >/dev/null
   "$MOSAICLOC" -q map build --dataset "$WORK/$kind-map" --out "$WORK/$kind-truth.mosaic" --poses groundtruth \

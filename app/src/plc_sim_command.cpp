@@ -6,6 +6,7 @@
 #include <string>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
@@ -39,9 +40,9 @@ void RunPlcSim(PlcSimArgs args, const GlobalOptions& global) {
   };
   callbacks.every_second = [&](const runtime::PlcSimulatorStatus& s) {
     if (global.quiet || global.json) return;
-    std::printf("%7.1f s  clients %d  ticks %d %d  heartbeat %u  requests %lld answered %lld  fixes %lld  "
+    std::printf("%7.1f s  clients %d  ticks %s  heartbeat %u  requests %lld answered %lld  fixes %lld  "
                 "last error %s\n",
-                s.seconds, s.clients, s.counters[0], s.counters[1], s.heartbeat,
+                s.seconds, s.clients, fmt::format("{}", fmt::join(s.counters, " ")).c_str(), s.heartbeat,
                 static_cast<long long>(s.requests),
                 static_cast<long long>(s.answered), static_cast<long long>(s.fixes),
                 s.last_error_mm ? fmt::format("{:.3f} mm", *s.last_error_mm).c_str() : "-");

@@ -49,6 +49,10 @@ void PrintMetrics(const std::filesystem::path& directory, const dataset::Metrics
     show("drive wheel scale learnt", metrics.drive_wheel_scale_percent, "%");
     show("steering offset error learnt", metrics.steering_offset_error_deg, "deg");
   }
+  if (metrics.wheel_scale_percent) {
+    show("wheel scale learnt", metrics.wheel_scale_percent, "%");
+    show("sideways scale learnt", metrics.lateral_scale_percent, "%");
+  }
   if (metrics.kidnap_frames_to_fix) show("kidnap: frames to fix", metrics.kidnap_frames_to_fix, "");
   if (metrics.wrong_fixes && *metrics.wrong_fixes > 0) show("worst wrong fix", metrics.max_wrong_fix_mm, "mm");
   if (metrics.off_map_frames && *metrics.off_map_frames > 0) {

@@ -82,6 +82,11 @@ class WheelAngles {
 };
 
 // Share of the frame both images show, from the displacement of the frame's corners.
+// Why a mecanum vehicle's file or drive is refused.
+constexpr const char* kMecanumRefusal =
+    "a mecanum vehicle has no calibration drive: the localizer learns its wheels' common scale and its sideways "
+    "scale from fixes (a run's and a replay's summary give them)";
+
 double Overlap(const core::Pose2& motion, double width_mm, double height_mm) {
   double shift_x = 0.0, shift_y = 0.0;
   for (const double x : {-0.5 * width_mm, 0.5 * width_mm}) {
@@ -142,6 +147,9 @@ VehicleDriveResult CalibrateVehicleFromDrive(const std::filesystem::path& datase
   if (!options.Check(&why)) core::ThrowInvalidInput(why);
   const dataset::DatasetReader reader(dataset_dir);
   const dataset::DatasetInfo& info = reader.info();
+  if (info.vehicle.kind == core::DriveKind::kMecanum) {
+    core::ThrowInvalidInput(dataset_dir.string() + ": dataset.yaml: vehicle.kind: " + kMecanumRefusal);
+  }
   std::vector<dataset::EncoderSample> encoders;
   for (auto stream = reader.Encoders(); auto sample = stream.Next();) encoders.push_back(*sample);
   if (encoders.size() < 2) core::ThrowInvalidInput(dataset_dir.string() + ": the drive has no encoder samples");
@@ -344,6 +352,9 @@ VehicleCalibrationFile ReadVehicleCalibration(const std::filesystem::path& file)
   mounting_sigma.Required("yaw_rad", &c.sigma[2], core::NonNegative());
   mounting_sigma.Finish();
   root.OptionalEnum("kind", &c.wheels.kind, core::kDriveKinds);  // differential when absent
+  if (c.wheels.kind == core::DriveKind::kMecanum) {
+    core::ThrowInvalidInput(file.string() + ": kind: " + kMecanumRefusal);
+  }
   const VehicleParameterNames& names = ParameterNamesOf(c.wheels.kind);
   double* const wheel_values[2][3] = {
       {&c.wheels.left_wheel_radius_mm, &c.wheels.right_wheel_radius_mm, &c.wheels.track_width_mm},

@@ -9,6 +9,7 @@ const char* ToString(DriveKind kind) {
   switch (kind) {
     case DriveKind::kDifferential: return "differential";
     case DriveKind::kTricycle: return "tricycle";
+    case DriveKind::kMecanum: return "mecanum";
   }
   return "unknown";
 }
@@ -35,6 +36,10 @@ bool WheelGeometry::Check(std::string* why) const {
       return false;
     }
     return true;
+  }
+  if (kind == DriveKind::kMecanum) {
+    return positive("mecanum_wheel_radius_mm", mecanum_wheel_radius_mm) && positive("track_width_mm", track_width_mm) &&
+           positive("wheelbase_mm", wheelbase_mm) && counts("ticks_per_revolution", ticks_per_revolution);
   }
   return positive("left_wheel_radius_mm", left_wheel_radius_mm) &&
          positive("right_wheel_radius_mm", right_wheel_radius_mm) && positive("track_width_mm", track_width_mm) &&
@@ -66,6 +71,11 @@ void ReadWheelGeometry(YamlMap& map, WheelGeometry* wheels, bool required) {
     read("ticks_per_revolution", &wheels->ticks_per_revolution);
     read("steering_ticks_per_revolution", &wheels->steering_ticks_per_revolution);
     read("steering_offset_deg", &wheels->steering_offset_deg);
+  } else if (wheels->kind == DriveKind::kMecanum) {
+    read("mecanum_wheel_radius_mm", &wheels->mecanum_wheel_radius_mm);
+    read("track_width_mm", &wheels->track_width_mm);
+    read("wheelbase_mm", &wheels->wheelbase_mm);
+    read("ticks_per_revolution", &wheels->ticks_per_revolution);
   } else {
     read("left_wheel_radius_mm", &wheels->left_wheel_radius_mm);
     read("right_wheel_radius_mm", &wheels->right_wheel_radius_mm);

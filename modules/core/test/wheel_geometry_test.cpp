@@ -83,5 +83,26 @@ TEST(WheelGeometry, ATricycleHasItsOwnKeysAndTheOthersAreProblems) {
               testing::Contains(HasSubstr("drive_wheel_radius_mm")));
 }
 
+TEST(WheelGeometry, AMecanumVehicleHasItsOwnKeysAndTheOthersAreProblems) {
+  WheelGeometry wheels;
+  EXPECT_TRUE(Read("vehicle:\n  kind: mecanum\n  mecanum_wheel_radius_mm: 50.8\n  track_width_mm: 560\n"
+                   "  wheelbase_mm: 480\n", &wheels, false)
+                  .empty());
+  EXPECT_EQ(wheels.kind, DriveKind::kMecanum);
+  EXPECT_EQ(wheels.mecanum_wheel_radius_mm, 50.8);
+  EXPECT_EQ(wheels.track_width_mm, 560.0);
+  EXPECT_EQ(wheels.wheelbase_mm, 480.0);
+  wheels = {};
+  EXPECT_THAT(Read("vehicle:\n  kind: mecanum\n  steering_offset_deg: 1\n", &wheels, false),
+              ElementsAre(HasSubstr("steering_offset_deg")));
+  wheels = {};
+  EXPECT_THAT(Read("vehicle:\n  kind: mecanum\n  wheelbase_mm: 0\n", &wheels, false),
+              ElementsAre(HasSubstr("wheelbase_mm: must be > 0 mm")));
+  wheels = {};
+  const auto missing = Read("vehicle:\n  kind: mecanum\n", &wheels, true);
+  ASSERT_EQ(missing.size(), 4u);
+  EXPECT_THAT(missing[0], HasSubstr("vehicle.mecanum_wheel_radius_mm: missing required key"));
+}
+
 }  // namespace
 }  // namespace mosaicloc::core

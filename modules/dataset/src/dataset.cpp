@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <charconv>
 #include <iomanip>
@@ -27,19 +28,26 @@ constexpr const char* kFramesDir = "cam0/data";
 constexpr const char* kEncodersCsv = "encoders/data.csv";
 constexpr const char* kGroundTruth = "groundtruth/data.tum";
 constexpr const char* kFramesHeader = "#timestamp_ns,filename";
-// The encoder file's columns after the time: the vehicle kind's two counters.
+// The encoder file's columns after the time: the vehicle kind's counters.
 struct EncoderColumns {
   const char* header;
-  const char* names[2];
-  std::int32_t EncoderSample::*fields[2];
+  int count;
+  const char* names[4];
+  std::int32_t EncoderSample::*fields[4];
 };
 EncoderColumns ColumnsOf(core::DriveKind kind) {
-  if (kind == core::DriveKind::kTricycle) {
-    return {"#timestamp_ns,drive_ticks,steering_ticks", {"drive_ticks", "steering_ticks"},
-            {&EncoderSample::drive_ticks, &EncoderSample::steering_ticks}};
+  using S = EncoderSample;
+  switch (kind) {
+    case core::DriveKind::kTricycle:
+      return {"#timestamp_ns,drive_ticks,steering_ticks", 2, {"drive_ticks", "steering_ticks"},
+              {&S::drive_ticks, &S::steering_ticks}};
+    case core::DriveKind::kMecanum:
+      return {"#timestamp_ns,front_left_ticks,front_right_ticks,rear_left_ticks,rear_right_ticks", 4,
+              {"front_left_ticks", "front_right_ticks", "rear_left_ticks", "rear_right_ticks"},
+              {&S::left_ticks, &S::right_ticks, &S::rear_left_ticks, &S::rear_right_ticks}};
+    case core::DriveKind::kDifferential: break;
   }
-  return {"#timestamp_ns,left_ticks,right_ticks", {"left_ticks", "right_ticks"},
-          {&EncoderSample::left_ticks, &EncoderSample::right_ticks}};
+  return {"#timestamp_ns,left_ticks,right_ticks", 2, {"left_ticks", "right_ticks"}, {&S::left_ticks, &S::right_ticks}};
 }
 
 using detail::LineError;
@@ -68,12 +76,18 @@ void OpenCsv(const fs::path& csv, const char* header, std::ifstream* in, std::st
   if (first) *first = line;
 }
 
-// An encoder file whose header names the other kind's counters is not this vehicle's.
+// An encoder file whose header names another kind's counters is not this vehicle's.
 void CheckEncoderHeader(const fs::path& csv, const std::string& header, core::DriveKind kind) {
+  std::vector<std::string> named = SplitCsv(header.substr(header.rfind('#', 0) == 0 ? 1 : 0));
+  for (std::string& name : named) name = Trim(name);
+  const auto names_a_column = [&named](const EncoderColumns& columns) {
+    for (int i = 0; i < columns.count; ++i) {
+      if (std::find(named.begin(), named.end(), columns.names[i]) != named.end()) return true;
+    }
+    return false;
+  };
   for (const core::DriveKind other : core::kDriveKinds) {
-    const EncoderColumns columns = ColumnsOf(other);
-    if (other != kind &&
-        (header.find(columns.names[0]) != std::string::npos || header.find(columns.names[1]) != std::string::npos)) {
+    if (other != kind && names_a_column(ColumnsOf(other)) && !names_a_column(ColumnsOf(kind))) {
       LineError(csv, 1,
                 "the header names a " + std::string(core::ToString(other)) + "'s counters, but dataset.yaml's "
                 "vehicle.kind is " + core::ToString(kind) + " (expected '" + ColumnsOf(kind).header + "')");
@@ -253,13 +267,15 @@ std::optional<EncoderSample> DatasetReader::EncoderStream::Next() {
   do {
     if (!NextLine(in_, &line_number_, &line)) return std::nullopt;
     fields = SplitCsv(line);
-    if (fields.size() != 3) {
+    const std::size_t expected = static_cast<std::size_t>(columns.count) + 1;
+    if (fields.size() != expected) {
       LineError(csv_, line_number_,
-                "expected 3 fields '" + std::string(columns.header + 1) + "', got " + std::to_string(fields.size()));
+                "expected " + std::to_string(expected) + " fields '" + std::string(columns.header + 1) + "', got " +
+                    std::to_string(fields.size()));
     }
     sample.time = ParseTime(csv_, line_number_, fields[0]);
   } while (!InOrder(sample.time, &last_time_));
-  for (int i = 0; i < 2; ++i) {
+  for (int i = 0; i < columns.count; ++i) {
     std::int64_t value = 0;
     if (!ParseInt64(fields[static_cast<std::size_t>(i) + 1], &value) ||
         value < std::numeric_limits<std::int32_t>::min() || value > std::numeric_limits<std::int32_t>::max()) {
@@ -381,8 +397,9 @@ void DatasetWriter::AddEncoderSample(const EncoderSample& sample) {
   }
   last_encoder_time_ = sample.time;
   const EncoderColumns columns = ColumnsOf(info_.vehicle.kind);
-  encoders_csv_ << sample.time.nanoseconds() << "," << sample.*columns.fields[0] << "," << sample.*columns.fields[1]
-                << "\n";
+  encoders_csv_ << sample.time.nanoseconds();
+  for (int i = 0; i < columns.count; ++i) encoders_csv_ << "," << sample.*columns.fields[i];
+  encoders_csv_ << "\n";
 }
 
 void DatasetWriter::SetGroundTruth(const Trajectory& world_from_vehicle) { groundtruth_ = world_from_vehicle; }
@@ -421,6 +438,12 @@ void DatasetWriter::Commit() {
     yaml << YAML::Key << "ticks_per_revolution" << YAML::Value << v.ticks_per_revolution;
     yaml << YAML::Key << "steering_ticks_per_revolution" << YAML::Value << v.steering_ticks_per_revolution;
     yaml << YAML::Key << "steering_offset_deg" << YAML::Value << v.steering_offset_deg;
+  } else if (v.kind == core::DriveKind::kMecanum) {
+    yaml << YAML::Key << "kind" << YAML::Value << core::ToString(v.kind);
+    yaml << YAML::Key << "mecanum_wheel_radius_mm" << YAML::Value << v.mecanum_wheel_radius_mm;
+    yaml << YAML::Key << "track_width_mm" << YAML::Value << v.track_width_mm;
+    yaml << YAML::Key << "wheelbase_mm" << YAML::Value << v.wheelbase_mm;
+    yaml << YAML::Key << "ticks_per_revolution" << YAML::Value << v.ticks_per_revolution;
   } else {  // the kind is the default: left out, as datasets from before tricycles have it
     yaml << YAML::Key << "left_wheel_radius_mm" << YAML::Value << v.left_wheel_radius_mm;
     yaml << YAML::Key << "right_wheel_radius_mm" << YAML::Value << v.right_wheel_radius_mm;
@@ -481,6 +504,10 @@ TruthKeys TruthKeysOf(core::DriveKind kind) {
   if (kind == core::DriveKind::kTricycle) {
     return {{"truth_drive_wheel_radius_mm", "truth_wheelbase_mm", "truth_steering_offset_deg"},
             {&W::drive_wheel_radius_mm, &W::wheelbase_mm, &W::steering_offset_deg}};
+  }
+  if (kind == core::DriveKind::kMecanum) {
+    return {{"truth_mecanum_wheel_radius_mm", "truth_track_width_mm", "truth_wheelbase_mm"},
+            {&W::mecanum_wheel_radius_mm, &W::track_width_mm, &W::wheelbase_mm}};
   }
   return {{"truth_left_wheel_radius_mm", "truth_right_wheel_radius_mm", "truth_track_width_mm"},
           {&W::left_wheel_radius_mm, &W::right_wheel_radius_mm, &W::track_width_mm}};

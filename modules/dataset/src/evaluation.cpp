@@ -376,6 +376,10 @@ void WriteMetricsJson(const std::filesystem::path& file, const Metrics& metrics)
     json["drive_wheel_scale_percent"] = ToJson(metrics.drive_wheel_scale_percent);
     json["steering_offset_error_deg"] = ToJson(metrics.steering_offset_error_deg);
   }
+  if (metrics.wheel_scale_percent) {
+    json["wheel_scale_percent"] = ToJson(metrics.wheel_scale_percent);
+    json["lateral_scale_percent"] = ToJson(metrics.lateral_scale_percent);
+  }
   json["frames_to_first_fix"] = ToJson(metrics.frames_to_first_fix);
   json["first_fix_s"] = ToJson(metrics.first_fix_s);
   json["kidnap_frames_to_fix"] = ToJson(metrics.kidnap_frames_to_fix);

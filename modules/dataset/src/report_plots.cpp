@@ -328,14 +328,16 @@ void WriteTimelines(const std::filesystem::path& directory, const std::vector<Ti
   Panel(canvas, area(), t, latency, "latency [ms]", false);
   ++k;
   const bool tricycle = kind == core::DriveKind::kTricycle;
+  const bool mecanum = kind == core::DriveKind::kMecanum;
   Panel(canvas, area(), t, wheels, tricycle ? "calibration [% / deg]" : "wheel scale [%]", !height);
   if (height) {
     ++k;
     Panel(canvas, area(), t, heights, "camera height [mm]", true);
   }
   plot::PutText(canvas,
-                tricycle ? "NIS: dashed, the 95 % bound (3 dof); drive wheel scale [%] blue, steering offset [deg] green"
-                         : "NIS: dashed, the 95 % bound (3 dof); wheel scale: left blue, right green",
+                tricycle  ? "NIS: dashed, the 95 % bound (3 dof); drive wheel scale [%] blue, steering offset [deg] green"
+                : mecanum ? "NIS: dashed, the 95 % bound (3 dof); scale: wheels blue, sideways green"
+                          : "NIS: dashed, the 95 % bound (3 dof); wheel scale: left blue, right green",
                 {kWidth / 2, 46}, 0.5, plot::kDarkGrey, Align::kCenter, Align::kStart);
   plot::SavePng(directory / "timelines.png", canvas);
 }

@@ -120,6 +120,45 @@ TEST(Dataset, TricycleRoundTrip) {
   EXPECT_THAT(ReadError(scratch / "ds"), HasSubstr("encoders/data.csv"));
 }
 
+TEST(Dataset, MecanumRoundTrip) {
+  test::ScratchDir scratch;
+  DatasetInfo info = SmallInfo();
+  info.vehicle.kind = core::DriveKind::kMecanum;
+  info.vehicle.mecanum_wheel_radius_mm = 50.8;
+  info.vehicle.track_width_mm = 560.0;
+  info.vehicle.wheelbase_mm = 480.0;
+  {
+    DatasetWriter writer(scratch / "ds", info, false);
+    writer.AddFrame(Ms(0), Image(1));
+    EncoderSample sample;
+    sample.time = Ms(0);
+    sample.left_ticks = 1;
+    sample.right_ticks = -2;
+    sample.rear_left_ticks = 2147483600;
+    sample.rear_right_ticks = -2147483600;
+    writer.AddEncoderSample(sample);
+    writer.Commit();
+  }
+  const DatasetReader reader(scratch / "ds");
+  EXPECT_EQ(reader.info().vehicle.kind, core::DriveKind::kMecanum);
+  EXPECT_EQ(reader.info().vehicle.mecanum_wheel_radius_mm, 50.8);
+  EXPECT_EQ(reader.info().vehicle.track_width_mm, 560.0);
+  EXPECT_EQ(reader.info().vehicle.wheelbase_mm, 480.0);
+  EXPECT_EQ(test::ReadFile(scratch / "ds/encoders/data.csv"),
+            "#timestamp_ns,front_left_ticks,front_right_ticks,rear_left_ticks,rear_right_ticks\n"
+            "0,1,-2,2147483600,-2147483600\n");
+  auto encoders = reader.Encoders();
+  const auto read = encoders.Next();
+  ASSERT_TRUE(read.has_value());
+  EXPECT_EQ(read->counts(), (core::EncoderCounts{1, -2, 0, 0, 2147483600, -2147483600}));
+  // A row with a differential drive's two counters, and a differential drive's header.
+  test::WriteFile(scratch / "ds/encoders/data.csv",
+                  "#timestamp_ns,front_left_ticks,front_right_ticks,rear_left_ticks,rear_right_ticks\n0,1,2\n");
+  EXPECT_THAT(ReadError(scratch / "ds"), HasSubstr("data.csv:2: expected 5 fields"));
+  test::WriteFile(scratch / "ds/encoders/data.csv", "#timestamp_ns,left_ticks,right_ticks\n0,1,2\n");
+  EXPECT_THAT(ReadError(scratch / "ds"), HasSubstr("names a differential's counters"));
+}
+
 TEST(Dataset, UncommittedWriterLeavesNothing) {
   test::ScratchDir scratch;
   {

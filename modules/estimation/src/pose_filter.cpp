@@ -17,9 +17,11 @@ core::Pose2 ArcPart(const core::Pose2& increment, double fraction) {
   return core::Pose2::Exp(fraction * increment.Log());
 }
 
-// d (dx, dy) / d (ds, dtheta) of the arc Exp(ds, 0, dtheta): dx = ds sin(t) / t,
-// dy = ds (1 - cos t) / t (series near t = 0, where the closed forms cancel).
-Eigen::Matrix2d ArcTranslationJacobian(double ds, double t) {
+// d (x, y) / d (vx, vy, t) of the translation of Exp(vx, vy, t): (x, y) = V(t) (vx, vy),
+// V = [[a, -c], [c, a]], a = sin(t)/t, c = (1 - cos t)/t (series near t = 0, where the closed
+// forms cancel).
+Eigen::Matrix<double, 2, 3> ExpTranslationJacobian(const Eigen::Vector3d& twist) {
+  const double vx = twist.x(), vy = twist.y(), t = twist.z();
   double a, c, da, dc;  // sin(t)/t, (1 - cos t)/t and their derivatives in t
   if (std::abs(t) < 1e-4) {
     a = 1.0 - t * t / 6.0;
@@ -33,8 +35,8 @@ Eigen::Matrix2d ArcTranslationJacobian(double ds, double t) {
     da = (t * cos_t - sin_t) / (t * t);
     dc = (t * sin_t - (1.0 - cos_t)) / (t * t);
   }
-  Eigen::Matrix2d j;
-  j << a, ds * da, c, ds * dc;
+  Eigen::Matrix<double, 2, 3> j;
+  j << a, -c, da * vx - dc * vy, c, a, dc * vx + da * vy;
   return j;
 }
 
@@ -63,6 +65,7 @@ bool PoseFilterOptions::Check(std::string* why) const {
   if (!(steering_offset_walk_deg_per_sqrt_m >= 0.0 && steering_offset_walk_deg_per_sqrt_m <= 1.0)) {
     return fail("steering_offset_walk_deg_per_sqrt_m must be in [0, 1]");
   }
+  if (!(lateral_scale_sigma >= 0.0 && lateral_scale_sigma <= 0.5)) return fail("lateral_scale_sigma must be in [0, 0.5]");
   return true;
 }
 
@@ -70,6 +73,7 @@ Eigen::Vector2d PoseFilter::CalibrationSigma() const {
   if (options_.kind == core::DriveKind::kTricycle) {
     return {options_.wheel_scale_sigma, options_.steering_offset_sigma_deg * std::numbers::pi / 180.0};
   }
+  if (options_.kind == core::DriveKind::kMecanum) return {options_.wheel_scale_sigma, options_.lateral_scale_sigma};
   return Eigen::Vector2d::Constant(options_.wheel_scale_sigma);
 }
 
@@ -112,13 +116,12 @@ void PoseFilter::Propagate(const Node& from, Node* to) const {
   Matrix5d noise = Matrix5d::Zero();
   to->wheel_scale = from.wheel_scale;
   if (to->travel.measured()) {
-    // d(pose+)/dc through (ds, dtheta).
-    Eigen::Matrix2d d_motion;  // columns c; rows ds, dtheta
-    const Eigen::Vector2d motion = to->travel.Motion(from.wheel_scale, &d_motion);
-    to->increment = core::Pose2::Exp({motion.x(), 0.0, motion.y()});
-    const Eigen::Matrix2d arc = ArcTranslationJacobian(motion.x(), motion.y());
-    f.block<2, 2>(0, 3) = rotation * arc * d_motion;
-    f.block<1, 2>(2, 3) = d_motion.row(1);
+    // d(pose+)/dc through (dx, dy, dtheta).
+    Eigen::Matrix<double, 3, 2> d_motion;  // columns c; rows dx, dy, dtheta
+    const Eigen::Vector3d motion = to->travel.Motion(from.wheel_scale, &d_motion);
+    to->increment = core::Pose2::Exp(motion);
+    f.block<2, 2>(0, 3) = rotation * ExpTranslationJacobian(motion) * d_motion;
+    f.block<1, 2>(2, 3) = d_motion.row(2);
     const Eigen::Vector2d walk = CalibrationWalk();
     const Eigen::Vector2d rolled_m = to->travel.Rolled() * 1e-3;
     noise(3, 3) = walk.x() * walk.x() * rolled_m.x();
@@ -167,11 +170,9 @@ void PoseFilter::Predict(core::Timestamp time, const OdometryIncrement& incremen
   if (dt_s > 0.0) {
     // The speeds of the whole increment, with the wheels' scales applied.
     Eigen::Vector3d twist = increment.previous_from_current.Log();
-    if (increment.travel.measured()) {
-      const Eigen::Vector2d motion = increment.travel.Motion(node.wheel_scale);
-      twist = {motion.x(), 0.0, motion.y()};
-    }
+    if (increment.travel.measured()) twist = increment.travel.Motion(node.wheel_scale);
     forward_speed_mm_per_s_ = twist.x() / dt_s;
+    lateral_speed_mm_per_s_ = twist.y() / dt_s;
     yaw_rate_rad_per_s_ = twist.z() / dt_s;
   }
   Prune();
@@ -191,7 +192,7 @@ void PoseFilter::Coast(core::Timestamp time) {
                      0.25 * std::pow(options_.coast_yaw_acceleration_radps2, 2) * quartic;
   Node node;
   node.time = time;
-  node.increment = core::Pose2::Exp({forward_speed_mm_per_s_ * dt_s, 0.0, yaw_rate_rad_per_s_ * dt_s});
+  node.increment = core::Pose2::Exp(Eigen::Vector3d(forward_speed_mm_per_s_, lateral_speed_mm_per_s_, yaw_rate_rad_per_s_) * dt_s);
   node.increment_covariance = Eigen::Vector3d(position, position, yaw).asDiagonal();
   Propagate(history_.back(), &node);
   history_.push_back(node);
@@ -200,13 +201,16 @@ void PoseFilter::Coast(core::Timestamp time) {
 
 MotionState PoseFilter::Latest() const {
   const Node& node = history_.back();
-  return {node.time, node.world_from_vehicle, node.covariance.topLeftCorner<3, 3>(), forward_speed_mm_per_s_,
-          yaw_rate_rad_per_s_};
+  return {node.time,          node.world_from_vehicle,  node.covariance.topLeftCorner<3, 3>(), forward_speed_mm_per_s_,
+          yaw_rate_rad_per_s_, lateral_speed_mm_per_s_};
+}
+
+Eigen::Vector3d MotionState::Twist() const {
+  return {forward_speed_mm_per_s, lateral_speed_mm_per_s, yaw_rate_rad_per_s};
 }
 
 core::Pose2 MotionState::PoseAt(core::Timestamp at) const {
-  const double dt_s = core::ToSeconds(at - time);
-  return world_from_vehicle * core::Pose2::Exp({forward_speed_mm_per_s * dt_s, 0.0, yaw_rate_rad_per_s * dt_s});
+  return world_from_vehicle * core::Pose2::Exp(core::ToSeconds(at - time) * Twist());
 }
 
 void PoseFilter::Prune() {
@@ -230,7 +234,8 @@ core::Pose2 PoseFilter::PoseAt(core::Timestamp time) const {
   }
   const double dt_s = core::ToSeconds(time - node.time);
   if (dt_s <= 0.0) return node.world_from_vehicle;
-  return node.world_from_vehicle * core::Pose2::Exp({forward_speed_mm_per_s_ * dt_s, 0.0, yaw_rate_rad_per_s_ * dt_s});
+  return node.world_from_vehicle *
+         core::Pose2::Exp(Eigen::Vector3d(forward_speed_mm_per_s_, lateral_speed_mm_per_s_, yaw_rate_rad_per_s_) * dt_s);
 }
 
 Eigen::Matrix3d PoseFilter::CovarianceAt(core::Timestamp time) const {

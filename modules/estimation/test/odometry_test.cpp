@@ -165,6 +165,55 @@ TEST(WheelOdometry, TricycleSteeringOffsetAndItsUncertainty) {
   EXPECT_NEAR(standing.covariance()(2, 2), expected, 1e-12);
 }
 
+OdometryOptions Mecanum() {
+  OdometryOptions options;
+  options.wheels.kind = core::DriveKind::kMecanum;
+  options.wheels.mecanum_wheel_radius_mm = 50.0;
+  options.wheels.track_width_mm = 560.0;
+  options.wheels.wheelbase_mm = 480.0;
+  options.wheels.ticks_per_revolution = 4096;
+  return options;
+}
+
+// The four wheels of a mecanum vehicle: forwards all turn alike; sideways (to the left) the
+// front left and rear right turn back; turning, the left side turns back.
+TEST(WheelOdometry, MecanumForwardSidewaysAndTurning) {
+  const OdometryOptions options = Mecanum();
+  const double mm_per_tick = 2.0 * std::numbers::pi * 50.0 / 4096.0, l = 0.5 * (560.0 + 480.0);
+  const auto counts = [](std::int32_t fl, std::int32_t fr, std::int32_t rl, std::int32_t rr) {
+    core::EncoderCounts c;
+    c.left_ticks = fl;
+    c.right_ticks = fr;
+    c.rear_left_ticks = rl;
+    c.rear_right_ticks = rr;
+    return c;
+  };
+  for (const auto& [moved, expected] :
+       {std::pair{counts(1000, 1000, 1000, 1000), Eigen::Vector3d(1000 * mm_per_tick, 0.0, 0.0)},
+        std::pair{counts(-1000, 1000, 1000, -1000), Eigen::Vector3d(0.0, 1000 * mm_per_tick, 0.0)},
+        std::pair{counts(-1000, 1000, -1000, 1000), Eigen::Vector3d(0.0, 0.0, 1000 * mm_per_tick / l)}}) {
+    WheelOdometry odometry(options);
+    ASSERT_TRUE(odometry.Update(Ms(0), counts(0, 0, 0, 0)).ok());
+    const auto increment = odometry.Update(Ms(100), moved);
+    ASSERT_TRUE(increment.ok());
+    const Eigen::Vector3d twist = increment.value().previous_from_current.Log();
+    EXPECT_LT((twist - expected).norm(), 1e-9) << twist.transpose();
+    EXPECT_NEAR(increment.value().lateral_speed_mps, expected.y() / 0.1 * 1e-3, 1e-12);
+    // Each wheel's variance k |d|: sideways, dy = (-fl + fr + rl - rr) / 4 has k |d| / 4.
+    const double k_d = options.wheel_variance_mm * 1000 * mm_per_tick;
+    if (expected.y() > 0.0) {
+      EXPECT_NEAR(odometry.covariance()(1, 1), k_d / 4.0, 1e-12);
+      // Forward as uncertain (the same four wheels), and the turn's uncertainty over the arc.
+      const double turn_variance = k_d / (4.0 * l * l);
+      EXPECT_NEAR(odometry.covariance()(0, 0), k_d / 4.0 + std::pow(0.5 * expected.y(), 2) * turn_variance, 1e-12);
+    }
+  }
+  // A wheel that jumps is a glitch, whichever it is.
+  WheelOdometry odometry(options);
+  ASSERT_TRUE(odometry.Update(Ms(0), counts(0, 0, 0, 0)).ok());
+  EXPECT_FALSE(odometry.Update(Ms(10), counts(0, 0, 0, 4000000)).ok());
+}
+
 TEST(WheelOdometry, RejectsBadOptions) {
   OdometryOptions options = Options();
   options.wheels.track_width_mm = 0.0;

@@ -187,7 +187,7 @@ LearningDrive DriveWithFixes(const PoseFilterOptions& learning, std::mt19937& rn
   const Eigen::Matrix3d r = Eigen::Vector3d(fix_sigma_mm * fix_sigma_mm, fix_sigma_mm * fix_sigma_mm,
                                             fix_sigma_rad * fix_sigma_rad).asDiagonal();
   PoseFilterOptions exact = learning;
-  exact.wheel_scale_sigma = exact.steering_offset_sigma_deg = 0.0;
+  exact.wheel_scale_sigma = exact.steering_offset_sigma_deg = exact.lateral_scale_sigma = 0.0;
   exact.wheel_scale_walk_per_sqrt_m = exact.steering_offset_walk_deg_per_sqrt_m = 0.0;
   Pose2 truth;
   const Eigen::Matrix3d start = Eigen::Vector3d(1e-4, 1e-4, 1e-8).asDiagonal();
@@ -245,6 +245,43 @@ TEST(PoseFilter, LearnsTheWheelsScaleErrorsFromFixes) {
   EXPECT_LT(drive.worst_late, 1.5);
 }
 
+// A mecanum vehicle whose wheels are 2 % larger than calibrated and whose rollers slip 5 %
+// sideways, crabbing and turning: both scales are learnt from fixes, and the prediction between
+// fixes is then as good as the wheels' random error allows.
+TEST(PoseFilter, LearnsAMecanumVehiclesWheelAndSidewaysScalesFromFixes) {
+  std::mt19937 rng(9);
+  std::normal_distribution<double> unit(0.0, 1.0);
+  const double k = 0.02, k_y = -0.05, l = 520.0;
+  PoseFilterOptions options;
+  options.kind = core::DriveKind::kMecanum;
+  const LearningDrive drive = DriveWithFixes(options, rng, [&](int i, Pose2* motion) {
+    const double crab = 1.2 * std::sin(0.004 * i), speed = 72.0 * (1.0 + 0.002 * unit(rng));
+    const Eigen::Vector3d twist(speed * std::cos(crab), speed * std::sin(crab), 0.002 * std::sin(0.003 * i));
+    *motion = Pose2::Exp(twist);
+    // The wheels' travels that the true motion gives on wheels (1 + k) larger, with rollers
+    // that carry the vehicle only (1 + k_y) of the way sideways.
+    const double forward = twist.x() / (1.0 + k), sideways = twist.y() / ((1.0 + k) * (1.0 + k_y));
+    const double turn = l * twist.z() / (1.0 + k);
+    OdometryIncrement inc;
+    inc.dt = 10ms;
+    inc.travel.kind = core::DriveKind::kMecanum;
+    inc.travel.left_mm = forward - sideways - turn;
+    inc.travel.right_mm = forward + sideways + turn;
+    inc.travel.rear_left_mm = forward + sideways - turn;
+    inc.travel.rear_right_mm = forward - sideways + turn;
+    inc.travel.base_mm = l;
+    inc.previous_from_current = Pose2::Exp(inc.travel.Motion(Eigen::Vector2d::Zero()));
+    inc.covariance = Eigen::Vector3d(0.01 * 72.0 / 4.0, 0.01 * 72.0 / 4.0, 0.01 * 72.0 / (4.0 * l * l)).asDiagonal();
+    return inc;
+  });
+  EXPECT_NEAR(drive.learnt.x(), k, 1e-3);
+  EXPECT_NEAR(drive.learnt.y(), k_y, 2e-3);
+  EXPECT_LT(std::sqrt(drive.learnt_covariance(1, 1)), 2e-3) << "and it knows it";
+  EXPECT_EQ(drive.exact_states, Eigen::Vector2d::Zero());
+  EXPECT_GT(drive.worst_exact, 3.0);
+  EXPECT_LT(drive.worst_late, 1.5);
+}
+
 // A tricycle's drive wheel 2 % off its calibrated radius and its steering 0.5 degrees off its
 // calibrated zero, on a winding drive: both are learnt from fixes, and the prediction between
 // fixes is then as good as the wheel's random error allows.
@@ -264,8 +301,7 @@ TEST(PoseFilter, LearnsATricyclesDriveScaleAndSteeringOffsetFromFixes) {
     inc.travel.drive_mm = true_s / (1.0 + k_drive);
     inc.travel.steering_rad = true_phi - offset_rad;
     inc.travel.base_mm = wheelbase_mm;
-    const Eigen::Vector2d planar = inc.travel.Motion(Eigen::Vector2d::Zero());
-    inc.previous_from_current = Pose2::Exp({planar.x(), 0.0, planar.y()});
+    inc.previous_from_current = Pose2::Exp(inc.travel.Motion(Eigen::Vector2d::Zero()));
     inc.covariance = Eigen::Vector3d(0.01 * 72.0, 1e-6, 1e-9).asDiagonal();
     return inc;
   });

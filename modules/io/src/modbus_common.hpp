@@ -45,8 +45,7 @@ class InputDecoder {
  private:
   static std::int32_t Ticks(const RegisterField& field, CounterUnwrapper* unwrapper, std::int64_t count);
   RegisterMap map_;
-  CounterUnwrapper first_;
-  CounterUnwrapper second_;
+  std::vector<CounterUnwrapper> unwrappers_;  ///< one per counter of the kind (the steering angle's unused)
 };
 
 }  // namespace mosaicloc::io::detail

@@ -24,19 +24,24 @@ std::string RegisterField::Describe() const {
   return fmt::format("{} (registers {}-{})", name, address, address + words() - 1);
 }
 
-std::array<const RegisterField*, 2> RegisterMap::Counters() const {
+std::vector<const RegisterField*> RegisterMap::Counters() const {
   if (kind == core::DriveKind::kTricycle) return {&drive_ticks, &steering_ticks};
+  if (kind == core::DriveKind::kMecanum) return {&front_left_ticks, &front_right_ticks, &rear_left_ticks, &rear_right_ticks};
   return {&left_ticks, &right_ticks};
 }
 
-std::array<std::int32_t, 2> RegisterMap::CounterValues(const core::EncoderCounts& counts) const {
+std::vector<std::int32_t> RegisterMap::CounterValues(const core::EncoderCounts& counts) const {
   if (kind == core::DriveKind::kTricycle) return {counts.drive_ticks, counts.steering_ticks};
+  if (kind == core::DriveKind::kMecanum) {
+    return {counts.left_ticks, counts.right_ticks, counts.rear_left_ticks, counts.rear_right_ticks};
+  }
   return {counts.left_ticks, counts.right_ticks};
 }
 
 std::vector<const RegisterField*> RegisterMap::Inputs() const {
-  const auto counters = Counters();
-  return {counters[0], counters[1], &plc_heartbeat, &fix_request, &relocalize_request};
+  std::vector<const RegisterField*> inputs = Counters();
+  inputs.insert(inputs.end(), {&plc_heartbeat, &fix_request, &relocalize_request});
+  return inputs;
 }
 
 std::vector<const RegisterField*> RegisterMap::Outputs() const {

@@ -2,6 +2,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -57,13 +58,37 @@ TEST(RegisterMapTest, ATricycleHasItsOwnCounters) {
   EXPECT_EQ(map.Inputs()[0]->name, "drive_ticks");
   EXPECT_EQ(map.Inputs()[1]->name, "steering_ticks");
   const core::EncoderCounts counts{1, 2, 3, -4};
-  EXPECT_EQ(map.CounterValues(counts), (std::array<std::int32_t, 2>{3, -4}));
+  EXPECT_EQ(map.CounterValues(counts), (std::vector<std::int32_t>{3, -4}));
   map.steering_ticks.address = 4;  // onto plc_heartbeat
   EXPECT_FALSE(map.Check(&why));
   EXPECT_NE(why.find("steering_ticks"), std::string::npos) << why;
   map.kind = core::DriveKind::kDifferential;  // then the steering register is not read
   EXPECT_TRUE(map.Check(&why)) << why;
-  EXPECT_EQ(map.CounterValues(counts), (std::array<std::int32_t, 2>{1, 2}));
+  EXPECT_EQ(map.CounterValues(counts), (std::vector<std::int32_t>{1, 2}));
+}
+
+// A mecanum vehicle's four counters: the front wheels where a differential drive's are, the
+// rear ones after the PLC's request registers.
+TEST(RegisterMapTest, AMecanumVehicleHasFourCounters) {
+  RegisterMap map;
+  map.kind = core::DriveKind::kMecanum;
+  std::string why;
+  EXPECT_TRUE(map.Check(&why)) << why;
+  ASSERT_EQ(map.Inputs().size(), 7U);
+  EXPECT_EQ(map.Inputs()[0]->Describe(), "front_left_ticks (registers 0-1)");
+  EXPECT_EQ(map.Inputs()[1]->Describe(), "front_right_ticks (registers 2-3)");
+  EXPECT_EQ(map.Inputs()[2]->Describe(), "rear_left_ticks (registers 8-9)");
+  EXPECT_EQ(map.Inputs()[3]->Describe(), "rear_right_ticks (registers 10-11)");
+  const core::EncoderCounts counts{1, 2, 3, 4, -5, 6};
+  EXPECT_EQ(map.CounterValues(counts), (std::vector<std::int32_t>{1, 2, -5, 6}));
+  map.rear_right_ticks.address = 5;  // onto fix_request
+  EXPECT_FALSE(map.Check(&why));
+  EXPECT_NE(why.find("rear_right_ticks"), std::string::npos) << why;
+  // Their reading groups into one request over registers 0-11.
+  const std::vector<RegisterSpan> spans = GroupIntoSpans(RegisterMap{.kind = core::DriveKind::kMecanum}.Inputs(), 8);
+  ASSERT_EQ(spans.size(), 1U);
+  EXPECT_EQ(spans[0].address, 0);
+  EXPECT_EQ(spans[0].count, 12);
 }
 
 TEST(RegisterCodecTest, BothWordOrdersRoundTripAndMatchTheWire) {

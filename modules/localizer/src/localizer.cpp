@@ -258,9 +258,9 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   if (options_.odometry_timing_sigma_ms > 0.0) {
     const double sigma_s = options_.odometry_timing_sigma_ms * 1e-3;
     const auto& latest = filter_->Latest();
-    for (const auto& [v, omega] : {std::pair{latest.forward_speed_mm_per_s, latest.yaw_rate_rad_per_s},
-                                   std::pair{fix_speed_mm_per_s_, fix_yaw_rate_rad_per_s_}}) {
-      const Eigen::Vector3d motion(v * std::cos(predicted.yaw_rad()), v * std::sin(predicted.yaw_rad()), omega);
+    for (const Eigen::Vector3d& twist : {latest.Twist(), fix_twist_}) {
+      Eigen::Vector3d motion = twist;
+      motion.head<2>() = predicted.Rotation() * twist.head<2>();
       unmodelled += sigma_s * sigma_s * motion * motion.transpose();
     }
   }
@@ -364,8 +364,7 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
             applied.innovation_covariance.diagonal().cwiseSqrt());
       }
       if (applied.accepted) {
-        fix_speed_mm_per_s_ = filter_->Latest().forward_speed_mm_per_s;
-        fix_yaw_rate_rad_per_s_ = filter_->Latest().yaw_rate_rad_per_s;
+        fix_twist_ = filter_->Latest().Twist();
         rejected_run_ = 0;
       } else {
         outcome.reason = "fix rejected: " + applied.reason;
@@ -449,7 +448,7 @@ bool Localizer::VisualOdometry(core::Timestamp time, const cv::Mat& frame, const
   // The encoder samples' time-stamp error puts the wheels' pose at the keyframe and now each
   // v sigma_t off along the heading (LocalizerOptions::odometry_timing_sigma_ms): the predicted
   // shift may be that much more than the true one.
-  const double timing_mm = std::sqrt(2.0) * std::abs(filter_->Latest().forward_speed_mm_per_s) *
+  const double timing_mm = std::sqrt(2.0) * filter_->Latest().speed_mm_per_s() *
                            options_.odometry_timing_sigma_ms * 1e-3;
   const double reach = vo.max_fraction + 3.0 * timing_mm / std::min(camera_.width_mm(), camera_.height_mm());
   const double shift =

@@ -35,7 +35,9 @@ std::optional<dataset::EncoderSample> EncoderStamper::Take(const io::PlcInputs& 
     };
     const std::int64_t step = std::max({moved(last_ticks_.left_ticks, ticks.left_ticks),
                                         moved(last_ticks_.right_ticks, ticks.right_ticks),
-                                        moved(last_ticks_.drive_ticks, ticks.drive_ticks)});
+                                        moved(last_ticks_.drive_ticks, ticks.drive_ticks),
+                                        moved(last_ticks_.rear_left_ticks, ticks.rear_left_ticks),
+                                        moved(last_ticks_.rear_right_ticks, ticks.rear_right_ticks)});
     const core::Duration period = std::max<core::Duration>(options_.counter_period, std::chrono::milliseconds(1));
     const double periods = std::max(1.0, core::ToSeconds(read.time - last_change_) / core::ToSeconds(period));
     moving_ = static_cast<double>(step) / periods > static_cast<double>(options_.moving_ticks_per_period);
@@ -46,8 +48,9 @@ std::optional<dataset::EncoderSample> EncoderStamper::Take(const io::PlcInputs& 
   last_read_ = read.time;
   if (!stamp) return std::nullopt;
   last_forwarded_ = *stamp;
-  return dataset::EncoderSample{*stamp - options_.latency, read.left_ticks, read.right_ticks, read.drive_ticks,
-                                read.steering_ticks};
+  return dataset::EncoderSample{*stamp - options_.latency, read.left_ticks,      read.right_ticks,
+                                read.drive_ticks,                  read.steering_ticks, read.rear_left_ticks,
+                                read.rear_right_ticks};
 }
 
 }  // namespace mosaicloc::runtime

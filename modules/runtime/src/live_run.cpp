@@ -27,12 +27,14 @@
 #include <vector>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "mosaicloc/camera/ideal_camera.hpp"
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/log.hpp"
 #include "mosaicloc/dataset/evaluation.hpp"
 #include "mosaicloc/dataset/fixes.hpp"
+#include "mosaicloc/io/registers.hpp"
 #include "mosaicloc/localizer/localizer.hpp"
 #include "mosaicloc/runtime/encoder_stamper.hpp"
 #include "mosaicloc/runtime/live_sources.hpp"
@@ -567,12 +569,12 @@ class LiveRun::Impl {
         } else if (!localizer_->AddEncoders(e.sample.time, e.sample.counts())) {
           ++stats_.encoder_rejected;
           const auto why = localizer_->last_encoder_failure();
-          const bool tricycle = vehicle_kind_ == core::DriveKind::kTricycle;
-          core::Log().warn("run: encoder sample rejected: {} (stamped {:.4f} s, counters {}, {})",
+          io::RegisterMap kind_counters;
+          kind_counters.kind = vehicle_kind_;
+          core::Log().warn("run: encoder sample rejected: {} (stamped {:.4f} s, counters {})",
                            why ? estimation::ToString(*why) : std::string("?"),
                            core::ToSeconds(e.sample.time - core::Timestamp()),
-                           tricycle ? e.sample.drive_ticks : e.sample.left_ticks,
-                           tricycle ? e.sample.steering_ticks : e.sample.right_ticks);
+                           fmt::join(kind_counters.CounterValues(e.sample.counts()), ", "));
         }
       }
       if (!frame) {

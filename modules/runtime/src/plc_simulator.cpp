@@ -13,6 +13,7 @@
 #include <vector>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/file.hpp"
@@ -80,6 +81,9 @@ PlcSimulatorSummary RunPlcSimulator(const PlcSimulatorOptions& args, const PlcSi
   if (std::string why; !map.Check(&why)) {
     core::ThrowInvalidInput("plc-sim: the register map for a " + std::string(core::ToString(map.kind)) + ": " + why);
   }
+  std::vector<std::string> served;
+  for (const io::RegisterField* field : map.Counters()) served.push_back(field->Describe());
+  played += fmt::format(", serving the {}'s {}", core::ToString(kind), fmt::join(served, ", "));
 
   std::vector<const io::RegisterField*> fields = map.Inputs();
   const std::vector<const io::RegisterField*> outputs = map.Outputs();
@@ -201,7 +205,7 @@ PlcSimulatorSummary RunPlcSimulator(const PlcSimulatorOptions& args, const PlcSi
       };
       const auto counters = map.Counters();
       const auto values = map.CounterValues(current.counts());
-      for (std::size_t i = 0; i < 2; ++i) {
+      for (std::size_t i = 0; i < counters.size(); ++i) {
         put(*counters[i], wrap(std::llround(values[i] / counters[i]->scale), *counters[i]));
       }
       put(map.plc_heartbeat, wrap(heartbeat, map.plc_heartbeat));

@@ -579,6 +579,11 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
     record.known().steering_offset_error_deg = learnt.y();
     core::Log().info("calibration errors learnt: drive wheel scale {:+.3f} % (sigma {:.3f}), steering offset {:+.4f} deg "
                      "(sigma {:.4f})", learnt.x(), sigma.x(), learnt.y(), sigma.y());
+  } else if (info.vehicle.kind == core::DriveKind::kMecanum) {
+    record.known().wheel_scale_percent = learnt.x();
+    record.known().lateral_scale_percent = learnt.y();
+    core::Log().info("calibration errors learnt: wheel scale {:+.3f} % (sigma {:.3f}), sideways scale {:+.3f} % "
+                     "(sigma {:.3f})", learnt.x(), sigma.x(), learnt.y(), sigma.y());
   } else {
     record.known().wheel_scale_left_percent = learnt.x();
     record.known().wheel_scale_right_percent = learnt.y();

@@ -33,7 +33,8 @@ bool ReadRegisters(core::YamlMap* parent, core::YamlMap* registers, io::Register
     io::WordOrder word_order = io::WordOrder::kHighFirst;
     registers->OptionalEnum("word_order", &word_order, io::kWordOrders);
     for (io::RegisterField* field : {&map->left_ticks, &map->right_ticks, &map->drive_ticks, &map->steering_ticks,
-                                     &map->plc_heartbeat, &map->fix_request,
+                                     &map->front_left_ticks, &map->front_right_ticks, &map->rear_left_ticks,
+                                     &map->rear_right_ticks, &map->plc_heartbeat, &map->fix_request,
                                      &map->relocalize_request,
                                      &map->fix_x, &map->fix_y, &map->fix_yaw, &map->fix_status, &map->fix_quality,
                                      &map->fix_request_echo, &map->heartbeat, &map->fix_mode}) {
@@ -44,6 +45,10 @@ bool ReadRegisters(core::YamlMap* parent, core::YamlMap* registers, io::Register
   ReadField(registers, "right_ticks", &map->right_ticks);
   ReadField(registers, "drive_ticks", &map->drive_ticks);
   ReadField(registers, "steering_ticks", &map->steering_ticks);
+  ReadField(registers, "front_left_ticks", &map->front_left_ticks);
+  ReadField(registers, "front_right_ticks", &map->front_right_ticks);
+  ReadField(registers, "rear_left_ticks", &map->rear_left_ticks);
+  ReadField(registers, "rear_right_ticks", &map->rear_right_ticks);
   ReadField(registers, "plc_heartbeat", &map->plc_heartbeat);
   ReadField(registers, "fix_request", &map->fix_request);
   ReadField(registers, "relocalize_request", &map->relocalize_request);

@@ -42,9 +42,9 @@ mosaic::PrefetchOptions PrefetchOptionsFor(const LocalizationSettings& settings,
 
 void PredictTiles(mosaic::TilePrefetcher& prefetcher, const estimation::MotionState& motion,
                   const core::Pose2& vehicle_from_camera) {
-  const double heading = motion.world_from_vehicle.yaw_rad();
   prefetcher.Predict(motion.world_from_vehicle * vehicle_from_camera,
-                     motion.forward_speed_mm_per_s * Eigen::Vector2d(std::cos(heading), std::sin(heading)),
+                     motion.world_from_vehicle.Rotation() *
+                         Eigen::Vector2d(motion.forward_speed_mm_per_s, motion.lateral_speed_mm_per_s),
                      motion.yaw_rate_rad_per_s);
 }
 
@@ -58,6 +58,9 @@ CalibrationErrors CalibrationErrorsShown(const Eigen::Vector2d& states, core::Dr
   if (kind == core::DriveKind::kTricycle) {
     return {{"drive_wheel_scale_percent", "steering_offset_error_deg"},
             {100.0 * states.x(), states.y() * 180.0 / std::numbers::pi}};
+  }
+  if (kind == core::DriveKind::kMecanum) {
+    return {{"wheel_scale_percent", "lateral_scale_percent"}, 100.0 * states};
   }
   return {{"wheel_scale_left_percent", "wheel_scale_right_percent"}, 100.0 * states};
 }

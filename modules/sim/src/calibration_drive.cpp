@@ -67,6 +67,10 @@ bool CalibrationDriveOptions::Check(std::string* why) const {
     *why = "calibration drive: the vehicle and its nominal values must be of one kind";
     return false;
   }
+  if (vehicle.kind == core::DriveKind::kMecanum) {
+    *why = "calibration drive: none for a mecanum vehicle (the localizer learns its scales from fixes)";
+    return false;
+  }
   return true;
 }
 
@@ -90,6 +94,8 @@ CalibrationDriveOptions CalibrationDriveFor(core::DriveKind kind) {
     // lever arm: a longer straight run than a differential drive needs.
     options.straight_mm = 1000.0;
   }
+  // None is made for a mecanum vehicle: Check() says why.
+  if (kind == core::DriveKind::kMecanum) options.vehicle.kind = options.nominal_vehicle.kind = kind;
   return options;
 }
 

@@ -45,6 +45,8 @@ void ReadSimulatorConfig(const YAML::Node& node, const std::string& file_name, S
   route.Optional("stop_s", &r.stop_s);
   route.Optional("curvature_transition_m", &r.curvature_transition_m);
   route.Optional("lateral_deviation_mm", &r.lateral_deviation_mm);
+  route.Optional("crab_amplitude_deg", &r.crab_amplitude_deg);
+  route.Optional("crab_wavelength_m", &r.crab_wavelength_m);
   route.Check(r);
   route.Finish();
 
@@ -163,10 +165,14 @@ void ReadSimulatorConfig(const YAML::Node& node, const std::string& file_name, S
   encoders.Optional("wheelbase_error", &e.wheelbase_error);
   encoders.Optional("steering_offset_error_deg", &e.steering_offset_error_deg);
   encoders.Optional("steering_backlash_deg", &e.steering_backlash_deg);
+  encoders.Optional("mecanum_radius_error", &e.mecanum_radius_error);
+  encoders.Optional("lateral_slip", &e.lateral_slip);
   encoders.Optional("slip_std", &e.slip_std);
   encoders.Optional("initial_left_ticks", &e.initial_left_ticks, IntegerInRange(INT32_MIN, INT32_MAX));
   encoders.Optional("initial_right_ticks", &e.initial_right_ticks, IntegerInRange(INT32_MIN, INT32_MAX));
   encoders.Optional("initial_drive_ticks", &e.initial_drive_ticks, IntegerInRange(INT32_MIN, INT32_MAX));
+  encoders.Optional("initial_rear_left_ticks", &e.initial_rear_left_ticks, IntegerInRange(INT32_MIN, INT32_MAX));
+  encoders.Optional("initial_rear_right_ticks", &e.initial_rear_right_ticks, IntegerInRange(INT32_MIN, INT32_MAX));
   encoders.CheckOwnKeys(e);
   encoders.Finish();
 

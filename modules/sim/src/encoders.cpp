@@ -15,7 +15,7 @@ bool EncoderOptions::Check(std::string* why) const {
     return false;
   }
   for (const double error : {left_radius_error, right_radius_error, track_width_error, drive_radius_error,
-                             wheelbase_error}) {
+                             wheelbase_error, mecanum_radius_error}) {
     if (!(std::abs(error) < 0.5)) {
       *why = "radius, track width and wheelbase errors must be within +-0.5 (relative)";
       return false;
@@ -23,6 +23,10 @@ bool EncoderOptions::Check(std::string* why) const {
   }
   if (!(std::abs(steering_offset_error_deg) <= 10.0) || !(steering_backlash_deg >= 0.0 && steering_backlash_deg <= 5.0)) {
     *why = "steering_offset_error_deg must be within +-10 and steering_backlash_deg in [0, 5]";
+    return false;
+  }
+  if (!(lateral_slip >= 0.0 && lateral_slip < 0.5)) {
+    *why = "lateral_slip must be in [0, 0.5)";
     return false;
   }
   if (!(slip_std >= 0.0 && slip_std < 0.5)) {
@@ -90,6 +94,33 @@ dataset::EncoderSample EncoderModel::Step(core::Timestamp time, const core::Pose
     sample.drive_ticks = counter(options_.initial_drive_ticks, drive_ticks_);
     sample.steering_ticks = static_cast<std::int32_t>(std::lround(
         (gear_rad_ - zero_rad) / (2.0 * std::numbers::pi) * static_cast<double>(nominal.steering_ticks_per_revolution)));
+    return sample;
+  }
+  if (nominal.kind == core::DriveKind::kMecanum) {
+    if (started_) {
+      // The motion between the two poses (dx, dy, dtheta); the wheels turn as the kinematics
+      // on the true geometry ask (WheelTravel), their sideways share 1 / (1 - lateral_slip)
+      // times the motion's.
+      const Eigen::Vector3d twist = core::Between(last_pose_, world_from_vehicle).Log();
+      const double l = 0.5 * (nominal.track_width_mm * (1.0 + options_.track_width_error) +
+                              nominal.wheelbase_mm * (1.0 + options_.wheelbase_error));
+      const double dx = twist.x(), dy = twist.y() / (1.0 - options_.lateral_slip), turn = l * twist.z();
+      const double radius = nominal.mecanum_wheel_radius_mm * (1.0 + options_.mecanum_radius_error);
+      const double ticks_per_mm = static_cast<double>(nominal.ticks_per_revolution) / (2.0 * std::numbers::pi * radius);
+      std::normal_distribution<double> slip(0.0, options_.slip_std);
+      left_ticks_ += (dx - dy - turn) * (1.0 + slip(rng_)) * ticks_per_mm;
+      right_ticks_ += (dx + dy + turn) * (1.0 + slip(rng_)) * ticks_per_mm;
+      rear_left_ticks_ += (dx + dy - turn) * (1.0 + slip(rng_)) * ticks_per_mm;
+      rear_right_ticks_ += (dx - dy + turn) * (1.0 + slip(rng_)) * ticks_per_mm;
+    }
+    started_ = true;
+    last_pose_ = world_from_vehicle;
+    dataset::EncoderSample sample;
+    sample.time = time;
+    sample.left_ticks = counter(options_.initial_left_ticks, left_ticks_);
+    sample.right_ticks = counter(options_.initial_right_ticks, right_ticks_);
+    sample.rear_left_ticks = counter(options_.initial_rear_left_ticks, rear_left_ticks_);
+    sample.rear_right_ticks = counter(options_.initial_rear_right_ticks, rear_right_ticks_);
     return sample;
   }
   if (started_) {

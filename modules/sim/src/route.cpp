@@ -148,6 +148,10 @@ bool RouteOptions::Check(std::string* why) const {
     *why = "curvature_transition_m must be in [0, 10]";
     return false;
   }
+  if (!(crab_amplitude_deg >= 0.0 && crab_amplitude_deg <= 90.0) || !(crab_wavelength_m >= 0.5)) {
+    *why = "crab_amplitude_deg must be in [0, 90] and crab_wavelength_m >= 0.5";
+    return false;
+  }
   if (!(lateral_deviation_mm >= 0.0 && lateral_deviation_mm < 100.0)) {
     *why = "lateral_deviation_mm must be in [0, 100)";
     return false;
@@ -313,7 +317,9 @@ VehicleState Drive::At(double time_s) const {
   const double slope_mm_per_m =
       envelope * LateralDeviationSlope(distance) + sign * envelope_slope * LateralDeviationMm(distance);
   // The vehicle's x axis points against the travel direction when reversing.
-  const double heading_rad = std::atan(direction * slope_mm_per_m * 1e-3);
+  const double heading_rad = std::atan(direction * slope_mm_per_m * 1e-3) +
+                            options_.crab_amplitude_deg * std::numbers::pi / 180.0 *
+                                std::sin(2.0 * std::numbers::pi * distance / options_.crab_wavelength_m);
 
   VehicleState state;
   state.world_from_vehicle = centre * core::Pose2(0.0, deviation_mm, heading_rad);

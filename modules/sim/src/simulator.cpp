@@ -191,6 +191,11 @@ bool SimulatorOptions::Check(std::string* why) const {
            "0.5 m is a typical guide path's)";
     return false;
   }
+  if (encoders.nominal.kind != core::DriveKind::kMecanum && route.crab_amplitude_deg > 0.0) {
+    *why = std::string("route.crab_amplitude_deg must be 0 for a ") + core::ToString(encoders.nominal.kind) +
+           " (only a mecanum vehicle moves sideways)";
+    return false;
+  }
   return true;
 }
 
@@ -317,6 +322,13 @@ PlannedDrive::PlannedDrive(const SimulatorOptions& options)
     p["true_wheelbase_mm"] = Number(e.nominal.wheelbase_mm * (1.0 + e.wheelbase_error));
     p["true_steering_offset_deg"] = Number(e.nominal.steering_offset_deg + e.steering_offset_error_deg);
     p["steering_backlash_deg"] = Number(e.steering_backlash_deg);
+  } else if (e.nominal.kind == core::DriveKind::kMecanum) {
+    p["true_mecanum_wheel_radius_mm"] = Number(e.nominal.mecanum_wheel_radius_mm * (1.0 + e.mecanum_radius_error));
+    p["true_track_width_mm"] = Number(e.nominal.track_width_mm * (1.0 + e.track_width_error));
+    p["true_wheelbase_mm"] = Number(e.nominal.wheelbase_mm * (1.0 + e.wheelbase_error));
+    p["lateral_slip"] = Number(e.lateral_slip);
+    p["crab_amplitude_deg"] = Number(options_.route.crab_amplitude_deg);
+    p["crab_wavelength_m"] = Number(options_.route.crab_wavelength_m);
   } else {
     p["true_left_wheel_radius_mm"] = Number(e.nominal.left_wheel_radius_mm * (1.0 + e.left_radius_error));
     p["true_right_wheel_radius_mm"] = Number(e.nominal.right_wheel_radius_mm * (1.0 + e.right_radius_error));

@@ -16,9 +16,14 @@ enum class DriveKind {
   /// drive wheel's encoder, the steering angle's absolute encoder). The origin is the fixed
   /// axle's centre, the one point that never slides sideways.
   kTricycle,
+  /// Four mecanum wheels, each driven and with an encoder (counters: front left, front right,
+  /// rear left, rear right), rollers at 45 degrees in the X arrangement seen from above: the
+  /// vehicle moves sideways as well as forwards and turns. The origin is the centre of the
+  /// four contact points.
+  kMecanum,
 };
-inline constexpr DriveKind kDriveKinds[] = {DriveKind::kDifferential, DriveKind::kTricycle};
-/// "differential" or "tricycle", as files name them.
+inline constexpr DriveKind kDriveKinds[] = {DriveKind::kDifferential, DriveKind::kTricycle, DriveKind::kMecanum};
+/// "differential", "tricycle" or "mecanum", as files name them.
 const char* ToString(DriveKind kind);
 
 /// A vehicle's wheels as calibrated: what turns encoder counts into motion. The one definition
@@ -29,17 +34,22 @@ struct WheelGeometry {
   // Differential drive.
   double left_wheel_radius_mm = 75.0;
   double right_wheel_radius_mm = 75.0;
-  double track_width_mm = 500.0;  ///< distance between the wheel contact points
+  /// Distance between the left and right wheels' contact points (differential, mecanum).
+  double track_width_mm = 500.0;
   /// Of each wheel's encoder (the tricycle's drive wheel's).
   std::int64_t ticks_per_revolution = 4096;
   // Tricycle.
   double drive_wheel_radius_mm = 100.0;
-  double wheelbase_mm = 1000.0;  ///< from the fixed axle's centre to the steered wheel's contact point
+  /// Tricycle: from the fixed axle's centre to the steered wheel's contact point. Mecanum: from
+  /// the rear axle to the front axle.
+  double wheelbase_mm = 1000.0;
   /// Counts of the steering encoder per turn (an absolute encoder: count 0 is its zero).
   std::int64_t steering_ticks_per_revolution = 65536;
   /// The steering angle at count 0, degrees, positive to the left: the wheel points straight
   /// ahead at count -offset. Calibrated; the filter learns what is left of its error.
   double steering_offset_deg = 0.0;
+  // Mecanum (track_width_mm, wheelbase_mm and ticks_per_revolution as above).
+  double mecanum_wheel_radius_mm = 76.0;  ///< the four wheels' (their rollers' envelope)
 
   /// The kind's radii and lengths > 0 and finite, counts per turn >= 1, the steering offset
   /// within +-45 degrees.
@@ -51,12 +61,15 @@ struct WheelGeometry {
 };
 
 /// One reading of a vehicle's encoder counters as the PLC counts them (int32, may wrap); only
-/// the two of its kind are used: left and right (differential), drive and steering (tricycle).
+/// those of its kind are used: left and right (differential), drive and steering (tricycle),
+/// left and right for the front wheels and the two rear ones (mecanum).
 struct EncoderCounts {
   std::int32_t left_ticks = 0;
   std::int32_t right_ticks = 0;
   std::int32_t drive_ticks = 0;
   std::int32_t steering_ticks = 0;
+  std::int32_t rear_left_ticks = 0;
+  std::int32_t rear_right_ticks = 0;
   bool operator==(const EncoderCounts&) const = default;
 };
 

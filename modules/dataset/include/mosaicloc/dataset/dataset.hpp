@@ -48,16 +48,21 @@ struct Frame {
   cv::Mat image;  ///< CV_8UC1, camera width x height
 };
 
-/// One reading of the vehicle's two encoder counters (raw PLC values, which may wrap); which
-/// two is the vehicle's kind (core::DriveKind): a differential drive's left and right wheel, a
-/// tricycle's drive wheel and steering angle. The others stay 0.
+/// One reading of the vehicle's encoder counters (raw PLC values, which may wrap); which are
+/// the vehicle's kind's (core::DriveKind): a differential drive's left and right wheel, a
+/// tricycle's drive wheel and steering angle, a mecanum vehicle's four wheels (left and right
+/// the front ones). The others stay 0.
 struct EncoderSample {
   core::Timestamp time;
   std::int32_t left_ticks = 0;
   std::int32_t right_ticks = 0;
   std::int32_t drive_ticks = 0;
   std::int32_t steering_ticks = 0;
-  core::EncoderCounts counts() const { return {left_ticks, right_ticks, drive_ticks, steering_ticks}; }
+  std::int32_t rear_left_ticks = 0;
+  std::int32_t rear_right_ticks = 0;
+  core::EncoderCounts counts() const {
+    return {left_ticks, right_ticks, drive_ticks, steering_ticks, rear_left_ticks, rear_right_ticks};
+  }
 };
 
 /// Reads a dataset as a stream: frames and encoder samples one at a time, each line and

@@ -82,9 +82,11 @@ struct Metrics {
   std::optional<std::int64_t> relocalizations;  ///< restarts of the filter from a fix (caller)
   /// What the filter learnt of the vehicle's calibration by the end (caller; written when set):
   /// a differential drive's wheel scale errors, a tricycle's drive wheel scale error and the
-  /// error of its calibrated steering offset. A figure that persists is one to recalibrate.
+  /// error of its calibrated steering offset, a mecanum vehicle's wheel scale error and its
+  /// sideways motion's. A figure that persists is one to recalibrate.
   std::optional<double> wheel_scale_left_percent, wheel_scale_right_percent;
   std::optional<double> drive_wheel_scale_percent, steering_offset_error_deg;
+  std::optional<double> wheel_scale_percent, lateral_scale_percent;
   /// Frames from the first to the first fix, and the seconds between them (caller).
   std::optional<std::int64_t> frames_to_first_fix;
   std::optional<double> first_fix_s;

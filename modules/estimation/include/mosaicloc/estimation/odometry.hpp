@@ -13,7 +13,8 @@
 
 namespace mosaicloc::estimation {
 
-/// The vehicle's geometry as calibrated (differential drive or tricycle), and its error model.
+/// The vehicle's geometry as calibrated (differential drive, tricycle or mecanum), and its error
+/// model.
 struct OdometryOptions {
   core::WheelGeometry wheels;
   /// Error model (Siegwart et al., "Introduction to Autonomous Mobile Robots", 2nd ed.,
@@ -39,25 +40,35 @@ enum class OdometryFailure {
 };
 std::string ToString(OdometryFailure failure);
 
-/// What the encoders measured over an increment, before the kinematics turn it into motion:
-/// with it a filter that estimates the calibration's errors c can turn it again.
+/// What the encoders measured over an increment, before the kinematics turn it into motion
+/// (dx, dy, dtheta) in the vehicle frame at its start: with it a filter that estimates the
+/// calibration's errors c can turn it again.
 ///   differential: c = (k_l, k_r), each wheel's travel (1 + k) times the measured;
-///     ds = (L + R) / 2, dtheta = (R - L) / b, b the track width;
+///     dx = (L + R) / 2, dy = 0, dtheta = (R - L) / b, b the track width;
 ///   tricycle: c = (k, delta), the drive wheel's travel (1 + k) times the measured and the
-///     steering angle phi + delta; the fixed axle's centre moves ds = s cos(phi) and turns
-///     dtheta = s sin(phi) / l, l the wheelbase (phi constant over the increment).
+///     steering angle phi + delta; the fixed axle's centre moves dx = s cos(phi), dy = 0 and
+///     turns dtheta = s sin(phi) / l, l the wheelbase (phi constant over the increment);
+///   mecanum: c = (k, k_y), every wheel's travel (1 + k) times the measured (their common
+///     radius) and the sideways motion (1 + k_y) times what the wheels imply (rollers slip when
+///     they carry the vehicle sideways); with the wheels' travels fl, fr, rl, rr and
+///     L = (track width + wheelbase) / 2:
+///       dx = (fl + fr + rl + rr) / 4, dy = (-fl + fr + rl - rr) / 4,
+///       dtheta = (-fl + fr - rl + rr) / (4 L).
 struct WheelTravel {
   core::DriveKind kind = core::DriveKind::kDifferential;
-  double left_mm = 0.0, right_mm = 0.0;       ///< differential
-  double drive_mm = 0.0, steering_rad = 0.0;  ///< tricycle (the calibrated offset applied)
-  double base_mm = 0.0;  ///< track width or wheelbase; 0: no wheel travel (the increment is a pose)
+  double left_mm = 0.0, right_mm = 0.0;            ///< differential; mecanum: the front wheels
+  double rear_left_mm = 0.0, rear_right_mm = 0.0;  ///< mecanum
+  double drive_mm = 0.0, steering_rad = 0.0;       ///< tricycle (the calibrated offset applied)
+  /// Track width, wheelbase, or the mecanum L; 0: no wheel travel (the increment is a pose).
+  double base_mm = 0.0;
 
   bool measured() const { return base_mm > 0.0; }
-  /// (ds mm, dtheta rad) with calibration errors c, and d(ds, dtheta)/dc when asked.
-  Eigen::Vector2d Motion(const Eigen::Vector2d& c, Eigen::Matrix2d* jacobian = nullptr) const;
+  /// (dx mm, dy mm, dtheta rad) with calibration errors c, and d(dx, dy, dtheta)/dc when asked.
+  Eigen::Vector3d Motion(const Eigen::Vector2d& c, Eigen::Matrix<double, 3, 2>* jacobian = nullptr) const;
   /// The share `fraction` of it: the travels scaled, the steering angle the same.
   WheelTravel Part(double fraction) const;
-  /// How far the wheel behind each calibration state rolled, mm: what its random walk grows with.
+  /// How far the wheel behind each calibration state rolled, mm: what its random walk grows
+  /// with (mecanum: the wheels' mean travel and the sideways motion).
   Eigen::Vector2d Rolled() const;
 };
 
@@ -67,6 +78,7 @@ struct OdometryIncrement {
   WheelTravel travel;
   core::Pose2 previous_from_current;  ///< exact arc of constant curvature
   double forward_speed_mps = 0.0;
+  double lateral_speed_mps = 0.0;  ///< to the left; 0 but for a mecanum vehicle
   double yaw_rate_radps = 0.0;
   /// Covariance of previous_from_current (x mm, y mm, yaw rad) in the previous vehicle frame,
   /// from the wheel error model.
@@ -81,7 +93,7 @@ class WheelOdometry {
   explicit WheelOdometry(const OdometryOptions& options,
                          const core::Pose2& world_from_vehicle = core::Pose2::Identity());
 
-  /// Feeds one reading of the counters (the kind's two). On failure the state is unchanged,
+  /// Feeds one reading of the counters (the kind's). On failure the state is unchanged,
   /// and the sample is kept as the new counter reference only after a glitch (so one bad
   /// sample costs one step).
   core::Result<OdometryIncrement, OdometryFailure> Update(core::Timestamp time, const core::EncoderCounts& counts);

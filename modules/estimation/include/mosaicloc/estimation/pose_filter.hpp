@@ -1,5 +1,6 @@
 #pragma once
 
+#include <cmath>
 #include <deque>
 #include <string>
 
@@ -30,9 +31,13 @@ struct PoseFilterOptions {
   /// stays 0), and how fast it may wander (tyre wear, load), per square root of a metre.
   double wheel_scale_sigma = 0.03;
   double wheel_scale_walk_per_sqrt_m = 0.001;
-  /// What the second calibration state is: the right wheel's scale error (differential), or
-  /// the steering angle's offset error (tricycle; the first is then the drive wheel's scale).
+  /// What the second calibration state is: the right wheel's scale error (differential), the
+  /// steering angle's offset error (tricycle; the first is then the drive wheel's scale), or
+  /// the sideways motion's scale error (mecanum; the first is then the four wheels' scale).
   core::DriveKind kind = core::DriveKind::kDifferential;
+  /// Mecanum: the sideways scale error's standard deviation at the start (rollers slip by a
+  /// few per cent when they carry the vehicle sideways); it wanders as the wheel scale does.
+  double lateral_scale_sigma = 0.1;
   /// Tricycle: the steering offset error's standard deviation at the start, and its wander
   /// per square root of a metre driven (wear of the steering gear, a knock).
   double steering_offset_sigma_deg = 1.0;
@@ -48,7 +53,12 @@ struct MotionState {
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
   double forward_speed_mm_per_s = 0.0;
   double yaw_rate_rad_per_s = 0.0;
-  /// The pose at `at` moving on with constant forward speed and yaw rate (also before `time`).
+  double lateral_speed_mm_per_s = 0.0;  ///< to the left; 0 but for a mecanum vehicle
+  /// (forward, lateral, yaw rate): the body twist per second.
+  Eigen::Vector3d Twist() const;
+  /// How fast the vehicle frame's origin moves, mm/s.
+  double speed_mm_per_s() const { return std::hypot(forward_speed_mm_per_s, lateral_speed_mm_per_s); }
+  /// The pose at `at` moving on with the constant twist (also before `time`).
   core::Pose2 PoseAt(core::Timestamp at) const;
 };
 
@@ -66,7 +76,8 @@ struct FixOutcome {
 
 /// Extended Kalman filter on world_from_vehicle (x mm, y mm, yaw rad) and two calibration
 /// errors c of the wheels (differential: the two wheels' scale errors (k_l, k_r); tricycle: the
-/// drive wheel's scale error and the steering offset's error (k, delta rad); WheelTravel),
+/// drive wheel's scale error and the steering offset's error (k, delta rad); mecanum: the
+/// wheels' common scale error and the sideways motion's (k, k_y); WheelTravel),
 /// driven by wheel odometry as its control input and corrected by absolute fixes that may
 /// arrive late.
 ///
@@ -131,8 +142,8 @@ class PoseFilter {
   /// Covariance of the latest pose (x mm, y mm, yaw rad).
   Eigen::Matrix3d covariance() const { return history_.back().covariance.topLeftCorner<3, 3>(); }
   /// The estimated calibration errors c (differential: the wheels' scale errors (k_l, k_r);
-  /// tricycle: the drive wheel's scale error and the steering offset's error in radians) and
-  /// their covariance.
+  /// tricycle: the drive wheel's scale error and the steering offset's error in radians;
+  /// mecanum: the wheels' and the sideways motion's scale errors) and their covariance.
   const Eigen::Vector2d& wheel_scale_error() const { return history_.back().wheel_scale; }
   Eigen::Matrix2d wheel_scale_covariance() const { return history_.back().covariance.bottomRightCorner<2, 2>(); }
 
@@ -174,6 +185,7 @@ class PoseFilter {
   PoseFilterOptions options_;
   std::deque<Node> history_;
   double forward_speed_mm_per_s_ = 0.0;
+  double lateral_speed_mm_per_s_ = 0.0;
   double yaw_rate_rad_per_s_ = 0.0;
   core::Timestamp last_odometry_;  ///< of the latest node made from odometry (or a reset)
 };

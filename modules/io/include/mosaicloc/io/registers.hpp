@@ -39,9 +39,9 @@ struct RegisterField {
 /// The PLC register map (design.md section 6). Inputs are written by the PLC, outputs by
 /// mosaicloc.
 struct RegisterMap {
-  /// Which two counters the PLC provides: a differential drive's left and right wheel
-  /// counters, or a tricycle's drive wheel counter and steering encoder. Only the kind's two
-  /// are read (and checked).
+  /// Which counters the PLC provides: a differential drive's left and right wheel counters, a
+  /// tricycle's drive wheel counter and steering encoder, or a mecanum vehicle's four wheel
+  /// counters. Only the kind's are read (and checked).
   core::DriveKind kind = core::DriveKind::kDifferential;
   // Inputs.
   RegisterField left_ticks{"left_ticks", 0, 32, true, 1.0};
@@ -50,6 +50,10 @@ struct RegisterMap {
   /// The steering angle's absolute encoder (a count of steering_ticks_per_revolution; not a
   /// counter that wraps): 16 bits hold a 16-bit encoder's count, signed or not as the PLC has it.
   RegisterField steering_ticks{"steering_ticks", 2, 32, true, 1.0};
+  RegisterField front_left_ticks{"front_left_ticks", 0, 32, true, 1.0};
+  RegisterField front_right_ticks{"front_right_ticks", 2, 32, true, 1.0};
+  RegisterField rear_left_ticks{"rear_left_ticks", 8, 32, true, 1.0};
+  RegisterField rear_right_ticks{"rear_right_ticks", 10, 32, true, 1.0};
   RegisterField plc_heartbeat{"plc_heartbeat", 4, 16, false, 1.0};
   RegisterField fix_request{"fix_request", 5, 16, false, 1.0};
   /// The PLC adds 1 when the vehicle's pose is unknown (moved while switched off, put down
@@ -67,10 +71,12 @@ struct RegisterMap {
   /// 3 dead reckoning, 4 searching.
   RegisterField fix_mode{"fix_mode", 110, 16, false, 1.0};
 
-  /// The kind's two counters: (left_ticks, right_ticks) or (drive_ticks, steering_ticks).
-  std::array<const RegisterField*, 2> Counters() const;
-  /// The values of those two in a reading.
-  std::array<std::int32_t, 2> CounterValues(const core::EncoderCounts& counts) const;
+  /// The kind's counters: (left_ticks, right_ticks), (drive_ticks, steering_ticks) or
+  /// (front_left_ticks, front_right_ticks, rear_left_ticks, rear_right_ticks).
+  std::vector<const RegisterField*> Counters() const;
+  /// The values of those in a reading (a mecanum vehicle's front wheels are its left_ticks and
+  /// right_ticks).
+  std::vector<std::int32_t> CounterValues(const core::EncoderCounts& counts) const;
   std::vector<const RegisterField*> Inputs() const;
   std::vector<const RegisterField*> Outputs() const;
   /// Every field is valid, no two overlap, and the counters, heartbeats and status have

@@ -301,8 +301,8 @@ class Localizer {
   Eigen::Vector3d rejected_offset_ = Eigen::Vector3d::Zero();
   Eigen::Matrix3d rejected_covariance_ = Eigen::Matrix3d::Zero();
   Eigen::Matrix3d rejected_prediction_covariance_ = Eigen::Matrix3d::Zero();  ///< the filter's, then
-  double fix_speed_mm_per_s_ = 0.0;   ///< forward speed when the last fix was accepted
-  double fix_yaw_rate_rad_per_s_ = 0.0;  ///< and the yaw rate then
+  /// The body twist per second (forward, lateral, yaw rate) when the last fix was accepted.
+  Eigen::Vector3d fix_twist_ = Eigen::Vector3d::Zero();
   /// Consecutive frames without a fix whose prediction, with its uncertainty, lies on the map
   /// (frames without texture neither count nor break the run).
   int unmatched_run_ = 0;

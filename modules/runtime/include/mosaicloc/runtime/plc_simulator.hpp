@@ -34,7 +34,7 @@ struct PlcSimulatorOptions {
 struct PlcSimulatorStatus {
   double seconds = 0.0;  ///< since playback started
   int clients = 0;
-  std::array<std::int32_t, 2> counters{};  ///< the vehicle kind's two counters as played
+  std::vector<std::int32_t> counters;  ///< the vehicle kind's counters as played
   std::uint32_t heartbeat = 0;
   std::int64_t requests = 0, answered = 0, fixes = 0;
   std::optional<double> last_error_mm;

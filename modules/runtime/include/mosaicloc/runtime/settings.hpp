@@ -54,7 +54,8 @@ void PredictTiles(mosaic::TilePrefetcher& prefetcher, const estimation::MotionSt
 /// reads them, under the names metrics.json and a run's summary give them: a differential
 /// drive's wheel scale errors in % (wheel_scale_left_percent, wheel_scale_right_percent), a
 /// tricycle's drive wheel scale error in % and steering offset error in degrees
-/// (drive_wheel_scale_percent, steering_offset_error_deg).
+/// (drive_wheel_scale_percent, steering_offset_error_deg), a mecanum vehicle's wheel and
+/// sideways scale errors in % (wheel_scale_percent, lateral_scale_percent).
 struct CalibrationErrors {
   std::array<const char*, 2> names;
   Eigen::Vector2d values;

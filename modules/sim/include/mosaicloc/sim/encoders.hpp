@@ -10,8 +10,8 @@
 
 namespace mosaicloc::sim {
 
-/// A vehicle's encoders (nominal.kind: a differential drive's two wheels, or a tricycle's drive
-/// wheel and steering angle): the true geometry differs from the calibrated one the dataset
+/// A vehicle's encoders (nominal.kind: a differential drive's two wheels, a tricycle's drive
+/// wheel and steering angle, or a mecanum vehicle's four wheels): the true geometry differs from the calibrated one the dataset
 /// records, wheels slip, counts are quantized to whole ticks and kept as int32 PLC counters
 /// that wrap.
 struct EncoderOptions {
@@ -29,12 +29,20 @@ struct EncoderOptions {
   /// Play in the steering gear between the encoder and the wheel, degrees: the wheel lags the
   /// encoder by up to half of it, on the side it last turned from.
   double steering_backlash_deg = 0.05;
+  // Mecanum (track_width_error and wheelbase_error as above).
+  double mecanum_radius_error = 0.003;  ///< the four wheels' true radius = nominal * (1 + error)
+  /// The rollers slip when they carry the vehicle sideways: it moves (1 - lateral_slip) times
+  /// the sideways distance its wheels' turns imply.
+  double lateral_slip = 0.03;
   double slip_std = 0.002;              ///< relative wheel travel noise per sample
   /// Counter values at the start. Close to the int32 maximum so that every dataset
   /// exercises the wrap-around.
   std::int32_t initial_left_ticks = 2147483647 - 200000;
   std::int32_t initial_right_ticks = 2147483647 - 100000;
   std::int32_t initial_drive_ticks = 2147483647 - 150000;
+  // A mecanum vehicle's rear wheels (its front ones start at initial_left_ticks, initial_right_ticks).
+  std::int32_t initial_rear_left_ticks = -2147483647 + 120000;
+  std::int32_t initial_rear_right_ticks = 2147483647 - 50000;
   bool Check(std::string* why) const;
 };
 
@@ -62,6 +70,8 @@ class EncoderModel {
   double left_ticks_ = 0.0;   ///< exact (fractional) counts since start
   double right_ticks_ = 0.0;
   double drive_ticks_ = 0.0;
+  double rear_left_ticks_ = 0.0;
+  double rear_right_ticks_ = 0.0;
   double wheel_rad_ = 0.0;    ///< the tricycle's true steering angle
   double gear_rad_ = 0.0;     ///< where its steering encoder stands (backlash)
 };

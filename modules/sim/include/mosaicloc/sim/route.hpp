@@ -36,6 +36,11 @@ struct RouteOptions {
   /// Path-following error: a smooth lateral deviation with this standard deviation, mm,
   /// different on every lap (its wavelengths do not divide the lap length).
   double lateral_deviation_mm = 3.0;
+  /// A vehicle that moves sideways (mecanum) need not face where it goes: its heading is the
+  /// path's plus crab_amplitude_deg sin(2 pi s / crab_wavelength_m), s the distance driven. 0:
+  /// it faces along the path, as every other kind must.
+  double crab_amplitude_deg = 0.0;
+  double crab_wavelength_m = 8.0;
   bool Check(std::string* why) const;
 };
 
