@@ -2,7 +2,8 @@
 # registers 0-1 and 2-3, rear left and right in 8-9 and 10-11) while `run` renders the same
 # drive's frames in real time; the vehicle crabs (faces up to 60 degrees off its path) as it
 # goes. The run takes its kind from the drive, reads the four counters over Modbus and answers
-# every fix request.
+# every fix request. Then the same drive recorded, its four counters served by an independent
+# peer (Debian's pymodbus).
 source "$(dirname "$0")/lib.sh"
 TEXTURE="${MOSAICLOC_SHARED_DATA:-}/textures/asphalt_02_2048.jpg"
 if [ ! -f "$TEXTURE" ]; then
@@ -36,4 +37,14 @@ json_check "$SCRATCH/run.jsonl" 'd["fix_rate"] >= 0.95' 'd["lock_losses"] == 0' 
   'd["answered"] == d["requests"]' 'd["encoder_rejected"] == 0' 'd["encoder_samples"] >= 300' \
   'abs(d["wheel_scale_percent"]) < 10' 'abs(d["lateral_scale_percent"]) < 20' '"wheel_scale_left_percent" not in d'
 json_check "$SCRATCH/plc.json" 'd["answered"] >= 5' 'd["fixes_received"] >= 20'
+
+"$MOSAICLOC" --quiet simulate --out "$SCRATCH/run-ds" --config "$SCRATCH/drive.yaml" >/dev/null || fail "simulate the drive"
+PORT=$(free_port)
+printf 'map: %s\ncamera: {source: dataset, dataset: {path: %s}}\nplc: {port: %s}\n' \
+  "$SCRATCH/site.mosaic" "$SCRATCH/run-ds" "$PORT" > "$SCRATCH/peer.yaml"
+run_with_plc "$SCRATCH/peer.yaml" "$SCRATCH/run-ds" "$PORT"
+json_check "$SCRATCH/run.jsonl" 'd["fix_rate"] >= 0.9' 'd["lock_losses"] == 0' 'd["answered"] == d["requests"]' \
+  'd["encoder_rejected"] == 0' 'd["encoder_samples"] >= 300'
+json_check "$SCRATCH/plc.json" 'd["answered"] >= 5' 'd["still_max_error_mm"] <= 0.1' \
+  'all(f["status"] in (0, 1, 2) for f in d["fixes"])'
 finish

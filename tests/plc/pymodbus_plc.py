@@ -2,7 +2,7 @@
 """A PLC written with Debian's python3-pymodbus: an independent Modbus peer for mosaicloc.
 
 It plays a dataset's encoder counters in real time with the register map of design.md
-section 6, beats a heartbeat, asks for fixes, and records every fix it receives with its
+section 6 (the file's two counters in registers 0-3; a mecanum vehicle's rear two also in 8-11), beats a heartbeat, asks for fixes, and records every fix it receives with its
 error against the dataset's ground truth.
 
   --role server  the PLC is the Modbus server; mosaicloc polls it (mosaicloc's client role)
@@ -60,7 +60,7 @@ def read_tum(path):
 
 class Dataset:
     def __init__(self, directory):
-        self.encoders = [(int(r[0]), int(r[1]), int(r[2])) for r in read_csv(os.path.join(directory, "encoders/data.csv"))]
+        self.encoders = [tuple(int(x) for x in r) for r in read_csv(os.path.join(directory, "encoders/data.csv"))]
         frames = read_csv(os.path.join(directory, "cam0/data.csv"))
         self.origin = min(self.encoders[0][0], int(frames[0][0]))
         self.end = max(self.encoders[-1][0], int(frames[-1][0]))
@@ -70,7 +70,7 @@ class Dataset:
 
     def ticks_at(self, ns):
         """The latest sample at or before ns (the first one before the start)."""
-        i = bisect.bisect_right(self.encoders, (ns, 2**40, 2**40)) - 1
+        i = bisect.bisect_right(self.encoders, (ns, 2**40)) - 1
         return self.encoders[max(i, 0)]
 
     def truth_at(self, ns):
@@ -124,14 +124,17 @@ class Plc:
         return (self.dataset_ns(monotonic) - self.data.origin) * 1e-9
 
     def inputs(self, now):
-        """The seven input registers at monotonic time now."""
+        """The input registers at monotonic time now: 0-6, and 7-11 for four counters."""
         ns = self.dataset_ns(now)
-        _, left, right = self.data.ticks_at(ns)
+        counters = list(self.data.ticks_at(ns)[1:])
         t = self.dataset_s(now)
         if self.spike is not None and self.spike <= t < self.spike + 0.03:
-            left, right = left + 1000000, right + 1000000
-        return words32(left, self.low_first) + words32(right, self.low_first) + [
+            counters = [c + 1000000 for c in counters]
+        words = words32(counters[0], self.low_first) + words32(counters[1], self.low_first) + [
             self.heartbeat & 0xFFFF, self.request & 0xFFFF, self.relocalize & 0xFFFF]
+        if len(counters) == 4:  # a mecanum vehicle's rear wheels
+            words += [0] + words32(counters[2], self.low_first) + words32(counters[3], self.low_first)
+        return words
 
     def tick(self, now):
         """One PLC cycle (10 ms): heartbeat and fix requests."""

@@ -66,6 +66,7 @@ bool LiveRunOptions::Check(std::string* why) const {
   if (!in(encoder_timing_sigma_ms, 0.0, 1000.0)) return fail("encoder_timing_sigma_ms must be in [0, 1000]");
   if (!in(stationary_after_ms, 1.0, 60000.0)) return fail("stationary_after_ms must be in [1, 60000]");
   if (!in(counter_period_ms, 0.0, 10000.0)) return fail("counter_period_ms must be in [0, 10000]");
+  if (!in(odometry_bridge_ms, 0.0, 2000.0)) return fail("odometry_bridge_ms must be in [0, 2000]");
   if (!in(start_sigma_mm, 1e-3, 1e5)) return fail("start_sigma_mm must be in [0.001, 100000]");
   if (!in(start_sigma_deg, 1e-4, 180.0)) return fail("start_sigma_deg must be in [0.0001, 180]");
   if (!in(max_encoder_wait_ms, 0.0, 10000.0)) return fail("max_encoder_wait_ms must be in [0, 10000]");
@@ -418,6 +419,8 @@ class LiveRun::Impl {
     core::Timestamp next_cycle = io::MonotonicNow();
     core::Timestamp next_fix = next_cycle;
     std::string invalid_reason = "no reading yet";
+    const auto bridge = core::FromSeconds(config_.odometry_bridge_ms * 1e-3);
+    core::Timestamp outage_start = next_cycle;
     runtime::EncoderStamperOptions stamping;
     stamping.polling = config_.plc.role == "client";
     stamping.counter_period = core::FromSeconds(config_.counter_period_ms * 1e-3);
@@ -443,10 +446,23 @@ class LiveRun::Impl {
         core::Log().warn("PLC: odometry invalid: {}", invalid_reason);
         stats_.odometry_valid = false;
         ++stats_.odometry_outages;
+        outage_start = now;
+      }
+      // Odometry forgets the counters once the outage is too long to bridge (or the PLC is
+      // alive but its heartbeat stale: it stalled long ago).
+      if (!valid && !odometry_suspended_ && (stats_.heartbeat_stale || now - outage_start > bridge)) {
+        odometry_suspended_ = true;
         PushEncoders(Encoder{true, {}});
-      } else if (valid && !stats_.odometry_valid) {
-        if (stats_.odometry_outages > 0) core::Log().info("PLC: odometry valid again");
+      }
+      if (valid && !stats_.odometry_valid) {
+        if (!odometry_suspended_ && stats_.odometry_outages > 0) {
+          core::Log().info("PLC: odometry valid again after {:.0f} ms: the counters bridge the gap",
+                           core::ToSeconds(now - outage_start) * 1e3);
+        } else if (odometry_suspended_ && stats_.odometry_outages > 0) {
+          core::Log().info("PLC: odometry valid again");
+        }
         stats_.odometry_valid = true;
+        odometry_suspended_ = false;
       }
       if (valid) {
         // When the counters took these values (runtime::EncoderStamper).
@@ -554,9 +570,10 @@ class LiveRun::Impl {
         if (!frames_.empty()) {
           const io::CapturedFrame& next = frames_.front();
           // The frame's fix goes in at its own time once the odometry has passed it; without
-          // odometry it waits at most max_wait (then the filter coasts to it).
+          // odometry it waits at most max_wait (then the filter coasts to it), also through an
+          // outage the counters will bridge; it does not wait once odometry is suspended.
           const bool odometry_past = latest_encoder && *latest_encoder >= next.time;
-          if (odometry_past || io::MonotonicNow() - next.time >= max_wait || !stats_.odometry_valid || stop_) {
+          if (odometry_past || io::MonotonicNow() - next.time >= max_wait || odometry_suspended_ || stop_) {
             frame = std::move(frames_.front());
             frames_.pop_front();
           }
@@ -768,6 +785,8 @@ class LiveRun::Impl {
   std::atomic<bool> stop_{false};
   std::atomic<bool> tracking_done_{false};
   std::atomic<bool> relocalize_pending_{false};  // set by the PLC thread, taken by the tracking thread
+  // No counters to wait for: none read yet, or an outage too long to bridge (the PLC thread's).
+  std::atomic<bool> odometry_suspended_{true};
   std::atomic<bool> failed_{false};
   std::exception_ptr error_;
 

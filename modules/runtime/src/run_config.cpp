@@ -195,6 +195,7 @@ RunConfig LoadRunConfig(const std::filesystem::path& file) {
   plc.Optional("encoder_timing_sigma_ms", &config.encoder_timing_sigma_ms);
   plc.Optional("stationary_after_ms", &config.stationary_after_ms);
   plc.Optional("counter_period_ms", &config.counter_period_ms);
+  plc.Optional("odometry_bridge_ms", &config.odometry_bridge_ms);
   plc.CheckOwnKeys(config, {{"plc_cycle_ms", "cycle_ms"}});
   core::YamlMap registers = plc.OptionalMap("registers");
   link.registers.kind = config.vehicle.kind;  // the counters of the vehicle configured

@@ -66,6 +66,12 @@ struct LiveRunOptions {
   /// How often the PLC updates the counter registers, ms. Unchanged counters only say the
   /// vehicle stood still until one update period before they were read.
   double counter_period_ms = 10.0;
+  /// A PLC that does not answer for up to this long (a timeout and a reconnection) is bridged:
+  /// its counters, read again after it, carry the motion over the gap, and frames wait for them
+  /// as for late odometry. A longer outage, or a heartbeat gone stale, makes the next reading
+  /// only re-seed odometry (a PLC that restarted has its counters back at 0). No PLC restarts
+  /// this fast.
+  double odometry_bridge_ms = 200.0;
 
   core::Pose2 start;                         ///< where the vehicle is when the run starts
   /// The start is not known (start.unknown): the whole map is searched through its place
