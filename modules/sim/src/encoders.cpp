@@ -96,34 +96,22 @@ dataset::EncoderSample EncoderModel::Step(core::Timestamp time, const core::Pose
         (gear_rad_ - zero_rad) / (2.0 * std::numbers::pi) * static_cast<double>(nominal.steering_ticks_per_revolution)));
     return sample;
   }
-  if (nominal.kind == core::DriveKind::kMecanum) {
-    if (started_) {
-      // The motion between the two poses (dx, dy, dtheta); the wheels turn as the kinematics
-      // on the true geometry ask (WheelTravel), their sideways share 1 / (1 - lateral_slip)
-      // times the motion's.
-      const Eigen::Vector3d twist = core::Between(last_pose_, world_from_vehicle).Log();
-      const double l = 0.5 * (nominal.track_width_mm * (1.0 + options_.track_width_error) +
-                              nominal.wheelbase_mm * (1.0 + options_.wheelbase_error));
-      const double dx = twist.x(), dy = twist.y() / (1.0 - options_.lateral_slip), turn = l * twist.z();
-      const double radius = nominal.mecanum_wheel_radius_mm * (1.0 + options_.mecanum_radius_error);
-      const double ticks_per_mm = static_cast<double>(nominal.ticks_per_revolution) / (2.0 * std::numbers::pi * radius);
-      std::normal_distribution<double> slip(0.0, options_.slip_std);
-      left_ticks_ += (dx - dy - turn) * (1.0 + slip(rng_)) * ticks_per_mm;
-      right_ticks_ += (dx + dy + turn) * (1.0 + slip(rng_)) * ticks_per_mm;
-      rear_left_ticks_ += (dx + dy - turn) * (1.0 + slip(rng_)) * ticks_per_mm;
-      rear_right_ticks_ += (dx - dy + turn) * (1.0 + slip(rng_)) * ticks_per_mm;
-    }
-    started_ = true;
-    last_pose_ = world_from_vehicle;
-    dataset::EncoderSample sample;
-    sample.time = time;
-    sample.left_ticks = counter(options_.initial_left_ticks, left_ticks_);
-    sample.right_ticks = counter(options_.initial_right_ticks, right_ticks_);
-    sample.rear_left_ticks = counter(options_.initial_rear_left_ticks, rear_left_ticks_);
-    sample.rear_right_ticks = counter(options_.initial_rear_right_ticks, rear_right_ticks_);
-    return sample;
-  }
-  if (started_) {
+  if (started_ && nominal.kind == core::DriveKind::kMecanum) {
+    // The motion between the two poses (dx, dy, dtheta); the wheels turn as the kinematics
+    // on the true geometry ask (WheelTravel), their sideways share 1 / (1 - lateral_slip)
+    // times the motion's.
+    const Eigen::Vector3d twist = core::Between(last_pose_, world_from_vehicle).Log();
+    const double l = 0.5 * (nominal.track_width_mm * (1.0 + options_.track_width_error) +
+                            nominal.wheelbase_mm * (1.0 + options_.wheelbase_error));
+    const double dx = twist.x(), dy = twist.y() / (1.0 - options_.lateral_slip), turn = l * twist.z();
+    const double radius = nominal.mecanum_wheel_radius_mm * (1.0 + options_.mecanum_radius_error);
+    const double ticks_per_mm = static_cast<double>(nominal.ticks_per_revolution) / (2.0 * std::numbers::pi * radius);
+    std::normal_distribution<double> slip(0.0, options_.slip_std);
+    left_ticks_ += (dx - dy - turn) * (1.0 + slip(rng_)) * ticks_per_mm;
+    right_ticks_ += (dx + dy + turn) * (1.0 + slip(rng_)) * ticks_per_mm;
+    rear_left_ticks_ += (dx + dy - turn) * (1.0 + slip(rng_)) * ticks_per_mm;
+    rear_right_ticks_ += (dx - dy + turn) * (1.0 + slip(rng_)) * ticks_per_mm;
+  } else if (started_) {
     // The arc between the two poses: forward travel ds and rotation dtheta; each wheel
     // travels ds -+ dtheta * b / 2 on the true track width b.
     const Eigen::Vector3d twist = core::Between(last_pose_, world_from_vehicle).Log();
@@ -143,6 +131,10 @@ dataset::EncoderSample EncoderModel::Step(core::Timestamp time, const core::Pose
   sample.time = time;
   sample.left_ticks = counter(options_.initial_left_ticks, left_ticks_);
   sample.right_ticks = counter(options_.initial_right_ticks, right_ticks_);
+  if (nominal.kind == core::DriveKind::kMecanum) {
+    sample.rear_left_ticks = counter(options_.initial_rear_left_ticks, rear_left_ticks_);
+    sample.rear_right_ticks = counter(options_.initial_rear_right_ticks, rear_right_ticks_);
+  }
   return sample;
 }
 
