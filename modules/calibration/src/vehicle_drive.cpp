@@ -36,12 +36,12 @@ class WheelAngles {
     for (std::size_t i = 0; i < samples_.size(); ++i) {
       const dataset::EncoderSample& s = samples_[i];
       if (kind_ == core::DriveKind::kTricycle) {
-        if (i > 0) first += estimation::TickDelta(samples_[i - 1].drive_ticks, s.drive_ticks);
-        angles_[i] = {rad_per_tick * first, steering_rad_per_tick * s.steering_ticks};
+        if (i > 0) first += estimation::TickDelta(samples_[i - 1].counts.drive_ticks, s.counts.drive_ticks);
+        angles_[i] = {rad_per_tick * first, steering_rad_per_tick * s.counts.steering_ticks};
       } else {
         if (i > 0) {
-          first += estimation::TickDelta(samples_[i - 1].left_ticks, s.left_ticks);
-          second += estimation::TickDelta(samples_[i - 1].right_ticks, s.right_ticks);
+          first += estimation::TickDelta(samples_[i - 1].counts.left_ticks, s.counts.left_ticks);
+          second += estimation::TickDelta(samples_[i - 1].counts.right_ticks, s.counts.right_ticks);
         }
         angles_[i] = rad_per_tick * Eigen::Vector2d(first, second);
       }

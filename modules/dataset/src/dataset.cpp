@@ -33,10 +33,10 @@ struct EncoderColumns {
   const char* header;
   int count;
   const char* names[4];
-  std::int32_t EncoderSample::*fields[4];
+  std::int32_t core::EncoderCounts::*fields[4];
 };
 EncoderColumns ColumnsOf(core::DriveKind kind) {
-  using S = EncoderSample;
+  using S = core::EncoderCounts;
   switch (kind) {
     case core::DriveKind::kTricycle:
       return {"#timestamp_ns,drive_ticks,steering_ticks", 2, {"drive_ticks", "steering_ticks"},
@@ -282,7 +282,7 @@ std::optional<EncoderSample> DatasetReader::EncoderStream::Next() {
       LineError(csv_, line_number_, std::string(columns.names[i]) + " '" + fields[static_cast<std::size_t>(i) + 1] +
                                         "' is not an int32 counter value");
     }
-    sample.*columns.fields[i] = static_cast<std::int32_t>(value);
+    sample.counts.*columns.fields[i] = static_cast<std::int32_t>(value);
   }
   return sample;
 }
@@ -398,7 +398,7 @@ void DatasetWriter::AddEncoderSample(const EncoderSample& sample) {
   last_encoder_time_ = sample.time;
   const EncoderColumns columns = ColumnsOf(info_.vehicle.kind);
   encoders_csv_ << sample.time.nanoseconds();
-  for (int i = 0; i < columns.count; ++i) encoders_csv_ << "," << sample.*columns.fields[i];
+  for (int i = 0; i < columns.count; ++i) encoders_csv_ << "," << sample.counts.*columns.fields[i];
   encoders_csv_ << "\n";
 }
 

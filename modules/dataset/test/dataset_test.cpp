@@ -77,8 +77,8 @@ TEST(Dataset, RoundTrip) {
   std::vector<EncoderSample> samples;
   while (const auto sample = encoders.Next()) samples.push_back(*sample);
   ASSERT_EQ(samples.size(), 10u);
-  EXPECT_EQ(samples[9].left_ticks, -2147483606);  // 2147483690 wrapped
-  EXPECT_EQ(samples[9].right_ticks, -45);
+  EXPECT_EQ(samples[9].counts.left_ticks, -2147483606);  // 2147483690 wrapped
+  EXPECT_EQ(samples[9].counts.right_ticks, -45);
 
   const auto summary = reader.Validate();
   EXPECT_EQ(summary.frames, 3);
@@ -101,8 +101,8 @@ TEST(Dataset, TricycleRoundTrip) {
     writer.AddFrame(Ms(0), Image(1));
     EncoderSample sample;
     sample.time = Ms(0);
-    sample.drive_ticks = 2147483600;
-    sample.steering_ticks = -1234;
+    sample.counts.drive_ticks = 2147483600;
+    sample.counts.steering_ticks = -1234;
     writer.AddEncoderSample(sample);
     writer.Commit();
   }
@@ -113,9 +113,9 @@ TEST(Dataset, TricycleRoundTrip) {
   auto encoders = reader.Encoders();
   const auto read = encoders.Next();
   ASSERT_TRUE(read.has_value());
-  EXPECT_EQ(read->drive_ticks, 2147483600);
-  EXPECT_EQ(read->steering_ticks, -1234);
-  EXPECT_EQ(read->left_ticks, 0);
+  EXPECT_EQ(read->counts.drive_ticks, 2147483600);
+  EXPECT_EQ(read->counts.steering_ticks, -1234);
+  EXPECT_EQ(read->counts.left_ticks, 0);
   test::WriteFile(scratch / "ds/encoders/data.csv", "#timestamp_ns,left_ticks,right_ticks\n0,1,2\n");
   EXPECT_THAT(ReadError(scratch / "ds"), HasSubstr("encoders/data.csv"));
 }
@@ -132,10 +132,10 @@ TEST(Dataset, MecanumRoundTrip) {
     writer.AddFrame(Ms(0), Image(1));
     EncoderSample sample;
     sample.time = Ms(0);
-    sample.left_ticks = 1;
-    sample.right_ticks = -2;
-    sample.rear_left_ticks = 2147483600;
-    sample.rear_right_ticks = -2147483600;
+    sample.counts.left_ticks = 1;
+    sample.counts.right_ticks = -2;
+    sample.counts.rear_left_ticks = 2147483600;
+    sample.counts.rear_right_ticks = -2147483600;
     writer.AddEncoderSample(sample);
     writer.Commit();
   }
@@ -150,7 +150,7 @@ TEST(Dataset, MecanumRoundTrip) {
   auto encoders = reader.Encoders();
   const auto read = encoders.Next();
   ASSERT_TRUE(read.has_value());
-  EXPECT_EQ(read->counts(), (core::EncoderCounts{1, -2, 0, 0, 2147483600, -2147483600}));
+  EXPECT_EQ(read->counts, (core::EncoderCounts{1, -2, 0, 0, 2147483600, -2147483600}));
   // A row with a differential drive's two counters, and a differential drive's header.
   test::WriteFile(scratch / "ds/encoders/data.csv",
                   "#timestamp_ns,front_left_ticks,front_right_ticks,rear_left_ticks,rear_right_ticks\n0,1,2\n");
@@ -255,7 +255,7 @@ TEST(Dataset, RowsNotAfterTheRowBeforeAreSkipped) {
   for (auto frames = reader.Frames(); const auto frame = frames.Next();) frame_ns.push_back(frame->time.nanoseconds());
   EXPECT_THAT(frame_ns, testing::ElementsAre(0, 66000000));
   std::vector<std::int32_t> ticks;
-  for (auto encoders = reader.Encoders(); const auto sample = encoders.Next();) ticks.push_back(sample->left_ticks);
+  for (auto encoders = reader.Encoders(); const auto sample = encoders.Next();) ticks.push_back(sample->counts.left_ticks);
   EXPECT_THAT(ticks, testing::ElementsAre(1, 2, 4));
   const DatasetReader::Summary summary = reader.Validate();
   EXPECT_EQ(summary.frames, 2);

@@ -163,19 +163,19 @@ PlcInputs InputDecoder::Decode(const std::uint16_t* words, int base) {
   const auto at = [&](const RegisterField& field) { return DecodeCount(field, words + (field.address - base)); };
   PlcInputs inputs;
   if (map_.kind == core::DriveKind::kTricycle) {
-    inputs.drive_ticks = Ticks(map_.drive_ticks, &unwrappers_[0], at(map_.drive_ticks));
+    inputs.counts.drive_ticks = Ticks(map_.drive_ticks, &unwrappers_[0], at(map_.drive_ticks));
     // An absolute angle: its count as read (scaled), never unwrapped.
     const std::int64_t steering = at(map_.steering_ticks);
-    inputs.steering_ticks = static_cast<std::int32_t>(
+    inputs.counts.steering_ticks = static_cast<std::int32_t>(
         map_.steering_ticks.scale == 1.0 ? steering : std::llround(static_cast<double>(steering) * map_.steering_ticks.scale));
   } else if (map_.kind == core::DriveKind::kMecanum) {
-    inputs.left_ticks = Ticks(map_.front_left_ticks, &unwrappers_[0], at(map_.front_left_ticks));
-    inputs.right_ticks = Ticks(map_.front_right_ticks, &unwrappers_[1], at(map_.front_right_ticks));
-    inputs.rear_left_ticks = Ticks(map_.rear_left_ticks, &unwrappers_[2], at(map_.rear_left_ticks));
-    inputs.rear_right_ticks = Ticks(map_.rear_right_ticks, &unwrappers_[3], at(map_.rear_right_ticks));
+    inputs.counts.left_ticks = Ticks(map_.front_left_ticks, &unwrappers_[0], at(map_.front_left_ticks));
+    inputs.counts.right_ticks = Ticks(map_.front_right_ticks, &unwrappers_[1], at(map_.front_right_ticks));
+    inputs.counts.rear_left_ticks = Ticks(map_.rear_left_ticks, &unwrappers_[2], at(map_.rear_left_ticks));
+    inputs.counts.rear_right_ticks = Ticks(map_.rear_right_ticks, &unwrappers_[3], at(map_.rear_right_ticks));
   } else {
-    inputs.left_ticks = Ticks(map_.left_ticks, &unwrappers_[0], at(map_.left_ticks));
-    inputs.right_ticks = Ticks(map_.right_ticks, &unwrappers_[1], at(map_.right_ticks));
+    inputs.counts.left_ticks = Ticks(map_.left_ticks, &unwrappers_[0], at(map_.left_ticks));
+    inputs.counts.right_ticks = Ticks(map_.right_ticks, &unwrappers_[1], at(map_.right_ticks));
   }
   inputs.plc_heartbeat = static_cast<std::uint32_t>(at(map_.plc_heartbeat));
   inputs.fix_request = static_cast<std::uint32_t>(at(map_.fix_request));

@@ -159,8 +159,8 @@ TEST_P(ClientWordOrder, ReadsInputsAndWritesFixesAsThePlcSeesThem) {
   const auto before = MonotonicNow();
   const auto inputs = link->Read();
   ASSERT_TRUE(inputs.ok()) << inputs.error();
-  EXPECT_EQ(inputs.value().left_ticks, -16);
-  EXPECT_EQ(inputs.value().right_ticks, 123456789);
+  EXPECT_EQ(inputs.value().counts.left_ticks, -16);
+  EXPECT_EQ(inputs.value().counts.right_ticks, 123456789);
   EXPECT_EQ(inputs.value().plc_heartbeat, 77U);
   EXPECT_EQ(inputs.value().fix_request, 3U);
   EXPECT_EQ(inputs.value().relocalize_request, 2U);
@@ -338,8 +338,8 @@ TEST(PlcServerTest, PlcWritesInputsAndReadsFixes) {
   ASSERT_EQ(modbus_write_registers(plc, 0, 6, inputs), 6);
   const std::optional<PlcInputs> read = ReadWhenWritten(*link);
   ASSERT_TRUE(read);
-  EXPECT_EQ(read->left_ticks, static_cast<std::int32_t>(left));
-  EXPECT_EQ(read->right_ticks, 1000);
+  EXPECT_EQ(read->counts.left_ticks, static_cast<std::int32_t>(left));
+  EXPECT_EQ(read->counts.right_ticks, 1000);
   EXPECT_EQ(read->plc_heartbeat, 9U);
   EXPECT_EQ(read->fix_request, 4U);
   EXPECT_GE(read->time, before);
@@ -386,9 +386,9 @@ TEST(PlcServerTest, TricycleDriveCounterAndSteeringRegister) {
   ASSERT_EQ(modbus_write_registers(plc, 0, 2, counter), 2);
   std::optional<PlcInputs> read = ReadWhenWritten(*link);
   ASSERT_TRUE(read);
-  EXPECT_EQ(read->drive_ticks, static_cast<std::int32_t>(drive));
-  EXPECT_EQ(read->steering_ticks, -1234);
-  EXPECT_EQ(read->left_ticks, 0);  // not a differential drive's
+  EXPECT_EQ(read->counts.drive_ticks, static_cast<std::int32_t>(drive));
+  EXPECT_EQ(read->counts.steering_ticks, -1234);
+  EXPECT_EQ(read->counts.left_ticks, 0);  // not a differential drive's
   // Past the int32 maximum the counter wraps as odometry takes it; the steering stays absolute.
   const std::uint32_t later = drive + 0x20U;
   const std::uint16_t wrapped[2] = {HighWord(later), LowWord(later)};
@@ -396,8 +396,8 @@ TEST(PlcServerTest, TricycleDriveCounterAndSteeringRegister) {
   ASSERT_EQ(modbus_write_registers(plc, 0, 2, wrapped), 2);
   read = ReadWhenWritten(*link);
   ASSERT_TRUE(read);
-  EXPECT_EQ(read->drive_ticks, static_cast<std::int32_t>(later));
-  EXPECT_EQ(read->steering_ticks, 1500);
+  EXPECT_EQ(read->counts.drive_ticks, static_cast<std::int32_t>(later));
+  EXPECT_EQ(read->counts.steering_ticks, 1500);
   modbus_close(plc);
   modbus_free(plc);
 }
@@ -500,15 +500,15 @@ TEST(PlcRtuTest, ClientAndServerOverAPseudoTerminalPair) {
     ASSERT_TRUE(polling->Write(PlcOutputs{10.0, 20.0, 0.1, 1, 999, 5, 6}).ok()) << polling->stats().last_error;
     const auto at_server = served->Read();
     ASSERT_TRUE(at_server.ok()) << at_server.error();
-    EXPECT_EQ(at_server.value().left_ticks, 1000);
-    EXPECT_EQ(at_server.value().right_ticks, 2000);
+    EXPECT_EQ(at_server.value().counts.left_ticks, 1000);
+    EXPECT_EQ(at_server.value().counts.right_ticks, 2000);
     EXPECT_EQ(at_server.value().plc_heartbeat, 1U);
     EXPECT_EQ(at_server.value().fix_request, 999U);
     ASSERT_TRUE(served->Write(PlcOutputs{-3.0, 4.0, 0.2, 2, 800, 8, 9}).ok());
     const auto at_client = polling->Read();
     ASSERT_TRUE(at_client.ok()) << at_client.error();
-    EXPECT_EQ(at_client.value().left_ticks, -300);
-    EXPECT_EQ(at_client.value().right_ticks, 400);
+    EXPECT_EQ(at_client.value().counts.left_ticks, -300);
+    EXPECT_EQ(at_client.value().counts.right_ticks, 400);
     EXPECT_EQ(at_client.value().plc_heartbeat, 2U);
     EXPECT_EQ(at_client.value().fix_request, 800U);
   }

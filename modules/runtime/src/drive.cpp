@@ -45,7 +45,7 @@ dataset::Trajectory WheelTrajectory(const dataset::DatasetReader& reader, const 
   dataset::Trajectory integrated;
   auto encoders = reader.Encoders();
   while (const auto sample = encoders.Next()) {
-    const auto increment = odometry.Update(sample->time, sample->counts());
+    const auto increment = odometry.Update(sample->time, sample->counts);
     if (!increment) {
       ++*rejected;
       core::Log().warn("{}: encoder sample at {} ns skipped: {}", reader.directory().string(),

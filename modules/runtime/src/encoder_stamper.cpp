@@ -14,7 +14,7 @@ std::optional<dataset::EncoderSample> EncoderStamper::Take(const io::PlcInputs& 
   // period (CountersChangedAt); unchanged counters are passed on only once they have stood
   // still for stationary_after (a vehicle seen moving: moving_stop_factor times that). Served:
   // when the PLC wrote them.
-  const core::EncoderCounts ticks = read.counts();
+  const core::EncoderCounts ticks = read.counts;
   std::optional<core::Timestamp> stamp;
   if (!options_.polling || !have_ticks_) {
     stamp = read.time;
@@ -48,9 +48,7 @@ std::optional<dataset::EncoderSample> EncoderStamper::Take(const io::PlcInputs& 
   last_read_ = read.time;
   if (!stamp) return std::nullopt;
   last_forwarded_ = *stamp;
-  return dataset::EncoderSample{*stamp - options_.latency, read.left_ticks,      read.right_ticks,
-                                read.drive_ticks,                  read.steering_ticks, read.rear_left_ticks,
-                                read.rear_right_ticks};
+  return dataset::EncoderSample{*stamp - options_.latency, read.counts};
 }
 
 }  // namespace mosaicloc::runtime

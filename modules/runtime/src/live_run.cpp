@@ -583,7 +583,7 @@ class LiveRun::Impl {
       for (const Encoder& e : encoders) {
         if (e.suspend) {
           localizer_->SuspendOdometry();
-        } else if (!localizer_->AddEncoders(e.sample.time, e.sample.counts())) {
+        } else if (!localizer_->AddEncoders(e.sample.time, e.sample.counts)) {
           ++stats_.encoder_rejected;
           const auto why = localizer_->last_encoder_failure();
           io::RegisterMap kind_counters;
@@ -591,7 +591,7 @@ class LiveRun::Impl {
           core::Log().warn("run: encoder sample rejected: {} (stamped {:.4f} s, counters {})",
                            why ? estimation::ToString(*why) : std::string("?"),
                            core::ToSeconds(e.sample.time - core::Timestamp()),
-                           fmt::join(kind_counters.CounterValues(e.sample.counts()), ", "));
+                           fmt::join(kind_counters.CounterValues(e.sample.counts), ", "));
         }
       }
       if (!frame) {

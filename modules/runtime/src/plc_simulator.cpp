@@ -204,7 +204,7 @@ PlcSimulatorSummary RunPlcSimulator(const PlcSimulatorOptions& args, const PlcSi
         return f.is_signed && w > f.MaxCount() ? w - modulus : w;
       };
       const auto counters = map.Counters();
-      const auto values = map.CounterValues(current.counts());
+      const auto values = map.CounterValues(current.counts);
       for (std::size_t i = 0; i < counters.size(); ++i) {
         put(*counters[i], wrap(std::llround(values[i] / counters[i]->scale), *counters[i]));
       }
@@ -219,7 +219,7 @@ PlcSimulatorSummary RunPlcSimulator(const PlcSimulatorOptions& args, const PlcSi
         PlcSimulatorStatus status;
         status.seconds = core::ToSeconds(now - playback.start);
         status.clients = server.clients();
-        status.counters = map.CounterValues(current.counts());
+        status.counters = map.CounterValues(current.counts);
         status.heartbeat = heartbeat;
         status.requests = requests;
         status.answered = answered;

@@ -499,7 +499,7 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
   core::Timestamp last_fed = pending->time;
   const auto feed = [&] {
     last_fed = pending->time;
-    if (!localizer.AddEncoders(pending->time, pending->counts())) {
+    if (!localizer.AddEncoders(pending->time, pending->counts)) {
       ++summary.encoder_samples_rejected;
     }
     pending = encoders.Next();

@@ -166,7 +166,7 @@ SoakSummary RunSoak(const SoakOptions& options, const std::function<void(double)
       initialized = true;
     }
     const auto feed = [&] {
-      if (!localizer.AddEncoders(pending->time, pending->counts())) {
+      if (!localizer.AddEncoders(pending->time, pending->counts)) {
         ++summary.encoder_samples_rejected;
       }
       pending = next_encoder();

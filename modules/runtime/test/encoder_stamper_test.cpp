@@ -12,8 +12,8 @@ using std::chrono::milliseconds;
 io::PlcInputs Read(int at_ms, std::int32_t left, std::int32_t right, bool fresh = true) {
   io::PlcInputs in;
   in.time = core::Timestamp() + milliseconds(at_ms);
-  in.left_ticks = left;
-  in.right_ticks = right;
+  in.counts.left_ticks = left;
+  in.counts.right_ticks = right;
   in.fresh = fresh;
   return in;
 }
@@ -38,8 +38,8 @@ TEST(EncoderStamper, AChangeIsDatedWithinTheLastCounterPeriodBeforeTheRead) {
   EXPECT_EQ(soon->time, io::CountersChangedAt(core::Timestamp() + milliseconds(100),
                                               core::Timestamp() + milliseconds(104), milliseconds(10)) -
                             milliseconds(2));
-  EXPECT_EQ(soon->left_ticks, 5);
-  EXPECT_EQ(soon->right_ticks, 6);
+  EXPECT_EQ(soon->counts.left_ticks, 5);
+  EXPECT_EQ(soon->counts.right_ticks, 6);
   // A late read (60 ms on): within the last 10 ms before it, not back to the previous read.
   const auto late = stamper.Take(Read(164, 9, 9));
   ASSERT_TRUE(late);

@@ -159,13 +159,13 @@ CalibrationDriveSummary WriteCalibrationDrive(const CalibrationDriveOptions& opt
     dataset::EncoderSample sample;
     sample.time = time;
     if (tricycle) {
-      sample.drive_ticks = static_cast<std::int32_t>(std::lround(drive_rad * ticks_per_rad));
+      sample.counts.drive_ticks = static_cast<std::int32_t>(std::lround(drive_rad * ticks_per_rad));
       const double read_rad = steering_rad - options.vehicle.steering_offset_deg * M_PI / 180.0;
-      sample.steering_ticks = static_cast<std::int32_t>(
+      sample.counts.steering_ticks = static_cast<std::int32_t>(
           std::lround(read_rad * static_cast<double>(options.vehicle.steering_ticks_per_revolution) / (2.0 * M_PI)));
     } else {
-      sample.left_ticks = static_cast<std::int32_t>(std::lround(left_rad * ticks_per_rad));
-      sample.right_ticks = static_cast<std::int32_t>(std::lround(right_rad * ticks_per_rad));
+      sample.counts.left_ticks = static_cast<std::int32_t>(std::lround(left_rad * ticks_per_rad));
+      sample.counts.right_ticks = static_cast<std::int32_t>(std::lround(right_rad * ticks_per_rad));
     }
     writer.AddEncoderSample(sample);
     truth.push_back({time, world_from_vehicle});

@@ -91,8 +91,8 @@ dataset::EncoderSample EncoderModel::Step(core::Timestamp time, const core::Pose
     const double zero_rad = (nominal.steering_offset_deg + options_.steering_offset_error_deg) * std::numbers::pi / 180.0;
     dataset::EncoderSample sample;
     sample.time = time;
-    sample.drive_ticks = counter(options_.initial_drive_ticks, drive_ticks_);
-    sample.steering_ticks = static_cast<std::int32_t>(std::lround(
+    sample.counts.drive_ticks = counter(options_.initial_drive_ticks, drive_ticks_);
+    sample.counts.steering_ticks = static_cast<std::int32_t>(std::lround(
         (gear_rad_ - zero_rad) / (2.0 * std::numbers::pi) * static_cast<double>(nominal.steering_ticks_per_revolution)));
     return sample;
   }
@@ -129,11 +129,11 @@ dataset::EncoderSample EncoderModel::Step(core::Timestamp time, const core::Pose
   last_pose_ = world_from_vehicle;
   dataset::EncoderSample sample;
   sample.time = time;
-  sample.left_ticks = counter(options_.initial_left_ticks, left_ticks_);
-  sample.right_ticks = counter(options_.initial_right_ticks, right_ticks_);
+  sample.counts.left_ticks = counter(options_.initial_left_ticks, left_ticks_);
+  sample.counts.right_ticks = counter(options_.initial_right_ticks, right_ticks_);
   if (nominal.kind == core::DriveKind::kMecanum) {
-    sample.rear_left_ticks = counter(options_.initial_rear_left_ticks, rear_left_ticks_);
-    sample.rear_right_ticks = counter(options_.initial_rear_right_ticks, rear_right_ticks_);
+    sample.counts.rear_left_ticks = counter(options_.initial_rear_left_ticks, rear_left_ticks_);
+    sample.counts.rear_right_ticks = counter(options_.initial_rear_right_ticks, rear_right_ticks_);
   }
   return sample;
 }

@@ -20,14 +20,14 @@ TEST(EncoderModel, StraightRunCountsWithRadiusErrorAndWraps) {
   options.right_radius_error = 0.01;
   EncoderModel model(options, 1);
   const auto first = model.Step(Ms(0), core::Pose2());
-  EXPECT_EQ(first.left_ticks, options.initial_left_ticks);
+  EXPECT_EQ(first.counts.left_ticks, options.initial_left_ticks);
   // 30 m forward: each wheel turns 30000 / (2 pi 75.75) revolutions.
   const auto last = model.Step(Ms(30000), core::Pose2(30000.0, 0.0, 0.0));
   const double expected = 30000.0 / (2.0 * std::numbers::pi * 75.0 * 1.01) * 4096.0;
-  const std::int64_t left_delta = estimation::TickDelta(first.left_ticks, last.left_ticks);
+  const std::int64_t left_delta = estimation::TickDelta(first.counts.left_ticks, last.counts.left_ticks);
   EXPECT_NEAR(static_cast<double>(left_delta), expected, 1.0);
   // The counter went past the int32 maximum.
-  EXPECT_LT(last.left_ticks, 0);
+  EXPECT_LT(last.counts.left_ticks, 0);
 }
 
 TEST(EncoderModel, DeadReckoningShowsTheScaleError) {
@@ -41,7 +41,7 @@ TEST(EncoderModel, DeadReckoningShowsTheScaleError) {
   estimation::WheelOdometry odometry(odometry_options);
   for (int i = 0; i <= 1000; ++i) {
     const auto sample = model.Step(Ms(10 * i), core::Pose2(5.0 * i, 0.0, 0.0));
-    ASSERT_TRUE(odometry.Update(sample.time, sample.counts()).ok());
+    ASSERT_TRUE(odometry.Update(sample.time, sample.counts).ok());
   }
   EXPECT_NEAR(odometry.world_from_vehicle().x_mm(), 5000.0 / 1.01, 0.5);
 }
@@ -55,7 +55,7 @@ TEST(EncoderModel, TurnInPlaceUsesTheTrueTrackWidth) {
   estimation::WheelOdometry odometry(estimation::OdometryOptions{});
   for (int i = 0; i <= 100; ++i) {
     const auto sample = model.Step(Ms(10 * i), core::Pose2(0.0, 0.0, std::numbers::pi / 2 * i / 100.0));
-    ASSERT_TRUE(odometry.Update(sample.time, sample.counts()).ok());
+    ASSERT_TRUE(odometry.Update(sample.time, sample.counts).ok());
   }
   // Wheels travel 2 % further than the nominal track width predicts.
   EXPECT_NEAR(odometry.world_from_vehicle().yaw_rad(), std::numbers::pi / 2 * 1.02, 2e-3);
@@ -72,9 +72,9 @@ TEST(EncoderModel, SameSeedSameCounts) {
     const auto sa = a.Step(Ms(10 * i), pose);
     const auto sb = b.Step(Ms(10 * i), pose);
     const auto sc = c.Step(Ms(10 * i), pose);
-    EXPECT_EQ(sa.left_ticks, sb.left_ticks);
-    EXPECT_EQ(sa.right_ticks, sb.right_ticks);
-    any_different = any_different || sa.left_ticks != sc.left_ticks;
+    EXPECT_EQ(sa.counts.left_ticks, sb.counts.left_ticks);
+    EXPECT_EQ(sa.counts.right_ticks, sb.counts.right_ticks);
+    any_different = any_different || sa.counts.left_ticks != sc.counts.left_ticks;
   }
   EXPECT_TRUE(any_different);
 }
@@ -103,23 +103,23 @@ TEST(EncoderModel, TricycleReadsTheSteeringAngleAndTheDriveWheelsPath) {
   std::vector<dataset::EncoderSample> samples;
   for (int i = 0; i <= 200; ++i) samples.push_back(model.Step(Ms(10 * i), pose(i), pose(i) * core::Pose2(1.0, 0.0, 1.0 / radius)));
   const double phi = std::atan(1200.0 / radius);
-  const double read_rad = 2.0 * std::numbers::pi * samples[100].steering_ticks / static_cast<double>(1 << 20);
+  const double read_rad = 2.0 * std::numbers::pi * samples[100].counts.steering_ticks / static_cast<double>(1 << 20);
   EXPECT_NEAR(read_rad, phi - 0.5 * std::numbers::pi / 180.0, 1e-5);
   const double wheel_path_mm = std::hypot(radius, 1200.0) * step_rad * 200;
-  const double turns = estimation::TickDelta(samples.front().drive_ticks, samples.back().drive_ticks) / 4096.0;
+  const double turns = estimation::TickDelta(samples.front().counts.drive_ticks, samples.back().counts.drive_ticks) / 4096.0;
   EXPECT_NEAR(turns * 2.0 * std::numbers::pi * 101.0, wheel_path_mm, 0.2);
-  EXPECT_EQ(samples.back().left_ticks, 0);  // not a differential drive's counters
+  EXPECT_EQ(samples.back().counts.left_ticks, 0);  // not a differential drive's counters
 
   // Odometry with the calibrated (nominal) geometry: short by 1 %, and turning too little.
   estimation::OdometryOptions odometry_options;
   odometry_options.wheels = options.nominal;
   estimation::WheelOdometry odometry(odometry_options);
-  for (const auto& sample : samples) ASSERT_TRUE(odometry.Update(sample.time, sample.counts()).ok());
+  for (const auto& sample : samples) ASSERT_TRUE(odometry.Update(sample.time, sample.counts).ok());
   EXPECT_LT(odometry.world_from_vehicle().yaw_rad(), step_rad * 200);
   odometry_options.wheels.drive_wheel_radius_mm = 101.0;
   odometry_options.wheels.steering_offset_deg = 0.5;
   estimation::WheelOdometry corrected(odometry_options);
-  for (const auto& sample : samples) ASSERT_TRUE(corrected.Update(sample.time, sample.counts()).ok());
+  for (const auto& sample : samples) ASSERT_TRUE(corrected.Update(sample.time, sample.counts).ok());
   EXPECT_LT(core::Distance(corrected.world_from_vehicle(), pose(200)), 0.5);
   EXPECT_NEAR(corrected.world_from_vehicle().yaw_rad(), step_rad * 200, 1e-4);
 }
@@ -147,11 +147,11 @@ TEST(EncoderModel, MecanumWheelsFollowTheKinematicsAndTheRollersSlipSideways) {
     return std::make_pair(samples, pose * step.Inverse());
   };
   const auto [exact, truth] = drive(options);
-  EXPECT_EQ(exact.back().drive_ticks, 0);  // not a tricycle's counters
+  EXPECT_EQ(exact.back().counts.drive_ticks, 0);  // not a tricycle's counters
   estimation::OdometryOptions odometry_options;
   odometry_options.wheels = options.nominal;
   estimation::WheelOdometry odometry(odometry_options);
-  for (const auto& sample : exact) ASSERT_TRUE(odometry.Update(sample.time, sample.counts()).ok());
+  for (const auto& sample : exact) ASSERT_TRUE(odometry.Update(sample.time, sample.counts).ok());
   EXPECT_LT(core::Distance(odometry.world_from_vehicle(), truth), 0.2) << "quantization only";
   EXPECT_NEAR(odometry.world_from_vehicle().yaw_rad(), truth.yaw_rad(), 1e-4);
 
@@ -161,7 +161,7 @@ TEST(EncoderModel, MecanumWheelsFollowTheKinematicsAndTheRollersSlipSideways) {
   estimation::OdometryIncrement last;
   double sideways_mm = 0.0, mended_mm = 0.0;
   for (const auto& sample : slipping) {
-    const auto increment = overshooting.Update(sample.time, sample.counts());
+    const auto increment = overshooting.Update(sample.time, sample.counts);
     ASSERT_TRUE(increment.ok());
     if (!increment.value().travel.measured()) continue;
     sideways_mm += increment.value().travel.Motion(Eigen::Vector2d::Zero()).y();

@@ -79,7 +79,7 @@ TEST(PlannedDrive, PlaysWhatSimulateWrites) {
     const auto computed = played.Next();
     ASSERT_TRUE(computed) << "sample " << samples;
     EXPECT_EQ(computed->time, sample->time);
-    EXPECT_EQ(computed->counts(), sample->counts()) << "sample " << samples;
+    EXPECT_EQ(computed->counts, sample->counts) << "sample " << samples;
     ++samples;
   }
   EXPECT_FALSE(played.Next()) << "no sample past the recording's last";

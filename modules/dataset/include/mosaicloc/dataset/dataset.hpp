@@ -54,15 +54,7 @@ struct Frame {
 /// the front ones). The others stay 0.
 struct EncoderSample {
   core::Timestamp time;
-  std::int32_t left_ticks = 0;
-  std::int32_t right_ticks = 0;
-  std::int32_t drive_ticks = 0;
-  std::int32_t steering_ticks = 0;
-  std::int32_t rear_left_ticks = 0;
-  std::int32_t rear_right_ticks = 0;
-  core::EncoderCounts counts() const {
-    return {left_ticks, right_ticks, drive_ticks, steering_ticks, rear_left_ticks, rear_right_ticks};
-  }
+  core::EncoderCounts counts;  ///< the vehicle kind's counters; the others 0
 };
 
 /// Reads a dataset as a stream: frames and encoder samples one at a time, each line and

@@ -47,15 +47,8 @@ struct PlcInputs {
   bool fresh = true;
   /// Raw counters as odometry takes them: modulo 2^32 (the register map's kind's two; the
   /// tricycle's steering count as the encoder reads it).
-  std::int32_t left_ticks = 0;
-  std::int32_t right_ticks = 0;
-  std::int32_t drive_ticks = 0;
-  std::int32_t steering_ticks = 0;
-  std::int32_t rear_left_ticks = 0;  ///< mecanum (its front wheels are left_ticks and right_ticks)
-  std::int32_t rear_right_ticks = 0;
-  core::EncoderCounts counts() const {
-    return {left_ticks, right_ticks, drive_ticks, steering_ticks, rear_left_ticks, rear_right_ticks};
-  }
+  /// A mecanum vehicle's front wheels are left_ticks and right_ticks.
+  core::EncoderCounts counts;
   std::uint32_t plc_heartbeat = 0;
   std::uint32_t fix_request = 0;
   std::uint32_t relocalize_request = 0;
