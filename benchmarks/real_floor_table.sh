@@ -20,8 +20,8 @@
 #    across painted bands of growing size; each frame's share of the view over the change.
 #  MAP_POSES=estimated paints the geometry and fast tables' maps at the poses `map build`
 #    estimates from the mapping drive's frames and encoders instead of at the true poses (a
-#    self-built map: on an uneven floor its own error, about 1 mm for the uneven cases, then
-#    shows in every fix).
+#    self-built map, checked in its own frame: on an uneven floor its own shape's error, about
+#    1 mm for the uneven cases, then shows in every fix).
 # Usage: [CASES="flat susp ..."] [MAP_POSES=groundtruth|estimated] benchmarks/real_floor_table.sh [MOSAICLOC] [WORK_DIR] [TABLES] [FLOORS]
 #        TABLES: any of "geometry fast changes share" (default all); FLOORS: any of
 #        "procedural asphalt brick" (default all three; the textures need ../shared/data)
@@ -97,7 +97,16 @@ geometry_table() {
     local map="$d/map-$MAP_POSES.mosaic"
     [ -d "$d/map" ] || "$MOSAICLOC" -q simulate --out "$d/map" --overwrite --floor "$floor" --route "$route" \
         --laps 1 --speed-mps 0.5 --seed 21 --config "$d/map.yaml" >/dev/null
-    [ -f "$map" ] || "$MOSAICLOC" -q map build --dataset "$d/map" --out "$map" --overwrite "${MAP_POSES_ARGS[@]}" >/dev/null
+    local reporting=()
+    [ "$MAP_POSES" = estimated ] && reporting=(--report "$d/map-report")
+    [ -f "$map" ] || "$MOSAICLOC" -q map build --dataset "$d/map" --out "$map" --overwrite "${MAP_POSES_ARGS[@]}" \
+      "${reporting[@]}" >/dev/null
+    # A self-built map has a frame of its own: the truth is checked in it (the mapping report's
+    # best rigid alignment), so the fixes' errors are the localization's and the map's shape's.
+    local placement=()
+    if [ "$MAP_POSES" = estimated ]; then
+      placement=("--truth-from-map=$("$PYTHON" -c 'import json,sys; t=json.load(open(sys.argv[1]))["vs_groundtruth"]["truth_from_map"]; print("%.9f,%.9f,%.12f" % (t["x_mm"], t["y_mm"], t["yaw_deg"]))' "$d/map-report/consistency.json")")
+    fi
     [ -d "$d/drive" ] || "$MOSAICLOC" -q simulate --out "$d/drive" --floor "$floor" --route "$route" --laps 1 \
       --speed-mps "$speed" --seed 22 --config "$d/drive.yaml" >/dev/null
     for tracker in default tilt; do
@@ -107,7 +116,7 @@ geometry_table() {
       fi
       local report="$d/$tracker-$MAP_POSES"
       rm -rf "${report:?}"
-      "$MOSAICLOC" -q replay --dataset "$d/drive" --map "$map" --out "$report" "${config[@]}" >/dev/null 2>&1 || true
+      "$MOSAICLOC" -q replay --dataset "$d/drive" --map "$map" --out "$report" "${config[@]}" "${placement[@]}" >/dev/null 2>&1 || true
       row "$c $tracker" "$d" "$report"
     done
   done

@@ -54,6 +54,11 @@ void PrintLimits(const localizer::SpeedLimitOptions& o, const localizer::SpeedLi
   } else {
     std::printf("relief: none (floor.relief_depth_mm 0)\n");
   }
+  std::printf("mapping by chaining frames (map build, automatic mapping):\n");
+  std::printf("  scale error of a step   dh / h                          = %7.2g       (dh = %.3g mm: the camera's height wanders)\n",
+              l.mapping_scale_error, o.height_variation_mm);
+  std::printf("  drift between loops     L dh / h                        = %7.3f mm    (L = %.3g m between loop closures)\n",
+              l.mapping_drift_mm, o.loop_spacing_m);
   std::printf("\n");
   const double visual_odometry_max = 1.0 - o.required_overlap;
   std::printf("at %.2f m/s: step S = %.1f mm per frame, instability ratio S / Lambda = %.3f (frame-to-frame needs < %.2f),\n",
@@ -107,6 +112,8 @@ Action AddLimitsCommand(CLI::App& app, const GlobalOptions& global) {
         {"relief_parallax_mm", limits.relief_parallax_mm},
         {"relief_shadow_mm", limits.relief_shadow_mm},
         {"relief_distortion_speed_limit_mps", limits.relief_distortion_limit_mps},
+        {"mapping_scale_error", limits.mapping_scale_error},
+        {"mapping_drift_mm", limits.mapping_drift_mm},
         {"speed_mps", options.speed_mps},
         {"step_mm", limits.step_mm},
         {"instability_ratio", limits.instability_ratio},

@@ -23,6 +23,8 @@ bool SpeedLimitOptions::Check(std::string* why) const {
   if (!std::isfinite(travel_direction_rad)) return fail("travel_direction_rad must be finite");
   if (!(depth_gradient > 0.0)) return fail("depth_gradient must be > 0");
   if (!(relief_depth_mm >= 0.0 && relief_depth_mm <= 100.0)) return fail("relief_depth_mm must be in [0, 100]");
+  if (!(height_variation_mm >= 0.0 && height_variation_mm <= 100.0)) return fail("height_variation_mm must be in [0, 100]");
+  if (!(loop_spacing_m > 0.0 && loop_spacing_m <= 100000.0)) return fail("loop_spacing_m must be in (0, 100000]");
   if (!(light_ring_radius_mm >= 0.0 && light_ring_radius_mm <= 1000.0)) {
     return fail("light_ring_radius_mm must be in [0, 1000]");
   }
@@ -106,6 +108,9 @@ SpeedLimits AnalyseSpeedLimits(const SpeedLimitOptions& options) {
     limits.relief_distortion_limit_mps = 1e-3 * options.distortion_tolerance_px * s * (h + d) / (d * cycle_s);
   }
 
+  limits.mapping_scale_error = options.height_variation_mm / h;
+  limits.mapping_drift_mm = 1e3 * options.loop_spacing_m * limits.mapping_scale_error;
+
   limits.step_mm = 1e3 * options.speed_mps * cycle_s;
   limits.instability_ratio = limits.step_mm / limits.footprint_along_mm;
   limits.blur_px = 1e3 * options.speed_mps * exposure_s / s;
@@ -137,6 +142,8 @@ SpeedLimitOptions LoadSpeedLimitConfig(const std::filesystem::path& file) {
   core::YamlMap floor = root.OptionalMap("floor");
   floor.Optional("depth_gradient", &o.depth_gradient);
   floor.Optional("relief_depth_mm", &o.relief_depth_mm);
+  floor.Optional("height_variation_mm", &o.height_variation_mm);
+  floor.Optional("loop_spacing_m", &o.loop_spacing_m);
   floor.CheckOwnKeys(o);
   floor.Finish();
   core::YamlMap tracker = root.OptionalMap("tracker");

@@ -53,6 +53,24 @@ TEST(SpeedLimits, ReliefTerms) {
   EXPECT_NEAR((corner_mm - seen_at) / 0.25, 400.0 * 2.0 / 202.0, 1e-9);
 }
 
+// A camera whose height over the floor wanders by 0.15 mm at 200 mm: each chained step is
+// off by 7.5e-4, 2.25 mm over 3 m between loop closures. The simulator's 1 mm RMS floor gives
+// that wander, and its one-lap 11 m map with two loop closures is 1.0-1.1 mm RMS off.
+TEST(SpeedLimits, MappingOverAnUnevenFloorDriftsBetweenLoops) {
+  SpeedLimitOptions options;
+  SpeedLimits limits = AnalyseSpeedLimits(options);
+  EXPECT_NEAR(limits.mapping_scale_error, 7.5e-4, 1e-12);
+  EXPECT_NEAR(limits.mapping_drift_mm, 2.25, 1e-9);
+  options.loop_spacing_m = 1.0;
+  options.height_variation_mm = 0.0;  // a telecentric lens, or a height measured and taken out
+  limits = AnalyseSpeedLimits(options);
+  EXPECT_EQ(limits.mapping_drift_mm, 0.0);
+  options.loop_spacing_m = 0.0;
+  std::string why;
+  EXPECT_FALSE(options.Check(&why));
+  EXPECT_NE(why.find("loop_spacing_m"), std::string::npos);
+}
+
 TEST(SpeedLimits, TravelAlongTheShortSideHalvesLess) {
   SpeedLimitOptions options;
   options.travel_direction_rad = std::numbers::pi / 2.0;  // along image up: 480 px of footprint

@@ -36,6 +36,12 @@ struct SpeedLimitOptions {
   /// The floor's relief: how deep its joints, grout or pits lie below the top surface the
   /// camera is calibrated to, mm (0: a flat floor).
   double relief_depth_mm = 0.0;
+  /// How much the camera's height over the floor under it wanders along a mapping drive (an
+  /// uneven floor felt through the wheels, a load), one standard deviation, mm.
+  double height_variation_mm = 0.15;
+  /// The path a mapping drive covers between loop closures (where it comes back over floor it
+  /// mapped), m: nothing but the registrations holds the chain in between.
+  double loop_spacing_m = 3.0;
   /// The ring light carried with the camera: its radius around the lens, mm (in the lens's
   /// plane).
   double light_ring_radius_mm = 50.0;
@@ -120,6 +126,14 @@ struct SpeedLimits {
   /// the tops drift more than e apart between consecutive frames. Binds frame-to-frame
   /// registration (visual odometry and the mapping chain).
   double relief_distortion_limit_mps = 0.0;
+
+  // Mapping by chaining frames over a floor whose height under the camera wanders by dh.
+  /// A registered step is measured at the calibrated scale: a camera dh higher makes it dh / h
+  /// short, relative (the registrations' own relative scales cannot tell: section 7a).
+  double mapping_scale_error = 0.0;
+  /// How far the chain can be off between two loop closures L apart where the height stays
+  /// dh off: L dh / h, mm.
+  double mapping_drift_mm = 0.0;
 
   // At speed_mps.
   double step_mm = 0.0;            ///< S
