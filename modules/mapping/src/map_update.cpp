@@ -25,14 +25,18 @@ struct CellComparison {
   double n = 0.0, sum_l = 0.0, sum_m = 0.0, sum_ll = 0.0, sum_lm = 0.0;
 };
 
-// Compares two equally sized 8-bit blocks: the ZNCC where both are textured, the means where
-// both are flat, and a flat block against a textured one is changed.
-CellComparison CompareCell(const cv::Mat& live, const cv::Mat& map, const MapUpdateOptions& options) {
-  double sum_l = 0.0, sum_m = 0.0, sum_ll = 0.0, sum_mm = 0.0, sum_lm = 0.0;
+// Compares two equally sized 8-bit blocks over the pixels `mask` marks (all when it is
+// empty): the ZNCC where both are textured, the means where both are flat, and a flat block
+// against a textured one is changed.
+CellComparison CompareCell(const cv::Mat& live, const cv::Mat& map, const cv::Mat& mask, const MapUpdateOptions& options) {
+  double sum_l = 0.0, sum_m = 0.0, sum_ll = 0.0, sum_mm = 0.0, sum_lm = 0.0, count = 0.0;
   for (int r = 0; r < live.rows; ++r) {
     const std::uint8_t* l = live.ptr<std::uint8_t>(r);
     const std::uint8_t* m = map.ptr<std::uint8_t>(r);
+    const std::uint8_t* k = mask.empty() ? nullptr : mask.ptr<std::uint8_t>(r);
     for (int c = 0; c < live.cols; ++c) {
+      if (k != nullptr && k[c] == 0) continue;
+      count += 1.0;
       const double a = l[c], b = m[c];
       sum_l += a;
       sum_m += b;
@@ -41,7 +45,7 @@ CellComparison CompareCell(const cv::Mat& live, const cv::Mat& map, const MapUpd
       sum_lm += a * b;
     }
   }
-  const double n = static_cast<double>(live.total());
+  const double n = std::max(count, 1.0);
   const double mean_l = sum_l / n, mean_m = sum_m / n;
   const double var_l = std::max(0.0, sum_ll / n - mean_l * mean_l);
   const double var_m = std::max(0.0, sum_mm / n - mean_m * mean_m);
@@ -86,6 +90,7 @@ bool MapUpdateOptions::Check(std::string* why) const {
   if (!(max_ambiguity > -1.0)) return fail("max_ambiguity must be > -1");
   if (!(compare_every_fraction > 0.0)) return fail("compare_every_fraction must be > 0");
   if (!(margin_px >= 0.0)) return fail("margin_px must be >= 0");
+  if (!(min_judged_share > 0.0 && min_judged_share <= 1.0)) return fail("min_judged_share must be in (0, 1]");
   return true;
 }
 
@@ -205,14 +210,43 @@ std::vector<MapUpdater::CellIndex> MapUpdater::Compare(const UpdateFrame& frame)
   };
   std::vector<Judged> judged;
   std::vector<CellComparison> sums;
+  // Which of those pixels the live frame holds, and which it holds margin_px inside its edge:
+  // a cell at a lane's edge lies partly outside the view as it lies partly outside the map.
+  const auto frame_pixels = [&](int margin) {
+    cv::Mat frame_mask = cv::Mat::zeros(frame.image.size(), CV_8U);
+    if (frame_mask.cols > 2 * margin && frame_mask.rows > 2 * margin) {
+      frame_mask(cv::Rect(margin, margin, frame_mask.cols - 2 * margin, frame_mask.rows - 2 * margin)).setTo(255);
+    }
+    cv::Mat local;
+    cv::warpAffine(frame_mask, local, pixel_from_local, cv::Size(cols, rows), cv::INTER_NEAREST | cv::WARP_INVERSE_MAP,
+                   cv::BORDER_CONSTANT, cv::Scalar(0));
+    return local;
+  };
+  const cv::Mat in_frame = frame_pixels(0);
+  const cv::Mat in_view = frame_pixels(static_cast<int>(std::ceil(m)));
   for (std::int64_t cy = cy0; cy <= cy1; ++cy) {
     for (std::int64_t cx = cx0; cx <= cx1; ++cx) {
       const double i0 = static_cast<double>((cx - cx0) * c), j0 = static_cast<double>((cy - cy0) * c);
       const double i1 = i0 + static_cast<double>(c) - 1.0, j1 = j0 + static_cast<double>(c) - 1.0;
-      if (!inside(i0, j0) || !inside(i1, j0) || !inside(i0, j1) || !inside(i1, j1)) continue;
       const cv::Rect rect(static_cast<int>(i0), static_cast<int>(j0), static_cast<int>(c), static_cast<int>(c));
-      if (!map.all_mapped && cv::countNonZero(map.mask(rect)) != rect.area()) continue;  // not mapped: extension's
-      const CellComparison comparison = CompareCell(live(rect), map.image(rect), options_);
+      const bool whole_in_view = inside(i0, j0) && inside(i1, j0) && inside(i0, j1) && inside(i1, j1);
+      const int mapped = map.all_mapped ? rect.area() : cv::countNonZero(map.mask(rect));
+      cv::Mat judged_pixels;  // empty: all of the cell
+      if (mapped == rect.area()) {
+        // Mapped whole: judged (and rewritten) only from a view that holds it whole; other
+        // views along the lane do.
+        if (!whole_in_view) continue;
+      } else {
+        // At a lane's edge: judged from a frame that holds all of the cell's mapped part (to a
+        // pixel row), so that a rewrite from it repaints that part, on the pixels both the map
+        // and the view hold, when they are min_judged_share of the cell. The unmapped rest is
+        // automatic mapping's.
+        const cv::Mat mapped_pixels = map.mask(rect);
+        if (cv::countNonZero(mapped_pixels & ~in_frame(rect)) > static_cast<int>(c)) continue;
+        judged_pixels = in_view(rect) & mapped_pixels;
+        if (cv::countNonZero(judged_pixels) < options_.min_judged_share * static_cast<double>(rect.area())) continue;
+      }
+      const CellComparison comparison = CompareCell(live(rect), map.image(rect), judged_pixels, options_);
       judged.push_back({{cx, cy}, comparison.changed, comparison.zncc});
       sums.push_back(comparison);
     }

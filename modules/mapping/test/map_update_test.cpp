@@ -31,7 +31,7 @@ class ChangedLane : public ::testing::Test {
     floor_ = sim::MakeImageFloor(options)->Render(0, 0, 3200, 2000);  // world (x, y) mm = texel (c, r) / 4
     changed_ = floor_.clone();
     floor_(cv::Rect(2400, 1400, 160, 160)).copyTo(changed_(changed_square_));
-    for (int i = 0; i < 17; ++i) lane_.emplace_back(150.0 + 30.0 * i, 250.0, 0.0);
+    for (int i = 0; i < 17; ++i) lane_.emplace_back(150.0 + 30.0 * i, lane_y_mm_, 0.0);
     store_ = mosaic::TileStore::Create(scratch_.path() / "site.mosaic", mosaic::MapGrid{});
     mosaic::MapBuilder builder(mosaic::MapGrid{}, mosaic::Blend::kFeather);
     for (const core::Pose2& pose : lane_) builder.AddFrame(Frame(floor_, pose), pose, kUpdateMmPerPx);
@@ -86,7 +86,9 @@ class ChangedLane : public ::testing::Test {
   const camera::IdealCamera camera_{camera::IdealCameraOptions{}};
   test::ScratchDir scratch_;
   cv::Mat floor_, changed_;
-  const cv::Rect changed_square_{1520, 920, 160, 160};  ///< texels: (380..420, 230..270) mm
+  // Where the lane runs and where the floor changed; set before SetUp.
+  double lane_y_mm_ = 250.0;            ///< the view covers 60 mm to either side of it
+  cv::Rect changed_square_{1520, 920, 160, 160};  ///< texels: (380..420, 230..270) mm
   double MapAgainstNewFloor() const { return MapAgainst(changed_, 384.0, 234.0, 416.0, 266.0); }
   std::vector<core::Pose2> lane_;
   std::unique_ptr<mosaic::TileStore> store_;
@@ -183,6 +185,48 @@ TEST_F(ChangedLane, TheNumberOfPassesIsTheOptions) {
   EXPECT_EQ(updater.summary().updates, 0);
   Pass(updater, 20.0);
   EXPECT_GE(updater.summary().updates, 1);
+}
+
+// The same lane 4 mm further up, and the new floor at its edge: 40 mm square around (400, 310)
+// mm, half of it outside the lane. The map's 16 mm cells at the edge are only partly mapped,
+// as they are only partly in a view along the lane: they are judged on what both hold, and
+// the part of the change the lane covers is rewritten.
+class ChangedLaneEdge : public ChangedLane {
+ protected:
+  ChangedLaneEdge() {
+    lane_y_mm_ = 254.0;                               // mapped up to y = 314 mm
+    changed_square_ = cv::Rect(1520, 1160, 160, 160);  // texels: (380..420, 290..330) mm
+  }
+};
+
+TEST_F(ChangedLaneEdge, ChangedFloorAtTheLanesEdgeIsRewrittenToo) {
+  // The cell from y = 304 to 320 mm is mapped up to 314 (62 %); the view along the lane holds
+  // about as much of it.
+  ASSERT_LT(MapAgainst(changed_, 384.0, 305.0, 416.0, 311.0), 0.3) << "the map does not show the new floor yet";
+  MapUpdater updater(*store_, *cache_, camera_, MapUpdateOptions{});
+  // Passes 0 and 20 s run on or beyond the mapping drive's line (0 and +1.8 mm), and their
+  // views hold the edge cells' mapped part; the one at 10 s runs 1.1 mm inside it.
+  Pass(updater, 0.0);
+  Pass(updater, 10.0);
+  Pass(updater, 20.0);
+  ASSERT_GE(updater.summary().updates, 1);
+  EXPECT_GT(MapAgainst(changed_, 384.0, 292.0, 416.0, 303.0), 0.9) << "the change inside the lane";
+  EXPECT_GT(MapAgainst(changed_, 384.0, 305.0, 416.0, 311.0), 0.9) << "the change in the edge's cells";
+  // No more than the view held was painted: beyond the lane the map is still unmapped.
+  const mosaic::MapRenderer renderer(*cache_);
+  const mosaic::RasterPatch beyond = renderer.Region(0, static_cast<std::int64_t>(384.0 / kUpdateMmPerPx),
+                                                     static_cast<std::int64_t>(-330.0 / kUpdateMmPerPx), 128, 40);
+  EXPECT_EQ(cv::countNonZero(beyond.mask), 0) << "y 320 to 330 mm lies outside every view";
+}
+
+TEST(MapUpdateOptions, AJudgedShareOutsideZeroToOneIsRefused) {
+  MapUpdateOptions options;
+  std::string why;
+  for (const double share : {0.0, 1.5}) {
+    options.min_judged_share = share;
+    EXPECT_FALSE(options.Check(&why));
+    EXPECT_NE(why.find("min_judged_share"), std::string::npos);
+  }
 }
 
 TEST(MapUpdateOptions, OnePassIsRefused) {

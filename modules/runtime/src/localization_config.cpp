@@ -147,6 +147,7 @@ void ReadLocalizerConfig(const YAML::Node& node, const std::string& file_name, L
   update.Optional("flat_dn", &u.flat_dn);
   update.Optional("max_flat_change_dn", &u.max_flat_change_dn);
   update.Optional("max_changed_share", &u.max_changed_share);
+  update.Optional("min_judged_share", &u.min_judged_share);
   update.Optional("max_nis", &u.max_nis);
   update.Optional("max_sigma_mm", &u.max_sigma_mm);
   update.Optional("max_ambiguity", &u.max_ambiguity);
