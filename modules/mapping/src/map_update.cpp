@@ -239,8 +239,7 @@ std::vector<MapUpdater::CellIndex> MapUpdater::Compare(const UpdateFrame& frame)
       } else {
         // At a lane's edge: judged from a frame that holds all of the cell's mapped part (to a
         // pixel row), so that a rewrite from it repaints that part, on the pixels both the map
-        // and the view hold, when they are min_judged_share of the cell. The unmapped rest is
-        // automatic mapping's.
+        // and the view hold, when they are min_judged_share of the cell.
         const cv::Mat mapped_pixels = map.mask(rect);
         if (cv::countNonZero(mapped_pixels & ~in_frame(rect)) > static_cast<int>(c)) continue;
         judged_pixels = in_view(rect) & mapped_pixels;

@@ -50,7 +50,8 @@ struct MapUpdateOptions {
   int min_cells = 6;
   /// A cell only partly mapped (at a lane's edge) is judged from a frame that holds all of its
   /// mapped part, on the pixels both the map and the view (margin_px inside its edge) hold,
-  /// when they are at least this share of it; its rewrite repaints its mapped part.
+  /// when they are at least this share of it; its rewrite repaints what the frame holds of it
+  /// (all of the mapped part).
   double min_judged_share = 0.25;
   /// Confidence: the frame has a fix the filter took (NIS at most max_nis, chi-square with 3
   /// degrees of freedom), the filter has taken at least min_fixes_in_row fixes in a row since
