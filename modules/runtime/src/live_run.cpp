@@ -38,6 +38,7 @@
 #include "mosaicloc/localizer/localizer.hpp"
 #include "mosaicloc/runtime/encoder_stamper.hpp"
 #include "mosaicloc/runtime/live_sources.hpp"
+#include "mosaicloc/runtime/output_pose.hpp"
 #include "mosaicloc/runtime/map_session.hpp"
 #include "mosaicloc/runtime/report.hpp"
 #include "mosaicloc/runtime/settings.hpp"
@@ -67,6 +68,7 @@ bool LiveRunOptions::Check(std::string* why) const {
   if (!in(stationary_after_ms, 1.0, 60000.0)) return fail("stationary_after_ms must be in [1, 60000]");
   if (!in(counter_period_ms, 0.0, 10000.0)) return fail("counter_period_ms must be in [0, 10000]");
   if (!in(odometry_bridge_ms, 0.0, 2000.0)) return fail("odometry_bridge_ms must be in [0, 2000]");
+  if (!in(lock_age_ms, 1.0, 60000.0)) return fail("lock_age_ms must be in [1, 60000]");
   if (!in(start_sigma_mm, 1e-3, 1e5)) return fail("start_sigma_mm must be in [0.001, 100000]");
   if (!in(start_sigma_deg, 1e-4, 180.0)) return fail("start_sigma_deg must be in [0.0001, 180]");
   if (!in(max_encoder_wait_ms, 0.0, 10000.0)) return fail("max_encoder_wait_ms must be in [0, 10000]");
@@ -179,6 +181,8 @@ struct Published {
   double quality = 0.0;
   double scale = 1.0;  // the image scale the localizer holds (FrameOutcome::scale)
   int mode = 0;        // localizer::Mode of the latest frame; 0 before the first
+  Eigen::Vector2d wheel_scale = Eigen::Vector2d::Zero();  // the filter's calibration errors
+  std::optional<core::Timestamp> judged;  // capture time of the frame the lock was last judged on
 };
 
 // Counters for the status line and the summary; each written by one thread.
@@ -193,6 +197,7 @@ struct RunStats {
   std::atomic<std::int64_t> relocalize_requests{0};
   std::atomic<std::int64_t> answered{0};
   std::atomic<std::int64_t> fix_writes{0};
+  std::atomic<std::int64_t> stale_lock_writes{0};  // tracking written as degraded: the lock's frame too old
   std::atomic<std::int64_t> odometry_outages{0};
   std::array<std::atomic<std::int64_t>, 5> frames_by_mode{};  // by localizer::Mode (0 unused)
   std::atomic<bool> odometry_valid{false};
@@ -228,6 +233,7 @@ class LiveRun::Impl {
     const localizer::LocalizerOptions localizer_options =
         runtime::LocalizerOptionsFor(config.localizer.localizer, camera, vehicle, config.encoder_timing_sigma_ms);
     localizer_ = std::make_unique<localizer::Localizer>(ideal, localizer_options, map_->reference(), &map_->places());
+    output_pose_ = std::make_unique<runtime::OutputPose>(localizer_options.odometry);
     if (config.mapping) {
       if (map_->created()) core::Log().info("run: {} created empty, to be mapped as the vehicle drives", config.map.string());
       empty_map_ = map_->store().Count(0) == 0;
@@ -382,9 +388,11 @@ class LiveRun::Impl {
     wake_.notify_one();
   }
 
-  // The fix the PLC receives now: the latest state moved on to this instant by the system
-  // model. Status 0 until the first visual fix (5 while the pose is unknown and searched for);
-  // degraded while odometry is invalid.
+  // The fix the PLC receives now: the latest state carried on to this instant by the encoder
+  // samples the PLC thread read since (runtime::OutputPose). Status 0 until the first visual
+  // fix (5 while the pose is unknown and searched for); tracking is degraded while odometry is
+  // invalid, and while the lock was last judged on a frame older than plc.lock_age_ms (the
+  // tracking thread or the camera has fallen behind: the pose is the encoders' alone since).
   io::PlcOutputs Outputs(core::Timestamp now) {
     Published state;
     {
@@ -392,13 +400,17 @@ class LiveRun::Impl {
       state = published_;
     }
     io::PlcOutputs outputs;
-    const core::Pose2 pose = state.motion.PoseAt(now);
+    const core::Pose2 pose = output_pose_->At(state.motion, state.wheel_scale, now).world_from_vehicle;
     outputs.x_mm = pose.x_mm();
     outputs.y_mm = pose.y_mm();
     outputs.yaw_rad = pose.yaw_rad();
     // Searching the whole map says so from the start: the PLC sees the relocalization under way.
     int status = state.fixed_once || state.lock == estimation::LockState::kSearching ? static_cast<int>(state.lock) : 0;
     if (status == 1 && !stats_.odometry_valid) status = 2;
+    if (status == 1 && (!state.judged || now - *state.judged > core::FromSeconds(config_.lock_age_ms * 1e-3))) {
+      status = 2;
+      ++stats_.stale_lock_writes;
+    }
     outputs.status = status;
     // Lost or off the map, the pose is dead reckoning: no visual quality to report.
     const bool visual = status == 1 || status == 2;
@@ -467,12 +479,14 @@ class LiveRun::Impl {
       if (valid) {
         // When the counters took these values (runtime::EncoderStamper).
         if (const std::optional<dataset::EncoderSample> sample = stamper.Take(read.value())) {
+          output_pose_->Add(*sample);
           PushEncoders(Encoder{false, *sample});
           if (recorder_) recorder_->Encoders(*sample);
           ++stats_.encoder_samples;
         }
       } else {
         stamper.Forget();
+        output_pose_->Forget();
       }
 
       bool answer = false;
@@ -532,7 +546,9 @@ class LiveRun::Impl {
     wake_.notify_one();
   }
 
-  void Publish(bool fixed, double quality, std::optional<double> scale = std::nullopt) {
+  // `judged`: the capture time of the frame just processed (the lock was judged on it).
+  void Publish(bool fixed, double quality, std::optional<double> scale = std::nullopt,
+               std::optional<core::Timestamp> judged = std::nullopt) {
     const estimation::MotionState motion = localizer_->Latest();
     // Each prediction replans the prefetch. Encoder batches come several times a frame, and
     // a prediction every 30 ms is all the loaders need: from frames, or from odometry alone
@@ -550,6 +566,8 @@ class LiveRun::Impl {
       published_.quality = quality;
     }
     if (scale) published_.scale = *scale;
+    if (judged) published_.judged = judged;
+    if (localizer_->initialized()) published_.wheel_scale = localizer_->wheel_scale_error();
     if (stats_.processed > 0) published_.mode = static_cast<int>(localizer_->mode());
   }
 
@@ -612,7 +630,7 @@ class LiveRun::Impl {
       } else {
         core::Log().debug("run: frame {} not fixed: {}", frame->sequence, outcome.reason);
       }
-      Publish(outcome.fixed, outcome.fix_quality, outcome.scale);
+      Publish(outcome.fixed, outcome.fix_quality, outcome.scale, frame->time);
       if (console_) console_->PublishPose(LivePoseOf(frame->time, outcome));
       const std::lock_guard lock(stats_.mutex);
       const auto done = io::MonotonicNow();
@@ -738,6 +756,7 @@ class LiveRun::Impl {
             {"encoder_rejected", stats_.encoder_rejected.load()},
             {"odometry_outages", stats_.odometry_outages.load()},
             {"fix_writes", stats_.fix_writes.load()},
+            {"stale_lock_writes", stats_.stale_lock_writes.load()},
             {"requests", stats_.requests.load()},
             {"answered", stats_.answered.load()},
             {"answer_p50_ms", percentile(answers, 50.0)},
@@ -771,6 +790,7 @@ class LiveRun::Impl {
   bool empty_map_ = false;  ///< mapping from a map with no floor yet
   Clock::time_point last_prediction_{};  // of the prefetcher; Publish runs on the tracking thread
   std::unique_ptr<localizer::Localizer> localizer_;
+  std::unique_ptr<runtime::OutputPose> output_pose_;  ///< the PLC thread's
   std::unique_ptr<runtime::MapKeeper> keeper_;  ///< with mapping; after the map, which it writes
   std::unique_ptr<io::PlcLink> link_;
   std::unique_ptr<Recorder> recorder_;

@@ -196,6 +196,7 @@ RunConfig LoadRunConfig(const std::filesystem::path& file) {
   plc.Optional("stationary_after_ms", &config.stationary_after_ms);
   plc.Optional("counter_period_ms", &config.counter_period_ms);
   plc.Optional("odometry_bridge_ms", &config.odometry_bridge_ms);
+  plc.Optional("lock_age_ms", &config.lock_age_ms);
   plc.CheckOwnKeys(config, {{"plc_cycle_ms", "cycle_ms"}});
   core::YamlMap registers = plc.OptionalMap("registers");
   link.registers.kind = config.vehicle.kind;  // the counters of the vehicle configured

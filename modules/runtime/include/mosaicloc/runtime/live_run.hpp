@@ -72,6 +72,10 @@ struct LiveRunOptions {
   /// only re-seed odometry (a PLC that restarted has its counters back at 0). No PLC restarts
   /// this fast.
   double odometry_bridge_ms = 200.0;
+  /// The lock is judged frame by frame: a write whose latest processed frame was captured
+  /// longer ago than this reports tracking as degraded (the tracking thread or the camera fell
+  /// behind, and the pose written is the encoders' since that frame). Three frames at 30 Hz.
+  double lock_age_ms = 100.0;
 
   core::Pose2 start;                         ///< where the vehicle is when the run starts
   /// The start is not known (start.unknown): the whole map is searched through its place

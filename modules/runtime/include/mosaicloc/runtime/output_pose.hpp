@@ -1,0 +1,64 @@
+#pragma once
+
+#include <chrono>
+#include <deque>
+
+#include <Eigen/Core>
+
+#include "mosaicloc/core/pose2.hpp"
+#include "mosaicloc/core/timestamp.hpp"
+#include "mosaicloc/dataset/dataset.hpp"
+#include "mosaicloc/estimation/odometry.hpp"
+#include "mosaicloc/estimation/pose_filter.hpp"
+
+namespace mosaicloc::runtime {
+
+/// The pose written to the PLC at the instant of the write (design.md section 6). The tracking
+/// thread publishes the filter's latest state; the PLC thread may write long after it (a frame
+/// that took long, a starved CPU), while it has read newer encoder samples itself. The state is
+/// carried on along those samples' wheel travel, turned into motion with the calibration errors
+/// the filter learnt, and only the short rest after the newest sample is extrapolated, at the
+/// newest samples' velocity (their travel over the last `velocity_window`: a single sample
+/// interval is the difference of two time stamps each a few ms uncertain). Extrapolating the
+/// published state at its own velocity instead puts the vehicle where it would be had it not
+/// braked, turned or sped up since.
+/// One object per PLC thread: not thread safe.
+class OutputPose {
+ public:
+  /// Throws core::Error (invalid input) when the odometry options fail Check().
+  explicit OutputPose(const estimation::OdometryOptions& odometry,
+                      core::Duration velocity_window = std::chrono::milliseconds(40),
+                      core::Duration history = std::chrono::seconds(2));
+
+  /// An encoder sample as the localizer gets it (the same time stamp). A sample the odometry
+  /// refuses (time not increasing, a counter glitch) is left out, as the localizer leaves it.
+  void Add(const dataset::EncoderSample& sample);
+  /// Odometry became invalid: the counters and the travel seen so far are dropped.
+  void Forget();
+
+  struct Prediction {
+    core::Pose2 world_from_vehicle;
+    /// How long after the state's time the encoders carried it, and how long it was then
+    /// extrapolated (after the newest sample, or from the state itself when no sample is newer).
+    core::Duration carried{};
+    core::Duration extrapolated{};
+  };
+  /// The published `state` (with the filter's calibration errors `wheel_scale`) moved on to
+  /// `now`.
+  Prediction At(const estimation::MotionState& state, const Eigen::Vector2d& wheel_scale, core::Timestamp now) const;
+
+ private:
+  struct Step {
+    core::Timestamp end;
+    core::Duration dt{};
+    estimation::WheelTravel travel;
+  };
+  Eigen::Vector3d Velocity(const Eigen::Vector2d& wheel_scale) const;  // (forward, lateral, yaw) per second
+
+  estimation::WheelOdometry odometry_;
+  core::Duration velocity_window_;
+  core::Duration history_;
+  std::deque<Step> steps_;
+};
+
+}  // namespace mosaicloc::runtime

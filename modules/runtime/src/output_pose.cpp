@@ -1,0 +1,74 @@
+#include "mosaicloc/runtime/output_pose.hpp"
+
+#include <algorithm>
+
+namespace mosaicloc::runtime {
+
+OutputPose::OutputPose(const estimation::OdometryOptions& odometry, core::Duration velocity_window,
+                       core::Duration history)
+    : odometry_(odometry), velocity_window_(velocity_window), history_(history) {}
+
+void OutputPose::Add(const dataset::EncoderSample& sample) {
+  const auto increment = odometry_.Update(sample.time, sample.counts);
+  if (!increment.ok() || increment.value().dt <= core::Duration::zero()) return;
+  steps_.push_back({sample.time, increment.value().dt, increment.value().travel});
+  while (steps_.size() > 1 && steps_.front().end < sample.time - history_) steps_.pop_front();
+}
+
+void OutputPose::Forget() {
+  odometry_.ForgetCounters();
+  steps_.clear();
+}
+
+Eigen::Vector3d OutputPose::Velocity(const Eigen::Vector2d& wheel_scale) const {
+  // The travel over the last velocity_window_ (at least the newest step) over its span: one
+  // step's span is the difference of two time stamps each a few ms uncertain, so its speed
+  // alone can be a fifth off.
+  Eigen::Vector3d travelled = Eigen::Vector3d::Zero();
+  core::Timestamp since = steps_.back().end;
+  for (auto step = steps_.rbegin(); step != steps_.rend(); ++step) {
+    if (step != steps_.rbegin() && steps_.back().end - (step->end - step->dt) > velocity_window_) break;
+    travelled += step->travel.Motion(wheel_scale);
+    since = step->end - step->dt;
+  }
+  return travelled / core::ToSeconds(steps_.back().end - since);
+}
+
+OutputPose::Prediction OutputPose::At(const estimation::MotionState& state, const Eigen::Vector2d& wheel_scale,
+                                      core::Timestamp now) const {
+  Prediction out;
+  // The steps that end after the state: the travel the filter has not seen.
+  const auto first = std::upper_bound(steps_.begin(), steps_.end(), state.time,
+                                      [](core::Timestamp t, const Step& s) { return t < s.end; });
+  if (first == steps_.end()) {
+    out.world_from_vehicle = state.PoseAt(now);
+    out.extrapolated = now - state.time;
+    return out;
+  }
+  core::Pose2 pose = state.world_from_vehicle;
+  core::Timestamp at = state.time;
+  // The first step's start before the state: odometry has no sample in between (the state
+  // came from a frame after the PLC thread's newest sample, or from before a re-seed), so that
+  // span moves at the state's own velocity.
+  const core::Timestamp start = first->end - first->dt;
+  if (start > at) {
+    pose = pose * core::Pose2::Exp(core::ToSeconds(start - at) * state.Twist());
+    at = start;
+  }
+  for (auto step = first; step != steps_.end(); ++step) {
+    const double dt_s = core::ToSeconds(step->dt);
+    // Only the part of the step after `at` is new (the state may lie inside the step).
+    const double fraction = std::clamp(core::ToSeconds(step->end - at) / dt_s, 0.0, 1.0);
+    pose = pose * core::Pose2::Exp(step->travel.Part(fraction).Motion(wheel_scale));
+    at = step->end;
+  }
+  out.carried = at - state.time;
+  if (now > at) {
+    pose = pose * core::Pose2::Exp(core::ToSeconds(now - at) * Velocity(wheel_scale));
+    out.extrapolated = now - at;
+  }
+  out.world_from_vehicle = pose;
+  return out;
+}
+
+}  // namespace mosaicloc::runtime
