@@ -2,11 +2,38 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdlib>
 
 #include "mosaicloc/estimation/odometry.hpp"
 
 namespace mosaicloc::runtime {
+
+core::Timestamp EncoderStamper::ChangedAt(core::Timestamp read) {
+  const core::Duration period = options_.counter_period;
+  if (!options_.phase_lock || period <= core::Duration::zero()) {
+    return io::CountersChangedAt(last_read_, read, period);
+  }
+  // The change happened after the previous read and within the last period before this one.
+  const core::Timestamp from = std::max(last_read_, read - period), to = read;
+  const core::Timestamp middle = from + (to - from) / 2;
+  if (changes_seen_ == 0) {
+    changed_ = middle;
+  } else {
+    // The last change moved on by the whole periods that put it nearest this one's middle,
+    // then drawn towards that middle by the running mean's weight.
+    const double periods = std::round(core::ToSeconds(middle - changed_) / core::ToSeconds(period));
+    const core::Timestamp predicted = changed_ + core::FromSeconds(periods * core::ToSeconds(period));
+    const double gain = std::max(options_.phase_gain, 1.0 / static_cast<double>(changes_seen_ + 1));
+    const core::Timestamp previous = changed_;
+    changed_ = predicted + core::FromSeconds(gain * core::ToSeconds(middle - predicted));
+    // The PLC changes its counters at most once a period: two changes dated closer than half
+    // a period would make a wheel seem to race between them.
+    changed_ = std::clamp(std::max(changed_, previous + period / 2), from, to);
+  }
+  ++changes_seen_;
+  return changed_;
+}
 
 std::optional<dataset::EncoderSample> EncoderStamper::Take(const io::PlcInputs& read) {
   if (!read.fresh) return std::nullopt;
@@ -19,7 +46,7 @@ std::optional<dataset::EncoderSample> EncoderStamper::Take(const io::PlcInputs& 
   if (!options_.polling || !have_ticks_) {
     stamp = read.time;
   } else if (ticks != last_ticks_) {
-    stamp = io::CountersChangedAt(last_read_, read.time, options_.counter_period);
+    stamp = ChangedAt(read.time);
   } else {
     const core::Duration still_for = moving_ ? options_.moving_stop_factor * options_.stationary_after
                                              : options_.stationary_after;

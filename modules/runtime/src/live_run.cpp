@@ -22,6 +22,7 @@
 #include <exception>
 #include <mutex>
 #include <numbers>
+#include <random>
 #include <thread>
 #include <variant>
 #include <vector>
@@ -439,10 +440,17 @@ class LiveRun::Impl {
     stamping.stationary_after = core::FromSeconds(config_.stationary_after_ms * 1e-3);
     stamping.latency = latency;
     runtime::EncoderStamper stamper(stamping);
+    std::minstd_rand spread_random(1);
+    std::uniform_real_distribution<double> spread_of(0.75, 1.25);
     while (runtime::SleepUntil(next_cycle, stop_)) {
       const core::Timestamp now = io::MonotonicNow();
-      next_cycle = next_cycle + cycle;
-      if (next_cycle < now) next_cycle = now + cycle;  // fell behind: do not burst
+      // Polling, each period is 0.75 to 1.25 cycles at random (the mean the cycle): reads at
+      // every phase of the PLC's own counter cycle, uncorrelated, let the stamper learn when in
+      // it the counters change (EncoderStamperOptions::phase_lock).
+      const double spread = stamping.polling ? spread_of(spread_random) : 1.0;
+      const auto this_cycle = core::FromSeconds(spread * core::ToSeconds(cycle));
+      next_cycle = next_cycle + this_cycle;
+      if (next_cycle < now) next_cycle = now + this_cycle;  // fell behind: do not burst
 
       const core::Result<io::PlcInputs> read = link_->Read();
       bool valid = read.ok();

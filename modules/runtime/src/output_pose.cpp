@@ -41,7 +41,10 @@ OutputPose::Prediction OutputPose::At(const estimation::MotionState& state, cons
   const auto first = std::upper_bound(steps_.begin(), steps_.end(), state.time,
                                       [](core::Timestamp t, const Step& s) { return t < s.end; });
   if (first == steps_.end()) {
-    out.world_from_vehicle = state.PoseAt(now);
+    // The filter is as new as the counters: on from it at the counters' velocity (the state's
+    // own is its latest increment's, one jittered interval's).
+    const Eigen::Vector3d twist = steps_.empty() ? state.Twist() : Velocity(wheel_scale);
+    out.world_from_vehicle = state.world_from_vehicle * core::Pose2::Exp(core::ToSeconds(now - state.time) * twist);
     out.extrapolated = now - state.time;
     return out;
   }

@@ -1,6 +1,9 @@
 #include "mosaicloc/runtime/encoder_stamper.hpp"
 
 #include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <random>
 
 #include <gtest/gtest.h>
 
@@ -107,6 +110,80 @@ TEST(EncoderStamper, AfterTheLinkWasInvalidTheNextReadIsAFirstOne) {
   const auto again = stamper.Take(Read(900, 50, 50));
   ASSERT_TRUE(again);
   EXPECT_EQ(again->time, core::Timestamp() + milliseconds(898)) << "not dated back towards the read before the outage";
+}
+
+}  // namespace
+}  // namespace mosaicloc::runtime
+
+namespace mosaicloc::runtime {
+namespace {
+
+// A PLC that updates its counters every `period_us` from `phase_us` on, read by polls whose
+// period varies as the PLC thread varies it: the stamps' error, in microseconds, over the
+// changes after the first `settle` (RMS and largest).
+struct StampErrors {
+  double rms_us = 0.0, max_us = 0.0;
+};
+// The PLC thread's poll periods: 0.75 to 1.25 times the cycle, at random.
+double PollSpread(std::minstd_rand& random) {
+  return 0.75 + 0.5 * std::uniform_real_distribution<double>(0.0, 1.0)(random);
+}
+
+StampErrors StampErrorUs(bool phase_lock, int period_us, int phase_us, int settle = 200) {
+  EncoderStamperOptions options;
+  options.polling = true;
+  options.counter_period = std::chrono::microseconds(10000);
+  options.stationary_after = std::chrono::milliseconds(50);
+  options.phase_lock = phase_lock;
+  EncoderStamper stamper(options);
+  std::minstd_rand random(7);
+  StampErrors errors;
+  double sum2 = 0.0;
+  int changes = 0;
+  std::int64_t read_us = 0;
+  for (int cycle = 1; cycle < 2000; ++cycle) {
+    read_us += static_cast<std::int64_t>(5000.0 * PollSpread(random));
+    // The counters hold the number of updates so far: each update changes them.
+    const std::int64_t updates = read_us < phase_us ? 0 : (read_us - phase_us) / period_us + 1;
+    io::PlcInputs in;
+    in.time = core::Timestamp() + std::chrono::microseconds(read_us);
+    in.counts.left_ticks = static_cast<std::int32_t>(updates);
+    in.fresh = true;
+    const auto sample = stamper.Take(in);
+    if (!sample || updates == 0 || sample->counts.left_ticks != updates) continue;
+    const std::int64_t changed_us = phase_us + (updates - 1) * period_us;
+    if (++changes > settle) {
+      const double error = static_cast<double>((sample->time - core::Timestamp()).count()) / 1e3 -
+                           static_cast<double>(changed_us);
+      sum2 += error * error;
+      errors.max_us = std::max(errors.max_us, std::abs(error));
+    }
+  }
+  errors.rms_us = std::sqrt(sum2 / std::max(1, changes - settle));
+  return errors;
+}
+
+TEST(EncoderStamper, ReadsAtVaryingPhasesFindWhenInItsCycleThePlcUpdates) {
+  for (const int phase_us : {3700, 9100}) {
+    // Each change dated at the middle of its poll interval: up to half a poll off.
+    const StampErrors middle = StampErrorUs(false, 10000, phase_us);
+    const StampErrors locked = StampErrorUs(true, 10000, phase_us);
+    std::printf("phase %d us: middle of the interval rms %.0f max %.0f us; locked rms %.0f max %.0f us\n", phase_us,
+                middle.rms_us, middle.max_us, locked.rms_us, locked.max_us);
+    EXPECT_GT(middle.rms_us, 1000.0);
+    EXPECT_LT(locked.rms_us, 0.3 * middle.rms_us);
+    EXPECT_LT(locked.max_us, 0.5 * middle.max_us);
+  }
+}
+
+TEST(EncoderStamper, APlcOffItsConfiguredPeriodIsNeverDatedOutsideTheReads) {
+  // A PLC cycling every 10.5 ms where 10 are configured: the phase slips by 0.5 ms a period;
+  // no stamp leaves the interval its reads give (the longest poll, 6.25 ms, at most). One
+  // 0.5 % off is followed.
+  EXPECT_LT(StampErrorUs(true, 10500, 1200).max_us, 6250.0 + 1.0);
+  const StampErrors slow = StampErrorUs(true, 10050, 1200);
+  std::printf("PLC period 10.05 ms: rms %.0f max %.0f us\n", slow.rms_us, slow.max_us);
+  EXPECT_LT(slow.rms_us, 0.5 * StampErrorUs(false, 10050, 1200).rms_us);
 }
 
 }  // namespace

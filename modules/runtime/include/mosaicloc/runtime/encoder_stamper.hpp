@@ -1,5 +1,6 @@
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <optional>
 #include <utility>
@@ -30,6 +31,15 @@ struct EncoderStamperOptions {
   /// it jump, and the frames between would be predicted where it was not.
   std::int64_t moving_ticks_per_period = 2;
   int moving_stop_factor = 10;
+  /// Polling with counter_period known: the PLC updates its counters on a regular cycle, so
+  /// when in that cycle they change is learnt from the changes seen. Each change lies in the
+  /// interval between two reads; with reads at varying phases (the PLC thread varies its poll
+  /// period) the middles of those intervals scatter evenly around the true instant, and their
+  /// running mean (moved on by whole periods, the newest weighted at least phase_gain, so a
+  /// PLC clock that drifts is followed) dates each change, never outside its own interval.
+  /// Off: each change is dated at the middle of its interval.
+  bool phase_lock = true;
+  double phase_gain = 1.0 / 16.0;
 };
 
 /// When the wheel counters the PLC reports took their values: the time stamp an encoder
@@ -43,9 +53,15 @@ class EncoderStamper {
   /// unchanged counters stand still for less than stationary_after.
   std::optional<dataset::EncoderSample> Take(const io::PlcInputs& read);
   /// The link was invalid: the next read is dated as a first one.
-  void Forget() { have_ticks_ = false; }
+  void Forget() {
+    have_ticks_ = false;
+    changes_seen_ = 0;
+  }
 
  private:
+  // When counters seen changed at `read` took their values (phase_lock).
+  core::Timestamp ChangedAt(core::Timestamp read);
+
   EncoderStamperOptions options_;
   bool have_ticks_ = false;  // (not an optional pair: GCC 12 warns wrongly about it)
   core::EncoderCounts last_ticks_;
@@ -53,6 +69,10 @@ class EncoderStamper {
   core::Timestamp last_forwarded_;
   core::Timestamp last_change_;
   bool moving_ = false;  // the last change was faster than moving_ticks_per_period
+  // When the last change seen happened, as learnt from the reads and the cycle (phase_lock),
+  // and from how many changes.
+  core::Timestamp changed_;
+  int changes_seen_ = 0;
 };
 
 }  // namespace mosaicloc::runtime

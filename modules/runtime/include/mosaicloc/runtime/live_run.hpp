@@ -49,8 +49,8 @@ struct LiveRunOptions {
 
   io::PlcLinkOptions plc;
   /// Poll and output period. Faster than the PLC updates its counters, so a change is seen
-  /// soon after it happens: an encoder sample is stamped at the middle of the poll interval
-  /// in which its counters changed.
+  /// soon after it happens; polling, each period is 0.75 to 1.25 times it at random, so the
+  /// reads see every phase of the PLC's counter cycle (EncoderStamperOptions::phase_lock).
   double plc_cycle_ms = 5.0;
   double fix_period_ms = 100.0;              ///< periodic fix writes; 0 = only on request
   double heartbeat_timeout_ms = 500.0;       ///< PLC heartbeat frozen this long = stale; 0 = not watched
