@@ -11,7 +11,8 @@
 # CONTEND=1 starves the run of the CPU now and then, as other work on a vehicle's computer
 # does: every 4 s, three busy loops at a higher priority (nice -10) for 0.2 to 1 s, the PLC
 # simulator above them (it stands for the PLC, which has a CPU of its own). Needs root.
-# Usage: [CONTEND=1] benchmarks/live_hour.sh [MOSAICLOC] [WORK_DIR] [MINUTES]
+# PLC_PRIORITY=N runs the PLC thread at SCHED_FIFO priority N (plc.thread_priority).
+# Usage: [CONTEND=1] [PLC_PRIORITY=N] benchmarks/live_hour.sh [MOSAICLOC] [WORK_DIR] [MINUTES]
 set -euo pipefail
 HERE="$(cd "$(dirname "$0")/.." && pwd)"
 MOSAICLOC=${1:-$HERE/build/release/app/mosaicloc}
@@ -35,8 +36,8 @@ encoders: {left_radius_error: 0.02, right_radius_error: 0.025}
 run: {frames: $((MINUTES * 60 * 30)), seed: 86}
 YAML
 port=$("$PYTHON" -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
-printf 'map: %s\ncamera: {source: simulator, simulator: {config: %s}}\nplc: {port: %s}\n' \
-  "$WORK/map.mosaic" "$WORK/drive.yaml" "$port" > "$WORK/run.yaml"
+printf 'map: %s\ncamera: {source: simulator, simulator: {config: %s}}\nplc: {port: %s, thread_priority: %s}\n' \
+  "$WORK/map.mosaic" "$WORK/drive.yaml" "$port" "${PLC_PRIORITY:-0}" > "$WORK/run.yaml"
 start=$("$PYTHON" -c 'import time; print(f"{time.time() + 8.0:.6f}")')
 "$MOSAICLOC" --quiet --json plc-sim --simulate "$WORK/drive.yaml" --port "$port" --start-unix "$start" \
   --request-period-ms 500 --fixes-out "$WORK/plc-fixes.csv" > "$WORK/plc.json" 2> "$WORK/plc.err" &

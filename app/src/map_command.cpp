@@ -303,7 +303,7 @@ Action AddMapCommand(CLI::App& app, const GlobalOptions& global) {
   build->add_option("--poses", args->build.poses,
                     "'estimate' (default: from the frames and encoders alone, loops closed, a pose graph solved), "
                     "'groundtruth' or a TUM trajectory of world_from_vehicle");
-  build->add_option("--report", args->build.report, "With --poses estimate: write the consistency report here");
+  build->add_option("--report", args->build.report, "With --poses estimate (the default): write the consistency report here");
   build->add_option("--join", args->build.joined,
                     "A later drive over the same site to paint into the map too (repeatable): with --poses estimate "
                     "mapped with the first, starting where its dataset says, joined by loop closures")

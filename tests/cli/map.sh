@@ -8,6 +8,12 @@ expect_exit 0 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/ds" --out "$SCR
 expect_in "$SCRATCH/out" "90 frames painted"
 expect_exit 2 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/ds" --out "$SCRATCH/a.mosaic"
 expect_in "$SCRATCH/err" "already exists"
+# A consistency report exists only for estimated poses: asked for with the truth's, it is refused
+# (nothing written), not silently left out.
+expect_exit 2 "$MOSAICLOC" --quiet map build --dataset "$SCRATCH/ds" --out "$SCRATCH/gt.mosaic" --poses groundtruth \
+  --report "$SCRATCH/gt-report"
+expect_in "$SCRATCH/err" "--report: the consistency report is the estimated poses'"
+[ ! -e "$SCRATCH/gt.mosaic" ] && [ ! -e "$SCRATCH/gt-report" ] || fail "a refused map build wrote something"
 expect_exit 0 "$MOSAICLOC" --json map info "$SCRATCH/a.mosaic"
 expect_in "$SCRATCH/out" '"tile_size_px": 128'
 expect_in "$SCRATCH/out" '"extent_mm"'

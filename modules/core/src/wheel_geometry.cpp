@@ -5,6 +5,14 @@
 
 namespace mosaicloc::core {
 
+std::vector<std::int32_t> CountersOf(DriveKind kind, const EncoderCounts& counts) {
+  if (kind == DriveKind::kTricycle) return {counts.drive_ticks, counts.steering_ticks};
+  if (kind == DriveKind::kMecanum) {
+    return {counts.left_ticks, counts.right_ticks, counts.rear_left_ticks, counts.rear_right_ticks};
+  }
+  return {counts.left_ticks, counts.right_ticks};
+}
+
 const char* ToString(DriveKind kind) {
   switch (kind) {
     case DriveKind::kDifferential: return "differential";

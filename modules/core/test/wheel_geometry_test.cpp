@@ -106,3 +106,22 @@ TEST(WheelGeometry, AMecanumVehicleHasItsOwnKeysAndTheOthersAreProblems) {
 
 }  // namespace
 }  // namespace mosaicloc::core
+
+namespace mosaicloc::core {
+namespace {
+
+TEST(WheelGeometry, EachKindReadsItsOwnCountersInTheRegistersOrder) {
+  EncoderCounts counts;
+  counts.left_ticks = 1;
+  counts.right_ticks = 2;
+  counts.drive_ticks = 3;
+  counts.steering_ticks = 4;
+  counts.rear_left_ticks = 5;
+  counts.rear_right_ticks = 6;
+  EXPECT_EQ(CountersOf(DriveKind::kDifferential, counts), (std::vector<std::int32_t>{1, 2}));
+  EXPECT_EQ(CountersOf(DriveKind::kTricycle, counts), (std::vector<std::int32_t>{3, 4}));
+  EXPECT_EQ(CountersOf(DriveKind::kMecanum, counts), (std::vector<std::int32_t>{1, 2, 5, 6}));
+}
+
+}  // namespace
+}  // namespace mosaicloc::core

@@ -1,5 +1,6 @@
 #include "mosaicloc/dataset/dataset.hpp"
 
+#include <signal.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -339,7 +340,17 @@ DatasetWriter::DatasetWriter(const fs::path& directory, const DatasetInfo& info,
   if (fs::exists(directory_, ec) && !overwrite_) {
     core::ThrowInvalidInput(directory_.string() + ": already exists (choose another output or allow overwriting)");
   }
-  staging_ = directory_.parent_path() / ("." + directory_.filename().string() + ".partial-" + std::to_string(::getpid()));
+  const std::string staging_prefix = "." + directory_.filename().string() + ".partial-";
+  staging_ = directory_.parent_path() / (staging_prefix + std::to_string(::getpid()));
+  // What a writer killed outright (SIGKILL, a power cut) left: its process is gone.
+  for (const fs::directory_entry& entry : fs::directory_iterator(directory_.parent_path(), ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind(staging_prefix, 0) != 0) continue;
+    const std::string pid = name.substr(staging_prefix.size());
+    if (pid.empty() || pid.find_first_not_of("0123456789") != std::string::npos || pid.size() > 9) continue;
+    if (::kill(static_cast<pid_t>(std::stol(pid)), 0) != 0 && errno == ESRCH) fs::remove_all(entry.path(), ec);
+  }
+  ec.clear();
   fs::remove_all(staging_, ec);
   fs::create_directories(staging_ / kFramesDir, ec);
   fs::create_directories(staging_ / "encoders", ec);

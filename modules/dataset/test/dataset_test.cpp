@@ -1,5 +1,8 @@
 #include "mosaicloc/dataset/dataset.hpp"
 
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -166,6 +169,28 @@ TEST(Dataset, UncommittedWriterLeavesNothing) {
     writer.AddFrame(Ms(0), Image(1));
   }
   EXPECT_TRUE(fs::is_empty(scratch.path()));
+}
+
+TEST(Dataset, AWriterKilledOutrightLeavesNothingTheNextOneKeeps) {
+  test::ScratchDir scratch;
+  // A writer of "ds" killed by SIGKILL: its process is gone, its staging folder left.
+  const pid_t child = ::fork();
+  if (child == 0) ::_exit(0);
+  ASSERT_GT(child, 0);
+  int status = 0;
+  ASSERT_EQ(::waitpid(child, &status, 0), child);
+  const fs::path dead = scratch / (".ds.partial-" + std::to_string(child));
+  const fs::path alive = scratch / (".ds.partial-" + std::to_string(::getppid()));  // another writer, still running
+  fs::create_directories(dead / "cam0");
+  fs::create_directories(alive / "cam0");
+  {
+    DatasetWriter writer(scratch / "ds", SmallInfo(), false);
+    writer.AddFrame(Ms(0), Image(1));
+    writer.Commit();
+  }
+  EXPECT_FALSE(fs::exists(dead));
+  EXPECT_TRUE(fs::exists(alive));
+  EXPECT_TRUE(fs::exists(scratch / "ds" / "dataset.yaml"));
 }
 
 TEST(Dataset, ExtraFilesAppearOnCommitAndStayInside) {

@@ -31,11 +31,7 @@ std::vector<const RegisterField*> RegisterMap::Counters() const {
 }
 
 std::vector<std::int32_t> RegisterMap::CounterValues(const core::EncoderCounts& counts) const {
-  if (kind == core::DriveKind::kTricycle) return {counts.drive_ticks, counts.steering_ticks};
-  if (kind == core::DriveKind::kMecanum) {
-    return {counts.left_ticks, counts.right_ticks, counts.rear_left_ticks, counts.rear_right_ticks};
-  }
-  return {counts.left_ticks, counts.right_ticks};
+  return core::CountersOf(kind, counts);
 }
 
 std::vector<const RegisterField*> RegisterMap::Inputs() const {

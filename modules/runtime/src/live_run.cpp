@@ -18,10 +18,12 @@
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
+#include <cstring>
 #include <deque>
 #include <exception>
 #include <mutex>
 #include <numbers>
+#include <pthread.h>
 #include <random>
 #include <thread>
 #include <variant>
@@ -70,6 +72,7 @@ bool LiveRunOptions::Check(std::string* why) const {
   if (!in(counter_period_ms, 0.0, 10000.0)) return fail("counter_period_ms must be in [0, 10000]");
   if (!in(odometry_bridge_ms, 0.0, 2000.0)) return fail("odometry_bridge_ms must be in [0, 2000]");
   if (!in(lock_age_ms, 1.0, 60000.0)) return fail("lock_age_ms must be in [1, 60000]");
+  if (plc_thread_priority < 0 || plc_thread_priority > 99) return fail("thread_priority must be in [0, 99]");
   if (!in(start_sigma_mm, 1e-3, 1e5)) return fail("start_sigma_mm must be in [0.001, 100000]");
   if (!in(start_sigma_deg, 1e-4, 180.0)) return fail("start_sigma_deg must be in [0.0001, 180]");
   if (!in(max_encoder_wait_ms, 0.0, 10000.0)) return fail("max_encoder_wait_ms must be in [0, 10000]");
@@ -421,6 +424,16 @@ class LiveRun::Impl {
   }
 
   void PlcLoop() {
+    if (config_.plc_thread_priority > 0) {
+      sched_param priority{};
+      priority.sched_priority = config_.plc_thread_priority;
+      if (const int error = pthread_setschedparam(pthread_self(), SCHED_FIFO, &priority); error != 0) {
+        core::Log().warn("run: the PLC thread keeps normal scheduling: SCHED_FIFO priority {} refused ({}; it needs "
+                         "CAP_SYS_NICE)", config_.plc_thread_priority, std::strerror(error));
+      } else {
+        core::Log().info("run: the PLC thread runs at SCHED_FIFO priority {}", config_.plc_thread_priority);
+      }
+    }
     const auto cycle = core::FromSeconds(config_.plc_cycle_ms * 1e-3);
     const auto fix_period = core::FromSeconds(config_.fix_period_ms * 1e-3);
     const auto latency = core::FromSeconds(config_.encoder_latency_ms * 1e-3);
@@ -612,12 +625,10 @@ class LiveRun::Impl {
         } else if (!localizer_->AddEncoders(e.sample.time, e.sample.counts)) {
           ++stats_.encoder_rejected;
           const auto why = localizer_->last_encoder_failure();
-          io::RegisterMap kind_counters;
-          kind_counters.kind = vehicle_kind_;
           core::Log().warn("run: encoder sample rejected: {} (stamped {:.4f} s, counters {})",
                            why ? estimation::ToString(*why) : std::string("?"),
                            core::ToSeconds(e.sample.time - core::Timestamp()),
-                           fmt::join(kind_counters.CounterValues(e.sample.counts), ", "));
+                           fmt::join(core::CountersOf(vehicle_kind_, e.sample.counts), ", "));
         }
       }
       if (!frame) {

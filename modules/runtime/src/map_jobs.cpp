@@ -65,6 +65,10 @@ MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(d
   if (!(args.checkpoint_s >= 0.0)) core::ThrowInvalidInput("--checkpoint-s must be >= 0");
   const bool estimate = args.poses == "estimate";
   const bool groundtruth = args.poses == "groundtruth";
+  if (!estimate && !args.report.empty()) {
+    core::ThrowInvalidInput("--report: the consistency report is the estimated poses' (--poses estimate, the "
+                            "default); with --poses " + args.poses + " there is none to write");
+  }
   if (!estimate && !groundtruth && datasets.size() > 1) {
     core::ThrowInvalidInput("--poses " + args.poses + ": a TUM file holds one drive's poses; joined drives are "
                             "painted at estimated poses or at their ground truth");

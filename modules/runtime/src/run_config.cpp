@@ -197,7 +197,8 @@ RunConfig LoadRunConfig(const std::filesystem::path& file) {
   plc.Optional("counter_period_ms", &config.counter_period_ms);
   plc.Optional("odometry_bridge_ms", &config.odometry_bridge_ms);
   plc.Optional("lock_age_ms", &config.lock_age_ms);
-  plc.CheckOwnKeys(config, {{"plc_cycle_ms", "cycle_ms"}});
+  plc.Optional("thread_priority", &config.plc_thread_priority);
+  plc.CheckOwnKeys(config, {{"plc_cycle_ms", "cycle_ms"}, {"plc_thread_priority", "thread_priority"}});
   core::YamlMap registers = plc.OptionalMap("registers");
   link.registers.kind = config.vehicle.kind;  // the counters of the vehicle configured
   const bool registers_ok = ReadRegisters(&plc, &registers, &link.registers);

@@ -122,6 +122,7 @@ TEST(RunConfig, RangesAreTheOptionsChecksAtTheirLines) {
        ":3: camera.dataset.start_unix_s: must be in [0, 1e11]"},
       {"map: a.mosaic\ncamera:\n  v4l2:\n    gain: -7\n", ":4: camera.v4l2.gain: must be in [-1, 1048576]"},
       {"map: a.mosaic\nplc:\n  role: client\n  cycle_ms: 0\n", ":4: plc.cycle_ms: must be in [1, 10000]"},
+      {"map: a.mosaic\nplc:\n  thread_priority: 100\n", ":3: plc.thread_priority: must be in [0, 99]"},
       {"map: a.mosaic\nstart:\n  sigma_deg: 500\n", ":3: start.sigma_deg: must be in [0.0001, 180]"},
       {"map: a.mosaic\nmax_encoder_wait_ms: -1\n", ":2: max_encoder_wait_ms: must be in [0, 10000]"},
       {"map: a.mosaic\nconsole:\n  enabled: true\n  listen: 0.0.0.0:8080\n", ":4: console.listen: 0.0.0.0:8080 is not a loopback"},

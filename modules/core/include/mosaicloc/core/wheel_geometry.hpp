@@ -2,6 +2,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "mosaicloc/core/yaml.hpp"
 
@@ -72,6 +73,11 @@ struct EncoderCounts {
   std::int32_t rear_right_ticks = 0;
   bool operator==(const EncoderCounts&) const = default;
 };
+
+/// The counters of a vehicle of `kind` in a reading, in the order the PLC's registers list them
+/// (differential: left, right; tricycle: drive, steering; mecanum: front left, front right,
+/// rear left, rear right).
+std::vector<std::int32_t> CountersOf(DriveKind kind, const EncoderCounts& counts);
 
 /// Reads a mapping (a dataset header's or a configuration's `vehicle:`) into *wheels: `kind`
 /// (optional, differential when absent), then the keys of that kind, then Check(): every key

@@ -76,6 +76,10 @@ struct LiveRunOptions {
   /// longer ago than this reports tracking as degraded (the tracking thread or the camera fell
   /// behind, and the pose written is the encoders' since that frame). Three frames at 30 Hz.
   double lock_age_ms = 100.0;
+  /// SCHED_FIFO priority (1-99) of the PLC thread, so that it reads, dates the counters and
+  /// writes the fix on time however busy the computer is; 0: normal scheduling. Needs
+  /// CAP_SYS_NICE (root, or `setcap cap_sys_nice+ep`); refused, the run says so and goes on.
+  int plc_thread_priority = 0;
 
   core::Pose2 start;                         ///< where the vehicle is when the run starts
   /// The start is not known (start.unknown): the whole map is searched through its place
