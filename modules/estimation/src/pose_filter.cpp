@@ -168,12 +168,23 @@ void PoseFilter::Predict(core::Timestamp time, const OdometryIncrement& incremen
   last_odometry_ = time;
   const double dt_s = core::ToSeconds(increment.dt);
   if (dt_s > 0.0) {
-    // The speeds of the whole increment, with the wheels' scales applied.
+    // The speeds of the whole increments over the speed window, with the wheels' scales applied.
     Eigen::Vector3d twist = increment.previous_from_current.Log();
     if (increment.travel.measured()) twist = increment.travel.Motion(node.wheel_scale);
-    forward_speed_mm_per_s_ = twist.x() / dt_s;
-    lateral_speed_mm_per_s_ = twist.y() / dt_s;
-    yaw_rate_rad_per_s_ = twist.z() / dt_s;
+    recent_.push_back({time, increment.dt, twist});
+    while (recent_.size() > 1 && time - (recent_.front().end - recent_.front().dt) > options_.speed_window) {
+      recent_.pop_front();
+    }
+    Eigen::Vector3d motion = Eigen::Vector3d::Zero();
+    core::Duration span{};
+    for (const Recent& r : recent_) {
+      motion += r.motion;
+      span += r.dt;
+    }
+    const Eigen::Vector3d speed = motion / core::ToSeconds(span);
+    forward_speed_mm_per_s_ = speed.x();
+    lateral_speed_mm_per_s_ = speed.y();
+    yaw_rate_rad_per_s_ = speed.z();
   }
   Prune();
 }

@@ -26,6 +26,10 @@ struct PoseFilterOptions {
   /// after T seconds is uncertain by a T^2 / 2 (and the heading by alpha T^2 / 2).
   double coast_acceleration_mps2 = 1.0;
   double coast_yaw_acceleration_radps2 = 0.5;
+  /// The system model's velocities are the odometry's over the increments of this long (at
+  /// least the newest): one increment spans the difference of two time stamps each a little
+  /// uncertain, and its speed alone can be far off.
+  core::Duration speed_window = std::chrono::milliseconds(40);
   /// Each wheel's scale error (true travel = (1 + k) x calibrated travel) is part of the
   /// state: its standard deviation at the start (0: the calibration is taken as exact, and k
   /// stays 0), and how fast it may wander (tyre wear, load), per square root of a metre.
@@ -188,6 +192,13 @@ class PoseFilter {
   double lateral_speed_mm_per_s_ = 0.0;
   double yaw_rate_rad_per_s_ = 0.0;
   core::Timestamp last_odometry_;  ///< of the latest node made from odometry (or a reset)
+  // The newest odometry increments' motion (wheel scales applied) and spans, for the speeds.
+  struct Recent {
+    core::Timestamp end;
+    core::Duration dt{};
+    Eigen::Vector3d motion;
+  };
+  std::deque<Recent> recent_;
 };
 
 }  // namespace mosaicloc::estimation
