@@ -237,7 +237,7 @@ class LiveRun::Impl {
     const localizer::LocalizerOptions localizer_options =
         runtime::LocalizerOptionsFor(config.localizer.localizer, camera, vehicle, config.encoder_timing_sigma_ms);
     localizer_ = std::make_unique<localizer::Localizer>(ideal, localizer_options, map_->reference(), &map_->places());
-    output_pose_ = std::make_unique<runtime::OutputPose>(localizer_options.odometry);
+    odometry_ = localizer_options.odometry;
     if (config.mapping) {
       if (map_->created()) core::Log().info("run: {} created empty, to be mapped as the vehicle drives", config.map.string());
       empty_map_ = map_->store().Count(0) == 0;
@@ -397,14 +397,14 @@ class LiveRun::Impl {
   // fix (5 while the pose is unknown and searched for); tracking is degraded while odometry is
   // invalid, and while the lock was last judged on a frame older than plc.lock_age_ms (the
   // tracking thread or the camera has fallen behind: the pose is the encoders' alone since).
-  io::PlcOutputs Outputs(core::Timestamp now) {
+  io::PlcOutputs Outputs(const runtime::OutputPose& output_pose, core::Timestamp now) {
     Published state;
     {
       const std::lock_guard lock(published_mutex_);
       state = published_;
     }
     io::PlcOutputs outputs;
-    const core::Pose2 pose = output_pose_->At(state.motion, state.wheel_scale, now).world_from_vehicle;
+    const core::Pose2 pose = output_pose.At(state.motion, state.wheel_scale, now).world_from_vehicle;
     outputs.x_mm = pose.x_mm();
     outputs.y_mm = pose.y_mm();
     outputs.yaw_rad = pose.yaw_rad();
@@ -453,6 +453,7 @@ class LiveRun::Impl {
     stamping.stationary_after = core::FromSeconds(config_.stationary_after_ms * 1e-3);
     stamping.latency = latency;
     runtime::EncoderStamper stamper(stamping);
+    runtime::OutputPose output_pose(odometry_);  // the pose written, carried by this thread's samples
     std::minstd_rand spread_random(1);
     std::uniform_real_distribution<double> spread_of(0.75, 1.25);
     while (runtime::SleepUntil(next_cycle, stop_)) {
@@ -500,14 +501,14 @@ class LiveRun::Impl {
       if (valid) {
         // When the counters took these values (runtime::EncoderStamper).
         if (const std::optional<dataset::EncoderSample> sample = stamper.Take(read.value())) {
-          output_pose_->Add(*sample);
+          output_pose.Add(*sample);
           PushEncoders(Encoder{false, *sample});
           if (recorder_) recorder_->Encoders(*sample);
           ++stats_.encoder_samples;
         }
       } else {
         stamper.Forget();
-        output_pose_->Forget();
+        output_pose.Forget();
       }
 
       bool answer = false;
@@ -536,7 +537,7 @@ class LiveRun::Impl {
       }
       const bool due = config_.fix_period_ms > 0.0 && now >= next_fix;
       if ((answer || due) && request) {
-        io::PlcOutputs outputs = Outputs(io::MonotonicNow());
+        io::PlcOutputs outputs = Outputs(output_pose, io::MonotonicNow());
         outputs.request_echo = *request;
         outputs.heartbeat = ++own_heartbeat;
         if (link_->Write(outputs).ok()) {
@@ -809,7 +810,7 @@ class LiveRun::Impl {
   bool empty_map_ = false;  ///< mapping from a map with no floor yet
   Clock::time_point last_prediction_{};  // of the prefetcher; Publish runs on the tracking thread
   std::unique_ptr<localizer::Localizer> localizer_;
-  std::unique_ptr<runtime::OutputPose> output_pose_;  ///< the PLC thread's
+  estimation::OdometryOptions odometry_;  ///< the localizer's, for the PLC thread's OutputPose
   std::unique_ptr<runtime::MapKeeper> keeper_;  ///< with mapping; after the map, which it writes
   std::unique_ptr<io::PlcLink> link_;
   std::unique_ptr<Recorder> recorder_;

@@ -41,8 +41,8 @@ OutputPose::Prediction OutputPose::At(const estimation::MotionState& state, cons
   const auto first = std::upper_bound(steps_.begin(), steps_.end(), state.time,
                                       [](core::Timestamp t, const Step& s) { return t < s.end; });
   if (first == steps_.end()) {
-    // The filter is as new as the counters: on from it at the counters' velocity (the state's
-    // own is its latest increment's, one jittered interval's).
+    // The filter is as new as the counters: on from it at the counters' velocity, the newest
+    // this thread has.
     const Eigen::Vector3d twist = steps_.empty() ? state.Twist() : Velocity(wheel_scale);
     out.world_from_vehicle = state.world_from_vehicle * core::Pose2::Exp(core::ToSeconds(now - state.time) * twist);
     out.extrapolated = now - state.time;
