@@ -7,16 +7,12 @@
 #include <string>
 #include <vector>
 
-#include <unistd.h>
-
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
 #include "report.hpp"
-#include "mosaicloc/runtime/localization_config.hpp"
 #include "mosaicloc/runtime/registration_bench.hpp"
 #include "mosaicloc/runtime/soak.hpp"
-#include "mosaicloc/sim/config.hpp"
 #include "progress.hpp"
 
 namespace mosaicloc::app {
@@ -61,16 +57,7 @@ Action AddBenchCommand(CLI::App& app, const GlobalOptions& global) {
   registration->add_option("--failure-deg", args->failure_deg, "A rotation error above this is a failure")
       ->capture_default_str();
 
-  struct SoakArgs {
-    std::filesystem::path config, localizer_config, work;
-    std::string floor = "procedural", route = "network";
-    std::int64_t frames = 100000;
-    double speed_mps = 1.5;
-    std::int64_t seed = 7;
-    int threads = 2;
-    int map_laps = 1;
-  };
-  auto soak_args = std::make_shared<SoakArgs>();
+  auto soak_args = std::make_shared<runtime::SoakRequest>();
   CLI::App* soak = bench->add_subcommand(
       "soak", "A long simulated drive localized in one process (frames rendered as they are needed, none stored): "
               "lock losses, wrong fixes, latency, and memory, file descriptors and threads over time");
@@ -81,7 +68,7 @@ Action AddBenchCommand(CLI::App& app, const GlobalOptions& global) {
       ->check(CLI::IsMember({"straight", "loop", "network", "serpentine"}));
   soak->add_option("--speed-mps", soak_args->speed_mps, "Cruise speed, m/s")->capture_default_str();
   soak->add_option("--seed", soak_args->seed, "Seed of the drive")->capture_default_str();
-  soak->add_option("--config", soak_args->config, "Simulator configuration (simulator.yaml) of the drive: its conditions")
+  soak->add_option("--config", soak_args->simulator_config, "Simulator configuration (simulator.yaml) of the drive: its conditions")
       ->check(CLI::ExistingFile);
   soak->add_option("--localizer", soak_args->localizer_config, "Localizer configuration")->check(CLI::ExistingFile);
   soak->add_option("--work", soak_args->work, "Where the mapping lap and the map are made (default: a new temporary folder)");
@@ -94,20 +81,7 @@ Action AddBenchCommand(CLI::App& app, const GlobalOptions& global) {
 
   return [args, soak_args, soak, &global] {
     if (soak->parsed()) {
-      runtime::SoakOptions options;
-      options.drive = soak_args->config.empty() ? sim::SimulatorOptions{} : sim::LoadSimulatorConfig(soak_args->config);
-      options.drive.floor = sim::FloorChoice::Named(soak_args->floor, options.drive.floor);
-      options.drive.route.name = soak_args->route;
-      options.drive.route.speed_mps = soak_args->speed_mps;
-      options.drive.frames = soak_args->frames;
-      options.drive.laps = 0;
-      options.drive.seed = static_cast<std::uint64_t>(soak_args->seed);
-      options.drive.threads = soak_args->threads;
-      options.map_laps = soak_args->map_laps;
-      if (!soak_args->localizer_config.empty()) options.settings = runtime::LoadLocalizerConfig(soak_args->localizer_config);
-      options.work = soak_args->work.empty()
-                         ? std::filesystem::temp_directory_path() / ("mosaicloc-soak-" + std::to_string(::getpid()))
-                         : soak_args->work;
+      const runtime::SoakOptions options = runtime::SoakOptionsFor(*soak_args);
       ProgressBar progress("soak", global.quiet || global.json);
       const runtime::SoakSummary r = runtime::RunSoak(options, progress.Callback());
       progress.Finish();

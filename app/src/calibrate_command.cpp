@@ -16,11 +16,10 @@
 #include "mosaicloc/calibration/ground.hpp"
 #include "mosaicloc/calibration/intrinsics.hpp"
 #include "mosaicloc/calibration/vehicle_drive.hpp"
+#include "mosaicloc/runtime/calibration_jobs.hpp"
 #include "mosaicloc/camera/board.hpp"
 #include "mosaicloc/sim/calibration_drive.hpp"
 #include "mosaicloc/sim/raw_recordings.hpp"
-#include "mosaicloc/sim/simulator.hpp"
-#include "mosaicloc/sim/config.hpp"
 #include "progress.hpp"
 #include "report.hpp"
 
@@ -175,13 +174,11 @@ struct RectifyArgs {
 };
 
 void RunRectify(const RectifyArgs& args, const GlobalOptions& global) {
-  const calibration::Rectifier rectifier(calibration::ReadGroundCalibration(args.ground));
-  const std::vector<std::filesystem::path> files = calibration::MatchImages(args.images);
-  calibration::RectifyImages(files, rectifier, args.out_dir);
+  const std::size_t images = runtime::RectifyImageFiles(args.ground, args.images, args.out_dir);
   if (global.json) {
-    PrintJson(nlohmann::json{{"images", files.size()}, {"out", args.out_dir.string()}});
+    PrintJson(nlohmann::json{{"images", images}, {"out", args.out_dir.string()}});
   } else {
-    std::printf("%zu images rectified into %s\n", files.size(), args.out_dir.string().c_str());
+    std::printf("%zu images rectified into %s\n", images, args.out_dir.string().c_str());
   }
 }
 
@@ -245,13 +242,11 @@ struct VehicleArgs {
 
 void RunVehicle(const VehicleArgs& args, const GlobalOptions& global) {
   ProgressBar progress("calibrate vehicle", global.quiet);
-  const calibration::VehicleDriveResult drive =
-      calibration::CalibrateVehicleFromDrive(args.dataset, {}, progress.Callback());
+  const calibration::VehicleDriveResult drive = runtime::CalibrateVehicle(args.dataset, args.out, progress.Callback());
   progress.Finish();
   const calibration::VehicleCalibrationResult& result = drive.calibration;
   const calibration::VehicleParameters& value = drive.value;
   const calibration::VehicleParameters& sigma = drive.sigma;
-  if (!args.out.empty()) calibration::WriteVehicleCalibration(args.out, drive, args.dataset);
   const std::optional<calibration::VehicleParameters>& truth = drive.truth;
   const calibration::VehicleParameterNames& shown = calibration::ParameterNamesOf(drive.kind);
   const auto& names = shown.labels;
@@ -339,25 +334,20 @@ void PrintDataset(const GlobalOptions& global, const std::filesystem::path& out,
 }
 
 void RunSimulateRaw(const RawArgs& args, const GlobalOptions& global) {
-  const sim::SimulatorOptions options = args.config.empty() ? sim::SimulatorOptions{} : sim::LoadSimulatorConfig(args.config);
   ProgressBar progress("simulate raw", global.quiet, "no recording was written");
   const std::int64_t frames =
-      sim::WriteRawDrive(args.dataset, options, args.out, args.overwrite, progress.Callback());
+      runtime::SimulateRawRecording(args.dataset, args.config, args.out, args.overwrite, progress.Callback());
   progress.Finish();
   PrintDataset(global, args.out, frames, "raw frames in");
 }
 
 void RunRectifyDataset(const RawArgs& args, const GlobalOptions& global) {
-  const calibration::Rectifier rectifier(calibration::ReadGroundCalibration(args.ground));
-  std::optional<core::Pose2> mounting;
-  if (!args.vehicle.empty()) mounting = calibration::ReadVehicleCalibration(args.vehicle).vehicle_from_camera;
-  const std::int64_t frames = calibration::RectifyDataset(
-      args.dataset, rectifier, "rectified with " + args.ground.filename().string() + " (calibrate rectify-dataset)",
-      mounting, args.out, args.overwrite);
-  const camera::IdealCameraOptions& ideal = rectifier.calibration().ideal;
+  const runtime::RectifiedDataset written =
+      runtime::RectifyRecording(args.dataset, args.ground, args.vehicle, args.out, args.overwrite);
+  const camera::IdealCameraOptions& ideal = written.ideal;
   char scale[96];
   std::snprintf(scale, sizeof(scale), " (%dx%d at %.4f mm/px)", ideal.width_px, ideal.height_px, ideal.mm_per_px);
-  PrintDataset(global, args.out, frames, "frames rectified into", scale);
+  PrintDataset(global, args.out, written.frames, "frames rectified into", scale);
 }
 
 }  // namespace

@@ -18,7 +18,9 @@
 #include "mosaicloc/localizer/localizer.hpp"
 #include "latency_histogram.hpp"
 #include "mosaicloc/runtime/map_jobs.hpp"
+#include "mosaicloc/runtime/localization_config.hpp"
 #include "mosaicloc/runtime/map_session.hpp"
+#include "mosaicloc/sim/config.hpp"
 #include "mosaicloc/sim/encoders.hpp"
 #include "mosaicloc/sim/route.hpp"
 
@@ -100,6 +102,24 @@ SoakSample SampleProcess() {
     if (line.rfind("Threads:", 0) == 0) sample.threads = std::stoll(line.substr(8));
   }
   return sample;
+}
+
+SoakOptions SoakOptionsFor(const SoakRequest& request) {
+  SoakOptions options;
+  if (!request.simulator_config.empty()) options.drive = sim::LoadSimulatorConfig(request.simulator_config);
+  options.drive.floor = sim::FloorChoice::Named(request.floor, options.drive.floor);
+  options.drive.route.name = request.route;
+  options.drive.route.speed_mps = request.speed_mps;
+  options.drive.frames = request.frames;
+  options.drive.laps = 0;
+  options.drive.seed = request.seed;
+  options.drive.threads = request.threads;
+  options.map_laps = request.map_laps;
+  if (!request.localizer_config.empty()) options.settings = LoadLocalizerConfig(request.localizer_config);
+  options.work = request.work.empty()
+                     ? std::filesystem::temp_directory_path() / ("mosaicloc-soak-" + std::to_string(::getpid()))
+                     : request.work;
+  return options;
 }
 
 SoakSummary RunSoak(const SoakOptions& options, const std::function<void(double)>& progress) {

@@ -68,6 +68,22 @@ SoakSummary RunSoak(const SoakOptions& options, const std::function<void(double)
 nlohmann::json SoakJson(const SoakSummary& summary, const std::filesystem::path& work);
 std::string SoakText(const SoakSummary& summary, const std::filesystem::path& work);
 
+/// What `bench soak` is asked for: the drive's simulator configuration (empty: the defaults)
+/// with its floor, route, speed, frames and seed replaced, the localizer's configuration
+/// (empty: the defaults), and where the map is made (empty: a new folder under the system's
+/// temporary directory).
+struct SoakRequest {
+  std::filesystem::path simulator_config, localizer_config, work;
+  std::string floor = "procedural", route = "network";
+  std::int64_t frames = 100000;
+  double speed_mps = 1.5;
+  std::uint64_t seed = 7;
+  int threads = 2;  ///< rendering threads
+  int map_laps = 1;
+};
+/// Throws core::Error (invalid input) for an unreadable configuration, naming file and key.
+SoakOptions SoakOptionsFor(const SoakRequest& request);
+
 /// The process's resident memory (MiB), open file descriptors and threads, from /proc/self.
 SoakSample SampleProcess();
 

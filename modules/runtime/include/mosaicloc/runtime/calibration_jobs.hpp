@@ -1,0 +1,45 @@
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <string>
+
+#include "mosaicloc/calibration/vehicle_drive.hpp"
+#include "mosaicloc/camera/ideal_camera.hpp"
+
+namespace mosaicloc::runtime {
+
+/// `mosaicloc calibrate vehicle`: the camera's place on the vehicle and the wheel geometry
+/// from a calibration drive (calibration::CalibrateVehicleFromDrive), written to `out` (YAML,
+/// atomically) unless it is empty.
+calibration::VehicleDriveResult CalibrateVehicle(const std::filesystem::path& dataset, const std::filesystem::path& out,
+                                                 const std::function<void(double)>& progress = {});
+
+/// `mosaicloc calibrate rectify`: every raw image matching `pattern` made ideal with the
+/// ground calibration in `ground`, written into `out_dir` under its own name. Returns the
+/// number of images.
+std::size_t RectifyImageFiles(const std::filesystem::path& ground, const std::string& pattern,
+                              const std::filesystem::path& out_dir);
+
+struct RectifiedDataset {
+  std::int64_t frames = 0;
+  camera::IdealCameraOptions ideal;  ///< the camera of the written dataset
+};
+
+/// `mosaicloc calibrate rectify-dataset`: a recording of raw frames made ideal with the ground
+/// calibration `ground`; with a vehicle calibration (`vehicle` not empty), its
+/// vehicle_from_camera goes in the written dataset. Written as a whole or not at all
+/// (calibration::RectifyDataset).
+RectifiedDataset RectifyRecording(const std::filesystem::path& dataset, const std::filesystem::path& ground,
+                                  const std::filesystem::path& vehicle, const std::filesystem::path& out,
+                                  bool overwrite);
+
+/// `mosaicloc calibrate simulate-raw`: a simulated dataset seen through the simulated real
+/// camera; `config` is the simulator configuration it was made with (its floor), or empty for
+/// the defaults. Returns the frames written.
+std::int64_t SimulateRawRecording(const std::filesystem::path& dataset, const std::filesystem::path& config,
+                                  const std::filesystem::path& out, bool overwrite,
+                                  const std::function<void(double)>& progress = {});
+
+}  // namespace mosaicloc::runtime

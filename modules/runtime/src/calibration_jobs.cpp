@@ -1,0 +1,48 @@
+#include "mosaicloc/runtime/calibration_jobs.hpp"
+
+#include <optional>
+
+#include "mosaicloc/calibration/board_images.hpp"
+#include "mosaicloc/calibration/ground.hpp"
+#include "mosaicloc/sim/config.hpp"
+#include "mosaicloc/sim/raw_recordings.hpp"
+
+namespace mosaicloc::runtime {
+
+calibration::VehicleDriveResult CalibrateVehicle(const std::filesystem::path& dataset, const std::filesystem::path& out,
+                                                 const std::function<void(double)>& progress) {
+  calibration::VehicleDriveResult drive = calibration::CalibrateVehicleFromDrive(dataset, {}, progress);
+  if (!out.empty()) calibration::WriteVehicleCalibration(out, drive, dataset);
+  return drive;
+}
+
+std::size_t RectifyImageFiles(const std::filesystem::path& ground, const std::string& pattern,
+                              const std::filesystem::path& out_dir) {
+  const calibration::Rectifier rectifier(calibration::ReadGroundCalibration(ground));
+  const std::vector<std::filesystem::path> files = calibration::MatchImages(pattern);
+  calibration::RectifyImages(files, rectifier, out_dir);
+  return files.size();
+}
+
+RectifiedDataset RectifyRecording(const std::filesystem::path& dataset, const std::filesystem::path& ground,
+                                  const std::filesystem::path& vehicle, const std::filesystem::path& out,
+                                  bool overwrite) {
+  const calibration::Rectifier rectifier(calibration::ReadGroundCalibration(ground));
+  std::optional<core::Pose2> mounting;
+  if (!vehicle.empty()) mounting = calibration::ReadVehicleCalibration(vehicle).vehicle_from_camera;
+  RectifiedDataset result;
+  result.frames = calibration::RectifyDataset(
+      dataset, rectifier, "rectified with " + ground.filename().string() + " (calibrate rectify-dataset)", mounting,
+      out, overwrite);
+  result.ideal = rectifier.calibration().ideal;
+  return result;
+}
+
+std::int64_t SimulateRawRecording(const std::filesystem::path& dataset, const std::filesystem::path& config,
+                                  const std::filesystem::path& out, bool overwrite,
+                                  const std::function<void(double)>& progress) {
+  const sim::SimulatorOptions options = config.empty() ? sim::SimulatorOptions{} : sim::LoadSimulatorConfig(config);
+  return sim::WriteRawDrive(dataset, options, out, overwrite, progress);
+}
+
+}  // namespace mosaicloc::runtime
