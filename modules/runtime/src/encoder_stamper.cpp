@@ -9,22 +9,47 @@
 
 namespace mosaicloc::runtime {
 
-core::Timestamp EncoderStamper::ChangedAt(core::Timestamp read) {
+std::optional<core::Timestamp> EncoderStamper::ChangedAt(const io::PlcInputs& read) {
   const core::Duration period = options_.counter_period;
   if (!options_.phase_lock || period <= core::Duration::zero()) {
-    return io::CountersChangedAt(last_read_, read, period);
+    return io::CountersChangedAt(last_read_, read.time, period);
   }
-  // The change happened after the previous read and within the last period before this one.
-  const core::Timestamp from = std::max(last_read_, read - period), to = read;
+  // The PLC took the values it answered with at some instant of the request's round trip:
+  // the change happened after the previous request went out, before this one's answer came
+  // back, and within the last period before this request went out (moving, the counters
+  // change every period). Dated by the middle of the read alone, a late answer (a PLC thread
+  // not scheduled in time) put the change a whole period off.
+  const core::Timestamp sent = read.time - read.round_trip / 2, answered = read.time + read.round_trip / 2;
+  const core::Timestamp from = std::max(last_sent_, sent - period), to = answered;
   const core::Timestamp middle = from + (to - from) / 2;
   if (changes_seen_ == 0) {
     changed_ = middle;
   } else {
     // The last change moved on by the whole periods that put it nearest this one's middle,
-    // then drawn towards that middle by the running mean's weight.
+    // then drawn towards that middle by the running mean's weight. A read whose round trip
+    // took more than a quarter period says little about the instant: it is dated by the
+    // cycle alone and does not move it.
     const double periods = std::round(core::ToSeconds(middle - changed_) / core::ToSeconds(period));
     const core::Timestamp predicted = changed_ + core::FromSeconds(periods * core::ToSeconds(period));
-    const double gain = std::max(options_.phase_gain, 1.0 / static_cast<double>(changes_seen_ + 1));
+    // A slow answer's interval can hold two of the cycle's instants (give or take a tenth of a
+    // period the cycle may be off): the values may be those of either. Such a read gives no
+    // sample, once in a row at most, so a link that is always slow still gives samples; its
+    // values and request still bound the next change, and the counters being cumulative, the
+    // next sample carries its travel.
+    if (changes_seen_ >= kPhaseSettled && !skipped_) {
+      const core::Duration slack = period / 10;
+      int possible = 0;
+      for (const core::Timestamp instant : {predicted - period, predicted, predicted + period}) {
+        if (instant > from - slack && instant < to + slack) ++possible;
+      }
+      if (possible >= 2) {
+        skipped_ = true;
+        return std::nullopt;
+      }
+    }
+    const double gain = read.round_trip > period / 4
+                            ? 0.0
+                            : std::max(options_.phase_gain, 1.0 / static_cast<double>(changes_seen_ + 1));
     const core::Timestamp previous = changed_;
     changed_ = predicted + core::FromSeconds(gain * core::ToSeconds(middle - predicted));
     // The PLC changes its counters at most once a period: two changes dated closer than half
@@ -32,6 +57,7 @@ core::Timestamp EncoderStamper::ChangedAt(core::Timestamp read) {
     changed_ = std::clamp(std::max(changed_, previous + period / 2), from, to);
   }
   ++changes_seen_;
+  skipped_ = false;
   return changed_;
 }
 
@@ -46,7 +72,7 @@ std::optional<dataset::EncoderSample> EncoderStamper::Take(const io::PlcInputs& 
   if (!options_.polling || !have_ticks_) {
     stamp = read.time;
   } else if (ticks != last_ticks_) {
-    stamp = ChangedAt(read.time);
+    stamp = ChangedAt(read);  // nothing: the values are held back, but they bound the next change
   } else {
     const core::Duration still_for = moving_ ? options_.moving_stop_factor * options_.stationary_after
                                              : options_.stationary_after;
@@ -73,6 +99,7 @@ std::optional<dataset::EncoderSample> EncoderStamper::Take(const io::PlcInputs& 
   last_ticks_ = ticks;
   have_ticks_ = true;
   last_read_ = read.time;
+  last_sent_ = read.time - read.round_trip / 2;
   if (!stamp) return std::nullopt;
   last_forwarded_ = *stamp;
   return dataset::EncoderSample{*stamp - options_.latency, read.counts};

@@ -123,13 +123,19 @@ namespace {
 // changes after the first `settle` (RMS and largest).
 struct StampErrors {
   double rms_us = 0.0, max_us = 0.0;
+  double left_out = 0.0;  // share of the reads that saw a change and gave no sample
 };
 // The PLC thread's poll periods: 0.75 to 1.25 times the cycle, at random.
 double PollSpread(std::minstd_rand& random) {
   return 0.75 + 0.5 * std::uniform_real_distribution<double>(0.0, 1.0)(random);
 }
 
-StampErrors StampErrorUs(bool phase_lock, int period_us, int phase_us, int settle = 200) {
+// `slow_answers`: the share of reads whose answer comes 2 to 9 ms after the request (the PLC
+// thread not scheduled in time); the others take 0.2 ms. The PLC takes the values it answers
+// with at a random instant of the round trip. `round_trips_known` false: the reads say only
+// the middle of their round trip, as if it took no time.
+StampErrors StampErrorUs(bool phase_lock, int period_us, int phase_us, int settle = 200, double slow_answers = 0.0,
+                         bool round_trips_known = true) {
   EncoderStamperOptions options;
   options.polling = true;
   options.counter_period = std::chrono::microseconds(10000);
@@ -140,16 +146,27 @@ StampErrors StampErrorUs(bool phase_lock, int period_us, int phase_us, int settl
   StampErrors errors;
   double sum2 = 0.0;
   int changes = 0;
-  std::int64_t read_us = 0;
+  std::int64_t read_us = 0, seen_updates = 0;
+  int changed_reads = 0, left_out = 0;
   for (int cycle = 1; cycle < 2000; ++cycle) {
     read_us += static_cast<std::int64_t>(5000.0 * PollSpread(random));
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    const std::int64_t trip_us = unit(random) < slow_answers ? 2000 + static_cast<std::int64_t>(7000.0 * unit(random)) : 200;
+    const std::int64_t held_us = read_us + static_cast<std::int64_t>(static_cast<double>(trip_us) * unit(random));
     // The counters hold the number of updates so far: each update changes them.
-    const std::int64_t updates = read_us < phase_us ? 0 : (read_us - phase_us) / period_us + 1;
+    const std::int64_t updates = held_us < phase_us ? 0 : (held_us - phase_us) / period_us + 1;
     io::PlcInputs in;
-    in.time = core::Timestamp() + std::chrono::microseconds(read_us);
+    in.time = core::Timestamp() + std::chrono::microseconds(read_us + trip_us / 2);
+    if (round_trips_known) in.round_trip = std::chrono::microseconds(trip_us);
+    read_us += trip_us;
     in.counts.left_ticks = static_cast<std::int32_t>(updates);
     in.fresh = true;
     const auto sample = stamper.Take(in);
+    if (updates != seen_updates) {
+      ++changed_reads;
+      if (!sample) ++left_out;
+    }
+    seen_updates = updates;
     if (!sample || updates == 0 || sample->counts.left_ticks != updates) continue;
     const std::int64_t changed_us = phase_us + (updates - 1) * period_us;
     if (++changes > settle) {
@@ -160,6 +177,7 @@ StampErrors StampErrorUs(bool phase_lock, int period_us, int phase_us, int settl
     }
   }
   errors.rms_us = std::sqrt(sum2 / std::max(1, changes - settle));
+  errors.left_out = static_cast<double>(left_out) / std::max(1, changed_reads);
   return errors;
 }
 
@@ -168,22 +186,38 @@ TEST(EncoderStamper, ReadsAtVaryingPhasesFindWhenInItsCycleThePlcUpdates) {
     // Each change dated at the middle of its poll interval: up to half a poll off.
     const StampErrors middle = StampErrorUs(false, 10000, phase_us);
     const StampErrors locked = StampErrorUs(true, 10000, phase_us);
-    std::printf("phase %d us: middle of the interval rms %.0f max %.0f us; locked rms %.0f max %.0f us\n", phase_us,
-                middle.rms_us, middle.max_us, locked.rms_us, locked.max_us);
+    std::printf("phase %d us: middle of the interval rms %.0f max %.0f us; locked rms %.0f max %.0f us, %.1f %% left out\n",
+                phase_us, middle.rms_us, middle.max_us, locked.rms_us, locked.max_us, 100.0 * locked.left_out);
     EXPECT_GT(middle.rms_us, 1000.0);
     EXPECT_LT(locked.rms_us, 0.3 * middle.rms_us);
     EXPECT_LT(locked.max_us, 0.5 * middle.max_us);
+    EXPECT_LT(locked.left_out, 0.02);
   }
 }
 
 TEST(EncoderStamper, APlcOffItsConfiguredPeriodIsNeverDatedOutsideTheReads) {
   // A PLC cycling every 10.5 ms where 10 are configured: the phase slips by 0.5 ms a period;
-  // no stamp leaves the interval its reads give (the longest poll, 6.25 ms, at most). One
+  // no stamp leaves the interval its reads give (the longest poll, 6.25 ms, and two round
+  // trips at most). One
   // 0.5 % off is followed.
-  EXPECT_LT(StampErrorUs(true, 10500, 1200).max_us, 6250.0 + 1.0);
+  EXPECT_LT(StampErrorUs(true, 10500, 1200).max_us, 6250.0 + 2 * 200.0 + 1.0);
   const StampErrors slow = StampErrorUs(true, 10050, 1200);
   std::printf("PLC period 10.05 ms: rms %.0f max %.0f us\n", slow.rms_us, slow.max_us);
   EXPECT_LT(slow.rms_us, 0.5 * StampErrorUs(false, 10050, 1200).rms_us);
+}
+
+TEST(EncoderStamper, ALateAnswerDoesNotPutAChangeAPeriodOff) {
+  // One read in ten answered 2 to 9 ms late: dated by the middle of the round trip alone,
+  // changes land a whole period off; by the interval from one request to the next answer, and
+  // the cycle learnt from the prompt answers, none does.
+  const StampErrors blind = StampErrorUs(true, 10000, 3700, 200, 0.1, false);
+  const StampErrors known = StampErrorUs(true, 10000, 3700, 200, 0.1, true);
+  std::printf("slow answers: round trips ignored rms %.0f max %.0f us; known rms %.0f max %.0f us, %.1f %% left out\n",
+              blind.rms_us, blind.max_us, known.rms_us, known.max_us, 100.0 * known.left_out);
+  EXPECT_GT(blind.max_us, 5000.0);
+  EXPECT_LT(known.max_us, 2500.0);
+  EXPECT_LT(known.rms_us, 0.5 * blind.rms_us);
+  EXPECT_LT(known.left_out, 0.15);
 }
 
 }  // namespace

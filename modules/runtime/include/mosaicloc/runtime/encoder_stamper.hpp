@@ -37,6 +37,10 @@ struct EncoderStamperOptions {
   /// period) the middles of those intervals scatter evenly around the true instant, and their
   /// running mean (moved on by whole periods, the newest weighted at least phase_gain, so a
   /// PLC clock that drifts is followed) dates each change, never outside its own interval.
+  /// A read's interval runs from the previous request's sending to this one's answer (the PLC
+  /// answered with values it held at some instant of the round trip, PlcInputs::round_trip).
+  /// A read whose interval may hold two of the cycle's instants (a slow answer, a late poll)
+  /// is left out, once in a row at most: the next read carries its travel.
   /// Off: each change is dated at the middle of its interval.
   bool phase_lock = true;
   double phase_gain = 1.0 / 16.0;
@@ -56,16 +60,20 @@ class EncoderStamper {
   void Forget() {
     have_ticks_ = false;
     changes_seen_ = 0;
+    skipped_ = false;
   }
 
  private:
-  // When counters seen changed at `read` took their values (phase_lock).
-  core::Timestamp ChangedAt(core::Timestamp read);
+  // When counters seen changed at `read` took their values (phase_lock); nothing when the
+  // read cannot tell which of two cycles its values are from.
+  std::optional<core::Timestamp> ChangedAt(const io::PlcInputs& read);
+  static constexpr int kPhaseSettled = 16;  // changes seen before the cycle is trusted
 
   EncoderStamperOptions options_;
   bool have_ticks_ = false;  // (not an optional pair: GCC 12 warns wrongly about it)
   core::EncoderCounts last_ticks_;
   core::Timestamp last_read_;
+  core::Timestamp last_sent_;  // when the previous read's request went out
   core::Timestamp last_forwarded_;
   core::Timestamp last_change_;
   bool moving_ = false;  // the last change was faster than moving_ticks_per_period
@@ -73,6 +81,7 @@ class EncoderStamper {
   // and from how many changes.
   core::Timestamp changed_;
   int changes_seen_ = 0;
+  bool skipped_ = false;  // the last changed read was left out
 };
 
 }  // namespace mosaicloc::runtime
