@@ -76,7 +76,7 @@ import json, sys
 work = sys.argv[1]
 summary = json.loads(open(f"{work}/run.jsonl").read().strip().splitlines()[-1])["summary"]
 plc = json.load(open(f"{work}/plc.json"))
-keys = ("frames", "frames_processed", "frames_dropped", "fix_rate", "lock_losses", "relocalizations", "requests",
+keys = ("frames", "frames_processed", "frames_dropped", "fix_rate", "lock_losses", "relocalizations", "reanchorings", "requests",
         "answered", "answer_max_ms", "latency_p50_ms", "latency_p99_ms", "processing_p99_ms", "encoder_samples",
         "encoder_rejected", "plc_timeouts", "plc_read_errors", "plc_write_errors", "frames_by_mode", "stopped")
 print("run:", {k: summary.get(k) for k in keys})

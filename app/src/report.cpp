@@ -41,6 +41,7 @@ void PrintMetrics(const std::filesystem::path& directory, const dataset::Metrics
     show("first fix after", metrics.first_fix_s, "s");
   }
   if (metrics.relocalizations && *metrics.relocalizations > 0) show("relocalizations", metrics.relocalizations, "");
+  if (metrics.reanchorings && *metrics.reanchorings > 0) show("re-anchorings", metrics.reanchorings, "");
   if (metrics.wheel_scale_left_percent) {
     show("left wheel scale learnt", metrics.wheel_scale_left_percent, "%");
     show("right wheel scale learnt", metrics.wheel_scale_right_percent, "%");

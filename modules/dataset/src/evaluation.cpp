@@ -368,6 +368,7 @@ void WriteMetricsJson(const std::filesystem::path& file, const Metrics& metrics)
   json["reentry_frames_to_fix_max"] = ToJson(metrics.reentry_frames_to_fix_max);
   json["reentry_first_fix_error_max_mm"] = ToJson(metrics.reentry_first_fix_error_max_mm);
   json["relocalizations"] = ToJson(metrics.relocalizations);
+  json["reanchorings"] = ToJson(metrics.reanchorings);
   if (metrics.wheel_scale_left_percent) {
     json["wheel_scale_left_percent"] = ToJson(metrics.wheel_scale_left_percent);
     json["wheel_scale_right_percent"] = ToJson(metrics.wheel_scale_right_percent);

@@ -337,7 +337,8 @@ TEST(MetricsJson, HasEveryDesignKeyWithNullsWhereUnknown) {
   for (const std::string& key : kDesignKeys) EXPECT_TRUE(json.contains(key)) << key;
   for (const char* key : {"associated", "final_position_error_mm", "path_length_m", "drift_percent",
                           "repeatability_places", "fix_error_rms_mm", "off_map_frames", "off_map_max_error_mm", "reentries",
-                          "reentry_frames_to_fix_max", "reentry_first_fix_error_max_mm", "relocalizations"}) {
+                          "reentry_frames_to_fix_max", "reentry_first_fix_error_max_mm", "relocalizations",
+                          "reanchorings"}) {
     EXPECT_TRUE(json.contains(key)) << key;
   }
   EXPECT_EQ(json["frames"].get<std::int64_t>(), 100);

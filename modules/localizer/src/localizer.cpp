@@ -354,7 +354,7 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
     outcome.fix_quality = std::clamp(outcome.track.mean_zncc, 0.0, 1.0);
     if (relocalize) {
       // A verified relocalization replaces the prediction it contradicts.
-      Restart(time, fix, fix_covariance, &outcome);
+      Restart(time, fix, fix_covariance, false, &outcome);
     } else {
       const estimation::FixOutcome applied = filter_->Correct(time, fix, fix_covariance, unmodelled);
       outcome.fixed = applied.accepted;
@@ -374,7 +374,7 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
         if (!gated) {
           rejected_run_ = 0;
         } else if (RejectedAgain(time, offset, fix_covariance + unmodelled)) {
-      Restart(time, fix, fix_covariance, &outcome);
+          Restart(time, fix, fix_covariance, true, &outcome);
         }
       }
     }
@@ -605,12 +605,12 @@ estimation::FrameVerdict Localizer::ClassifyMiss(const FrameOutcome& outcome, co
 }
 
 void Localizer::Restart(core::Timestamp time, const core::Pose2& fix, const Eigen::Matrix3d& fix_covariance,
-                        FrameOutcome* outcome) {
+                        bool reanchoring, FrameOutcome* outcome) {
   filter_->RestartAt(time, fix, fix_covariance);
   outcome->fixed = true;
   outcome->relocalized = true;
   outcome->reason.clear();
-  ++relocalizations_;
+  ++(reanchoring ? reanchorings_ : relocalizations_);
   rejected_run_ = 0;
 }
 

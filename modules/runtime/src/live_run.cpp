@@ -764,6 +764,7 @@ class LiveRun::Impl {
             {"fix_rate", processed > 0 ? static_cast<double>(stats_.fixes) / static_cast<double>(processed) : 0.0},
             {"lock_losses", localizer_->lock().losses()},
             {"relocalizations", localizer_->relocalizations()},
+            {"reanchorings", localizer_->reanchorings()},
             {"mode_switches", localizer_->mode_switches()},
             {"frames_by_mode", FramesByMode()},
             {"relocalize_requests", stats_.relocalize_requests.load()},

@@ -131,7 +131,8 @@ class ReplayRecord {
   /// Writes fixes.csv, metrics.json, estimate.tum and the plots; the metrics written.
   dataset::Metrics Finish(const ReplayOptions& options, const dataset::DatasetInfo& info, double required_overlap,
                           std::optional<std::int64_t> lock_losses, const std::string& title,
-                          std::optional<std::int64_t> relocalizations = std::nullopt) {
+                          std::optional<std::int64_t> relocalizations = std::nullopt,
+                          std::optional<std::int64_t> reanchorings = std::nullopt) {
     if (estimate_.empty() && reports_.empty()) {
       core::ThrowInvalidInput(options.dataset.string() + ": no frame falls within the encoder samples");
     }
@@ -141,6 +142,7 @@ class ReplayRecord {
     metrics.fix_rate = static_cast<double>(fixes_) / static_cast<double>(frames_);
     metrics.lock_losses = lock_losses;
     metrics.relocalizations = relocalizations;
+    metrics.reanchorings = reanchorings;
     dataset::AddTruthFreeFigures(reports_, estimate_, innovations_, &metrics);
     if (groundtruth_) {
       // Every fix checked against the truth: a lock that never broke proves nothing if it held
@@ -569,9 +571,11 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
   }
   summary.tiles_loaded = map.cache().stats().misses;
   summary.relocalizations = localizer.relocalizations();
+  summary.reanchorings = localizer.reanchorings();
   summary.wheel_scale_error = localizer.wheel_scale_error();
   summary.wheel_scale_sigma = localizer.wheel_scale_sigma();
-  core::Log().info("map cache: {} tiles loaded, {} relocalizations", summary.tiles_loaded, summary.relocalizations);
+  core::Log().info("map cache: {} tiles loaded, {} relocalizations, {} re-anchorings", summary.tiles_loaded,
+                   summary.relocalizations, summary.reanchorings);
   const Eigen::Vector2d learnt = CalibrationErrorsShown(summary.wheel_scale_error, info.vehicle.kind).values;
   const Eigen::Vector2d sigma = CalibrationErrorsShown(summary.wheel_scale_sigma, info.vehicle.kind).values;
   if (info.vehicle.kind == core::DriveKind::kTricycle) {
@@ -604,7 +608,7 @@ ReplaySummary ReplayMosaic(const ReplayOptions& options, const std::function<voi
   }
   record.SetFloor(FloorPictureOf(map, record.reports()));
   summary.metrics = record.Finish(options, info, settings.required_overlap, localizer.lock().losses(),
-                                  "mosaic localization", localizer.relocalizations());
+                                  "mosaic localization", localizer.relocalizations(), localizer.reanchorings());
   return summary;
 }
 

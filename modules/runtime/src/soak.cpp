@@ -255,6 +255,7 @@ SoakSummary RunSoak(const SoakOptions& options, const std::function<void(double)
   summary.driven_s = segment_start_s;
   summary.lock_losses = localizer.lock().losses();
   summary.relocalizations = localizer.relocalizations();
+  summary.reanchorings = localizer.reanchorings();
   summary.fix_rate = static_cast<double>(summary.fixes) / static_cast<double>(std::max<std::int64_t>(summary.frames, 1));
   summary.error_rms_mm = summary.fixes > 0 ? std::sqrt(error_sum_sq / static_cast<double>(summary.fixes)) : 0.0;
   summary.processing_p50_ms = processing.Percentile(50.0);
@@ -283,6 +284,7 @@ nlohmann::json SoakJson(const SoakSummary& r, const std::filesystem::path& work)
           {"lock_losses", r.lock_losses},
           {"wrong_fixes", r.wrong_fixes},
           {"relocalizations", r.relocalizations},
+          {"reanchorings", r.reanchorings},
           {"encoder_samples_rejected", r.encoder_samples_rejected},
           {"error_rms_mm", r.error_rms_mm},
           {"error_max_mm", r.error_max_mm},
@@ -306,14 +308,14 @@ std::string SoakText(const SoakSummary& r, const std::filesystem::path& work) {
   const SoakSample& last = r.samples.back();
   return fmt::format(
       "soak: {} frames ({:.2f} h driven, {:.2f} km) in {:.0f} s ({:.0f} frames/s, rendering included)\n"
-      "  fixes {:.3f} %, lock losses {}, wrong fixes (> 1 mm) {}, relocalizations {}; fix error RMS {:.4f} mm, max "
+      "  fixes {:.3f} %, lock losses {}, wrong fixes (> 1 mm) {}, relocalizations {}, re-anchorings {}; fix error RMS {:.4f} mm, max "
       "{:.4f} mm\n"
       "  processing per frame: p50 {:.3f} ms, p99 {:.3f} ms, p99.99 {:.3f} ms, max {:.3f} ms\n"
       "  resident memory {:.1f} -> {:.1f} MiB, slope after warm-up {:+.2f} MiB/h ({:+.3f} MiB per 10^5 frames); file "
       "descriptors {} -> {}; threads {} -> {}\n"
       "  map and mapping lap in {}\n",
       r.frames, r.driven_s / 3600.0, r.driven_km, r.seconds, r.frames_per_s, 100.0 * r.fix_rate, r.lock_losses,
-      r.wrong_fixes, r.relocalizations, r.error_rms_mm, r.error_max_mm, r.processing_p50_ms, r.processing_p99_ms,
+      r.wrong_fixes, r.relocalizations, r.reanchorings, r.error_rms_mm, r.error_max_mm, r.processing_p50_ms, r.processing_p99_ms,
       r.processing_p9999_ms, r.processing_max_ms, first.rss_mib, last.rss_mib, r.rss_slope_mib_per_h,
       r.rss_slope_mib_per_100k_frames, first.fds, last.fds, first.threads, last.threads, work.string());
 }

@@ -79,7 +79,9 @@ struct Metrics {
   std::optional<std::int64_t> reentries;
   std::optional<std::int64_t> reentry_frames_to_fix_max;
   std::optional<double> reentry_first_fix_error_max_mm;
-  std::optional<std::int64_t> relocalizations;  ///< restarts of the filter from a fix (caller)
+  std::optional<std::int64_t> relocalizations;  ///< filter restarts at a place found by a search (caller)
+  /// Filter restarts on fixes the gate kept rejecting by the same offset (caller).
+  std::optional<std::int64_t> reanchorings;
   /// What the filter learnt of the vehicle's calibration by the end (caller; written when set):
   /// a differential drive's wheel scale errors, a tricycle's drive wheel scale error and the
   /// error of its calibrated steering offset, a mecanum vehicle's wheel scale error and its

@@ -230,9 +230,11 @@ class Localizer {
   Eigen::Vector2d wheel_scale_error() const;
   Eigen::Vector2d wheel_scale_sigma() const;
   const estimation::LockMonitor& lock() const { return lock_; }
-  /// Restarts of the filter from a fix: relocalizations, and re-anchorings on fixes the gate
-  /// kept rejecting.
+  /// Restarts of the filter from a fix: relocalizations (a place found by a search and
+  /// verified), and re-anchorings on fixes the gate kept rejecting, all off the prediction by
+  /// the same amount (the odometry, not the fixes, was off).
   std::int64_t relocalizations() const { return relocalizations_; }
+  std::int64_t reanchorings() const { return reanchorings_; }
   /// The vehicle's pose is not known (it was moved while switched off, or the start pose is a
   /// guess): from the next frame on, relocalize_radius_mm around the prediction is searched
   /// and the one place found taken, whatever the prior's covariance says, until a fix.
@@ -277,9 +279,9 @@ class Localizer {
                       FrameOutcome* outcome);
   // Keeps the frame as the keyframe, at the filter's estimate for its time.
   void KeepKeyframe(core::Timestamp time, const cv::Mat& frame);
-  // Restarts the filter from a fix (a relocalization or a re-anchoring) and says so.
+  // Restarts the filter from a fix (a relocalization, or a re-anchoring) and says so.
   void Restart(core::Timestamp time, const core::Pose2& fix, const Eigen::Matrix3d& fix_covariance,
-               FrameOutcome* outcome);
+               bool reanchoring, FrameOutcome* outcome);
   // One more fix rejected at the gate, `offset` off the prediction: extends or starts the run
   // of rejections off by the same amount; true when it is long enough to re-anchor on.
   bool RejectedAgain(core::Timestamp time, const Eigen::Vector3d& offset, const Eigen::Matrix3d& offset_covariance);
@@ -295,6 +297,7 @@ class Localizer {
   std::optional<estimation::PoseFilter> filter_;
   estimation::LockMonitor lock_;
   std::int64_t relocalizations_ = 0;
+  std::int64_t reanchorings_ = 0;
   // The run of consecutive fixes the gate rejected: how many, the last one's offset from the
   // prediction (x, y, yaw) and that offset's covariance.
   int rejected_run_ = 0;

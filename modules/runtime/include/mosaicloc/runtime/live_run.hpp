@@ -134,7 +134,7 @@ class LiveRun {
   LiveRun& operator=(const LiveRun&) = delete;
 
   /// Runs for `duration_s` (0: until the source ends or a stop); the summary (stopped, frames,
-  /// fixes, fix_rate, lock_losses, relocalizations, latency and the tracking thread's processing
+  /// fixes, fix_rate, lock_losses, relocalizations, reanchorings, latency and the tracking thread's processing
   /// time per frame (p50, p99), the PLC link's counters, ...). Rethrows
   /// what stopped a thread.
   nlohmann::json Run(double duration_s, const StatusCallback& status = {}, const StopCallback& stop_requested = {});

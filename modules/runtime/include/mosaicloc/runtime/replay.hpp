@@ -77,7 +77,8 @@ struct ReplaySummary {
   std::int64_t encoder_samples_rejected = 0;
   // kMosaic only:
   std::int64_t tiles_loaded = 0;
-  std::int64_t relocalizations = 0;
+  std::int64_t relocalizations = 0;  ///< Localizer::relocalizations
+  std::int64_t reanchorings = 0;     ///< Localizer::reanchorings
   Eigen::Vector2d wheel_scale_error = Eigen::Vector2d::Zero();  ///< learnt (left, right), 0.02 = 2 %
   Eigen::Vector2d wheel_scale_sigma = Eigen::Vector2d::Zero();
   /// With mapping: why map keeping stopped before the end (MapKeepingSummary::failure), or empty.

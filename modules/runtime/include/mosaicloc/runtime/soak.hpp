@@ -45,7 +45,7 @@ struct SoakSample {
 };
 
 struct SoakSummary {
-  std::int64_t frames = 0, fixes = 0, lock_losses = 0, wrong_fixes = 0, relocalizations = 0;
+  std::int64_t frames = 0, fixes = 0, lock_losses = 0, wrong_fixes = 0, relocalizations = 0, reanchorings = 0;
   std::int64_t encoder_samples_rejected = 0;
   double fix_rate = 0.0;
   double error_rms_mm = 0.0, error_max_mm = 0.0;  ///< of the fixes against the truth
