@@ -105,15 +105,15 @@ SoakSample SampleProcess() {
 }
 
 SoakOptions SoakOptionsFor(const SoakRequest& request) {
+  sim::SimulatorOverrides drive;
+  drive.floor = request.floor;
+  drive.route = request.route;
+  drive.speed_mps = request.speed_mps;
+  drive.frames = request.frames;
+  drive.seed = request.seed;
+  drive.threads = request.threads;
   SoakOptions options;
-  if (!request.simulator_config.empty()) options.drive = sim::LoadSimulatorConfig(request.simulator_config);
-  options.drive.floor = sim::FloorChoice::Named(request.floor, options.drive.floor);
-  options.drive.route.name = request.route;
-  options.drive.route.speed_mps = request.speed_mps;
-  options.drive.frames = request.frames;
-  options.drive.laps = 0;
-  options.drive.seed = request.seed;
-  options.drive.threads = request.threads;
+  options.drive = sim::SimulatorOptionsFor(request.simulator_config, drive);
   options.map_laps = request.map_laps;
   if (!request.localizer_config.empty()) options.settings = LoadLocalizerConfig(request.localizer_config);
   options.work = request.work.empty()

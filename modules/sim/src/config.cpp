@@ -204,4 +204,21 @@ SimulatorOptions SimulatorConfigOrDefaults(const std::filesystem::path& file) {
   return LoadSimulatorConfig(file);
 }
 
+SimulatorOptions SimulatorOptionsFor(const std::filesystem::path& file, const SimulatorOverrides& overrides) {
+  SimulatorOptions options = file.empty() ? SimulatorOptions{} : LoadSimulatorConfig(file);
+  if (!overrides.floor.empty()) options.floor = FloorChoice::Named(overrides.floor, options.floor);
+  if (overrides.floor_seed) options.floor.seed = *overrides.floor_seed;
+  if (overrides.floor_mm_per_texel) options.floor.mm_per_texel = *overrides.floor_mm_per_texel;
+  if (!overrides.route.empty()) options.route.name = overrides.route;
+  if (overrides.frames) {
+    options.frames = *overrides.frames;
+    options.laps = 0;
+  }
+  if (overrides.laps) options.laps = *overrides.laps;
+  if (overrides.speed_mps) options.route.speed_mps = *overrides.speed_mps;
+  if (overrides.seed) options.seed = *overrides.seed;
+  if (overrides.threads) options.threads = *overrides.threads;
+  return options;
+}
+
 }  // namespace mosaicloc::sim

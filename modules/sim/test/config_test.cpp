@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include "mosaicloc/core/error.hpp"
+#include "mosaicloc/test/test_support.hpp"
 
 namespace mosaicloc::sim {
 namespace {
@@ -132,6 +133,58 @@ TEST(SimulatorConfig, OverridesApply) {
   EXPECT_DOUBLE_EQ(options.route.speed_mps, 2.5);
   EXPECT_EQ(options.laps, 3);
   EXPECT_EQ(options.frames, 900);
+}
+
+// A command line's overrides replace what they name and keep the rest of the file; a frame
+// count replaces the file's laps.
+TEST(SimulatorConfig, CommandLineOverridesKeepTheRestOfTheFile) {
+  test::ScratchDir dir;
+  test::WriteFile(dir / "simulator.yaml",
+                  "floor:\n  seed: 4\n  unevenness_mm: 1.5\nroute:\n  name: loop\n  speed_mps: 0.3\n"
+                  "camera:\n  drop_probability: 0.02\nrun:\n  laps: 3\n  seed: 9\n");
+  const SimulatorOptions unchanged = SimulatorOptionsFor(dir / "simulator.yaml", {});
+  EXPECT_EQ(unchanged.route.name, "loop");
+  EXPECT_EQ(unchanged.laps, 3);
+  EXPECT_EQ(unchanged.seed, 9U);
+
+  SimulatorOverrides overrides;
+  overrides.floor = "/data/asphalt.jpg";
+  overrides.floor_mm_per_texel = 0.5;
+  overrides.route = "network";
+  overrides.frames = 1234;
+  overrides.speed_mps = 2.0;
+  overrides.seed = 11;
+  overrides.threads = 3;
+  const SimulatorOptions options = SimulatorOptionsFor(dir / "simulator.yaml", overrides);
+  EXPECT_EQ(options.floor.kind, "image");
+  EXPECT_EQ(options.floor.image, "/data/asphalt.jpg");
+  EXPECT_EQ(options.floor.seed, 4U);
+  EXPECT_DOUBLE_EQ(options.floor.unevenness_mm, 1.5);
+  EXPECT_DOUBLE_EQ(options.floor.mm_per_texel, 0.5);
+  EXPECT_EQ(options.route.name, "network");
+  EXPECT_DOUBLE_EQ(options.route.speed_mps, 2.0);
+  EXPECT_EQ(options.frames, 1234);
+  EXPECT_EQ(options.laps, 0);
+  EXPECT_EQ(options.seed, 11U);
+  EXPECT_EQ(options.threads, 3);
+  EXPECT_DOUBLE_EQ(options.drop_probability, 0.02);
+
+  SimulatorOverrides laps;
+  laps.laps = 2;
+  laps.floor_seed = 8;
+  const SimulatorOptions by_laps = SimulatorOptionsFor({}, laps);
+  EXPECT_EQ(by_laps.laps, 2);
+  EXPECT_EQ(by_laps.floor.seed, 8U);
+  EXPECT_EQ(by_laps.floor.kind, SimulatorOptions{}.floor.kind);
+
+  test::WriteFile(dir / "bad.yaml", "route:\n  speed_mps: fast\n");
+  try {
+    SimulatorOptionsFor(dir / "bad.yaml", overrides);
+    FAIL() << "a configuration that cannot be read was accepted";
+  } catch (const core::Error& e) {
+    EXPECT_THAT(e.what(), HasSubstr("bad.yaml"));
+    EXPECT_THAT(e.what(), HasSubstr("speed_mps"));
+  }
 }
 
 TEST(SimulatorConfig, ReliefAndLightAreReadAndChecked) {
