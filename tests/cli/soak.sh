@@ -16,9 +16,14 @@ print({k: d[k] for k in ("frames", "fix_rate", "lock_losses", "wrong_fixes", "er
 assert d["frames"] == 600 and d["wrong_fixes"] == 0 and d["lock_losses"] == 0, d
 assert d["fix_rate"] >= 0.95 and d["error_max_mm"] <= 0.1, d
 assert d["driven_s"] > 600 / 30.0 and d["driven_km"] > 0.015, d  # the drops: more drive than frames; two segments
+col = {name: i for i, name in enumerate(d["samples_columns"])}
 first, last = d["samples"][0], d["samples"][-1]
-assert last[1] == 600 and len(d["samples"]) >= 2, d["samples"]
-assert last[3] <= first[3] + 1 and last[4] == first[4], (first, last)  # descriptors (the map's), threads
+assert last[col["frames"]] == 600 and len(d["samples"]) >= 2, d["samples"]
+assert last[col["fds"]] <= first[col["fds"]] + 1, (first, last)  # descriptors: the map's
+assert last[col["threads"]] == first[col["threads"]], (first, last)
+# The map's decoded tiles are part of the heap in use.
+assert 0 < last[col["cache_mib"]] <= last[col["heap_mib"]], (first, last)
+assert last[col["cache_mib"]] <= 256, last  # the default cache budget
 PY
 [ -f "$SCRATCH/work/soak.mosaic" ] || fail "the soak's map is not where --work says"
 # Bad input is named.

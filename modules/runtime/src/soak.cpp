@@ -93,6 +93,8 @@ SoakSample SampleProcess() {
   if (statm >> pages_total >> pages_resident) {
     sample.rss_mib = static_cast<double>(pages_resident) * static_cast<double>(sysconf(_SC_PAGESIZE)) / (1 << 20);
   }
+  const struct mallinfo2 heap = mallinfo2();
+  sample.heap_mib = static_cast<double>(heap.uordblks + heap.hblkhd) / (1 << 20);
   std::error_code ec;
   for (auto it = fs::directory_iterator("/proc/self/fd", ec); !ec && it != fs::directory_iterator(); it.increment(ec)) {
     ++sample.fds;
@@ -158,6 +160,7 @@ SoakSummary RunSoak(const SoakOptions& options, const std::function<void(double)
     SoakSample s = SampleProcess();
     s.wall_s = std::chrono::duration<double>(Clock::now() - start).count();
     s.frames = summary.frames;
+    s.cache_mib = static_cast<double>(map.cache().stats().pool_bytes) / (1 << 20);
     summary.samples.push_back(s);
   };
   sample();
@@ -263,21 +266,25 @@ SoakSummary RunSoak(const SoakOptions& options, const std::function<void(double)
   summary.processing_p9999_ms = processing.Percentile(99.99);
   summary.processing_max_ms = processing.max_ms();
   // Memory after the caches filled: the samples past the first 10 % of the frames.
-  std::vector<double> hours, per_100k, rss;
+  std::vector<double> hours, per_100k, rss, heap, cache;
   for (const SoakSample& s : summary.samples) {
     if (s.frames < summary.frames / 10) continue;
     hours.push_back(s.wall_s / 3600.0);
     per_100k.push_back(static_cast<double>(s.frames) / 1e5);
     rss.push_back(s.rss_mib);
+    heap.push_back(s.heap_mib);
+    cache.push_back(s.cache_mib);
   }
   summary.rss_slope_mib_per_h = Slope(hours, rss);
   summary.rss_slope_mib_per_100k_frames = Slope(per_100k, rss);
+  summary.heap_slope_mib_per_100k_frames = Slope(per_100k, heap);
+  summary.cache_slope_mib_per_100k_frames = Slope(per_100k, cache);
   return summary;
 }
 
 nlohmann::json SoakJson(const SoakSummary& r, const std::filesystem::path& work) {
   nlohmann::json samples = nlohmann::json::array();
-  for (const SoakSample& s : r.samples) samples.push_back({s.wall_s, s.frames, s.rss_mib, s.fds, s.threads});
+  for (const SoakSample& s : r.samples) samples.push_back({s.wall_s, s.frames, s.rss_mib, s.heap_mib, s.cache_mib, s.fds, s.threads});
   return {{"frames", r.frames},
           {"fixes", r.fixes},
           {"fix_rate", r.fix_rate},
@@ -298,7 +305,9 @@ nlohmann::json SoakJson(const SoakSummary& r, const std::filesystem::path& work)
           {"processing_max_ms", r.processing_max_ms},
           {"rss_slope_mib_per_h", r.rss_slope_mib_per_h},
           {"rss_slope_mib_per_100k_frames", r.rss_slope_mib_per_100k_frames},
-          {"samples_columns", {"wall_s", "frames", "rss_mib", "fds", "threads"}},
+          {"heap_slope_mib_per_100k_frames", r.heap_slope_mib_per_100k_frames},
+          {"cache_slope_mib_per_100k_frames", r.cache_slope_mib_per_100k_frames},
+          {"samples_columns", {"wall_s", "frames", "rss_mib", "heap_mib", "cache_mib", "fds", "threads"}},
           {"samples", samples},
           {"work", work.string()}};
 }
@@ -311,13 +320,15 @@ std::string SoakText(const SoakSummary& r, const std::filesystem::path& work) {
       "  fixes {:.3f} %, lock losses {}, wrong fixes (> 1 mm) {}, relocalizations {}, re-anchorings {}; fix error RMS {:.4f} mm, max "
       "{:.4f} mm\n"
       "  processing per frame: p50 {:.3f} ms, p99 {:.3f} ms, p99.99 {:.3f} ms, max {:.3f} ms\n"
-      "  resident memory {:.1f} -> {:.1f} MiB, slope after warm-up {:+.2f} MiB/h ({:+.3f} MiB per 10^5 frames); file "
-      "descriptors {} -> {}; threads {} -> {}\n"
+      "  resident memory {:.1f} -> {:.1f} MiB, slope after warm-up {:+.2f} MiB/h ({:+.3f} MiB per 10^5 frames); heap in use "
+      "{:.1f} -> {:.1f} MiB ({:+.3f} MiB per 10^5 frames), of which map tiles "
+      "{:.1f} -> {:.1f} MiB ({:+.3f}); file descriptors {} -> {}; threads {} -> {}\n"
       "  map and mapping lap in {}\n",
       r.frames, r.driven_s / 3600.0, r.driven_km, r.seconds, r.frames_per_s, 100.0 * r.fix_rate, r.lock_losses,
       r.wrong_fixes, r.relocalizations, r.reanchorings, r.error_rms_mm, r.error_max_mm, r.processing_p50_ms, r.processing_p99_ms,
       r.processing_p9999_ms, r.processing_max_ms, first.rss_mib, last.rss_mib, r.rss_slope_mib_per_h,
-      r.rss_slope_mib_per_100k_frames, first.fds, last.fds, first.threads, last.threads, work.string());
+      r.rss_slope_mib_per_100k_frames, first.heap_mib, last.heap_mib, r.heap_slope_mib_per_100k_frames,
+      first.cache_mib, last.cache_mib, r.cache_slope_mib_per_100k_frames, first.fds, last.fds, first.threads, last.threads, work.string());
 }
 
 }  // namespace mosaicloc::runtime

@@ -40,6 +40,8 @@ struct SoakSample {
   double wall_s = 0.0;
   std::int64_t frames = 0;
   double rss_mib = 0.0;
+  double heap_mib = 0.0;  ///< what the program holds of the heap (mallinfo2: in use, mapped chunks included)
+  double cache_mib = 0.0;  ///< of which the map's decoded tiles (the tile cache's slabs, bounded by its budget)
   std::int64_t fds = 0;
   std::int64_t threads = 0;
 };
@@ -56,6 +58,8 @@ struct SoakSummary {
   /// Resident memory's least-squares slope over the samples after the first 10 % of the frames
   /// (the caches fill first), MiB per hour of wall clock and per 10^5 frames.
   double rss_slope_mib_per_h = 0.0, rss_slope_mib_per_100k_frames = 0.0;
+  double heap_slope_mib_per_100k_frames = 0.0;   ///< the heap in use, over the same samples
+  double cache_slope_mib_per_100k_frames = 0.0;  ///< the map's decoded tiles, over the same samples
   std::vector<SoakSample> samples;
 };
 
@@ -63,7 +67,7 @@ struct SoakSummary {
 /// `progress` gets the share of frames done.
 SoakSummary RunSoak(const SoakOptions& options, const std::function<void(double)>& progress = {});
 
-/// The summary as `bench soak --json` prints it (samples as rows of wall_s, frames, rss_mib,
+/// The summary as `bench soak --json` prints it (samples as rows of wall_s, frames, rss_mib, heap_mib, cache_mib,
 /// fds, threads), and as lines of text; `work` is where the map was made.
 nlohmann::json SoakJson(const SoakSummary& summary, const std::filesystem::path& work);
 std::string SoakText(const SoakSummary& summary, const std::filesystem::path& work);
