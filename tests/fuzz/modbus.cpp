@@ -104,7 +104,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   plc->SetReply(data + 1, size - 1);
   PlcLinkOptions options;
   options.port = plc->port();
-  options.response_timeout_ms = 20.0;
+  options.response_timeout_ms = 2.0;  // loopback answers in microseconds: the time-out is waited out on every garbled reply
   mosaicloc::fuzz::ExpectOnlyCoreErrors([&] {
     const auto link = mosaicloc::io::OpenPlcLink(options);
     (void)link->Read();
