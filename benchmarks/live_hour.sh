@@ -7,7 +7,8 @@
 # map on lanes the mapping lap did not take. Every 10 s the run's resident memory, threads and
 # open file descriptors are sampled from /proc. Prints the run's summary, the PLC's view of the
 # fixes (against the truth after the best rigid alignment of the map's frame) and the
-# resources: first and last, and the memory's least-squares slope after the first tenth.
+# resources: first and last, and the memory's least-squares slope after the first tenth, also
+# of the heap in use and the map's decoded tiles (from the run's status lines).
 # CONTEND=1 starves the run of the CPU now and then, as other work on a vehicle's computer
 # does: every 4 s, three busy loops at a higher priority (nice -10) for 0.2 to 1 s. The PLC
 # simulator always runs above them all (nice -15): it stands for the PLC, which has a CPU of
@@ -91,6 +92,18 @@ slope = sum((t[i] - mt) * (rss[i] - mr) for i in after) / max(1e-9, sum((t[i] - 
 print(f"resources: {len(rows)} samples over {t[-1] / 60:.1f} min; RSS {rss[0]:.1f} -> {rss[-1]:.1f} MiB "
       f"(max {max(rss):.1f}), slope after the first tenth {slope * 3600:.2f} MiB/h; threads {th[0]} -> {th[-1]} "
       f"(max {max(th)}); fds {fd[0]} -> {fd[-1]} (max {max(fd)})")
+# What grows, from the run's own status lines (one a second): the map's decoded tiles, the rest
+# of the heap, and what the allocator holds beyond the heap in use.
+lines = [json.loads(l) for l in open(f"{work}/run.jsonl") if '"rss_mib"' in l]
+if lines:
+    def fit(key):
+        pts = [(l["t_s"], l[key]) for l in lines if l["t_s"] >= 0.1 * lines[-1]["t_s"]]
+        mx = sum(p[0] for p in pts) / len(pts); my = sum(p[1] for p in pts) / len(pts)
+        return 3600 * sum((p[0] - mx) * (p[1] - my) for p in pts) / max(1e-9, sum((p[0] - mx) ** 2 for p in pts))
+    first, last = lines[0], lines[-1]
+    print("memory (status lines): " + "; ".join(
+        f"{key} {first[key]:.1f} -> {last[key]:.1f} MiB, slope {fit(key):+.2f} MiB/h"
+        for key in ("rss_mib", "heap_mib", "map_cache_mib")))
 PY
 # The fixes the PLC received, in the map's frame: a built map's frame is the truth's up to a
 # small rigid offset, found from the tracking fixes (status 1). By status: how many, how far off

@@ -45,6 +45,7 @@
 #include "mosaicloc/runtime/map_session.hpp"
 #include "mosaicloc/runtime/report.hpp"
 #include "mosaicloc/runtime/settings.hpp"
+#include "mosaicloc/runtime/soak.hpp"
 #include "mosaicloc/sim/config.hpp"
 #include "latency_histogram.hpp"
 
@@ -723,6 +724,10 @@ class LiveRun::Impl {
     const core::Pose2 pose = state.motion.PoseAt(io::MonotonicNow());
     const double elapsed = core::ToSeconds(io::MonotonicNow() - started_);
     const std::int64_t errors = link.read_errors + link.write_errors + link.connect_failures;
+    // Memory, so that a long run shows what grows: the map's decoded tiles (bounded by the cache
+    // budget), the rest of the heap, and what the allocator holds beyond them.
+    const SoakSample process = SampleProcess();
+    const double map_cache_mib = map_ ? static_cast<double>(map_->cache().stats().pool_bytes) / (1 << 20) : 0.0;
     return {{"t_s", elapsed},
             {"lock", state.fixed_once ? estimation::ToString(state.lock) : "none"},
             {"mode", state.mode > 0 ? localizer::ToString(static_cast<localizer::Mode>(state.mode)) : "none"},
@@ -737,7 +742,10 @@ class LiveRun::Impl {
             {"x_mm", pose.x_mm()},
             {"y_mm", pose.y_mm()},
             {"yaw_deg", pose.yaw_rad() * 180.0 / std::numbers::pi},
-            {"scale", state.scale}};
+            {"scale", state.scale},
+            {"rss_mib", process.rss_mib},
+            {"heap_mib", process.heap_mib},
+            {"map_cache_mib", map_cache_mib}};
   }
 
   nlohmann::json Summary(const std::string& why) {

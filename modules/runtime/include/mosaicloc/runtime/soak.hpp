@@ -88,7 +88,8 @@ struct SoakRequest {
 /// Throws core::Error (invalid input) for an unreadable configuration, naming file and key.
 SoakOptions SoakOptionsFor(const SoakRequest& request);
 
-/// The process's resident memory (MiB), open file descriptors and threads, from /proc/self.
+/// The process's resident memory and heap in use (MiB), open file descriptors and threads, from
+/// /proc/self and mallinfo2 (the tile cache's share is the caller's to fill in).
 SoakSample SampleProcess();
 
 }  // namespace mosaicloc::runtime
