@@ -104,7 +104,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   plc->SetReply(data + 1, size - 1);
   PlcLinkOptions options;
   options.port = plc->port();
-  options.response_timeout_ms = 2.0;  // loopback answers in microseconds: the time-out is waited out on every garbled reply
+  // Loopback answers in microseconds; the time-out (also between a reply's bytes) is waited out
+  // on every garbled reply, and is kept well above a busy machine's scheduling delays.
+  options.response_timeout_ms = 5.0;
   mosaicloc::fuzz::ExpectOnlyCoreErrors([&] {
     const auto link = mosaicloc::io::OpenPlcLink(options);
     (void)link->Read();

@@ -41,7 +41,7 @@ RectifiedDataset RectifyRecording(const std::filesystem::path& dataset, const st
 std::int64_t SimulateRawRecording(const std::filesystem::path& dataset, const std::filesystem::path& config,
                                   const std::filesystem::path& out, bool overwrite,
                                   const std::function<void(double)>& progress) {
-  const sim::SimulatorOptions options = sim::SimulatorOptionsFor(config, {});
+  const sim::SimulatorOptions options = sim::SimulatorConfigOrDefaults(config);
   return sim::WriteRawDrive(dataset, options, out, overwrite, progress);
 }
 

@@ -45,9 +45,9 @@
 #include "mosaicloc/runtime/map_session.hpp"
 #include "mosaicloc/runtime/report.hpp"
 #include "mosaicloc/runtime/settings.hpp"
-#include "mosaicloc/runtime/soak.hpp"
 #include "mosaicloc/sim/config.hpp"
 #include "latency_histogram.hpp"
+#include "process_memory.hpp"
 
 namespace mosaicloc::runtime {
 
@@ -724,10 +724,15 @@ class LiveRun::Impl {
     const core::Pose2 pose = state.motion.PoseAt(io::MonotonicNow());
     const double elapsed = core::ToSeconds(io::MonotonicNow() - started_);
     const std::int64_t errors = link.read_errors + link.write_errors + link.connect_failures;
-    // Memory, so that a long run shows what grows: the map's decoded tiles (bounded by the cache
-    // budget), the rest of the heap, and what the allocator holds beyond them.
-    const SoakSample process = SampleProcess();
-    const double map_cache_mib = map_ ? static_cast<double>(map_->cache().stats().pool_bytes) / (1 << 20) : 0.0;
+    // Memory, so that a long run shows what grows: the map's decoded tiles (the cache's slabs),
+    // the rest of the heap, and what the allocator holds beyond them. Read every 10 s: reading
+    // the heap takes each allocator arena's lock.
+    const auto now = io::MonotonicNow();
+    if (!memory_read_ || now - *memory_read_ >= core::FromSeconds(10.0)) {
+      memory_ = ReadProcessMemory();
+      map_cache_mib_ = map_ ? static_cast<double>(map_->cache().stats().pool_bytes) / (1 << 20) : 0.0;
+      memory_read_ = now;
+    }
     return {{"t_s", elapsed},
             {"lock", state.fixed_once ? estimation::ToString(state.lock) : "none"},
             {"mode", state.mode > 0 ? localizer::ToString(static_cast<localizer::Mode>(state.mode)) : "none"},
@@ -743,9 +748,9 @@ class LiveRun::Impl {
             {"y_mm", pose.y_mm()},
             {"yaw_deg", pose.yaw_rad() * 180.0 / std::numbers::pi},
             {"scale", state.scale},
-            {"rss_mib", process.rss_mib},
-            {"heap_mib", process.heap_mib},
-            {"map_cache_mib", map_cache_mib}};
+            {"rss_mib", memory_.rss_mib},
+            {"heap_mib", memory_.heap_mib},
+            {"map_cache_mib", map_cache_mib_}};
   }
 
   nlohmann::json Summary(const std::string& why) {
@@ -844,6 +849,10 @@ class LiveRun::Impl {
   RunStats stats_;
   std::int64_t status_frames_ = 0;
   std::int64_t status_fixes_ = 0;
+  // The status line's memory figures and when they were read (the main thread's only).
+  std::optional<core::Timestamp> memory_read_;
+  ProcessMemory memory_;
+  double map_cache_mib_ = 0.0;
 };
 
 LiveRun::LiveRun(const LiveRunOptions& options, std::unique_ptr<io::FrameSource> source,

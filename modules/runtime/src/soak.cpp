@@ -17,6 +17,7 @@
 #include "mosaicloc/dataset/dataset.hpp"
 #include "mosaicloc/localizer/localizer.hpp"
 #include "latency_histogram.hpp"
+#include "process_memory.hpp"
 #include "mosaicloc/runtime/map_jobs.hpp"
 #include "mosaicloc/runtime/localization_config.hpp"
 #include "mosaicloc/runtime/map_session.hpp"
@@ -88,13 +89,9 @@ bool SoakOptions::Check(std::string* why) const {
 
 SoakSample SampleProcess() {
   SoakSample sample;
-  std::ifstream statm("/proc/self/statm");
-  long pages_total = 0, pages_resident = 0;
-  if (statm >> pages_total >> pages_resident) {
-    sample.rss_mib = static_cast<double>(pages_resident) * static_cast<double>(sysconf(_SC_PAGESIZE)) / (1 << 20);
-  }
-  const struct mallinfo2 heap = mallinfo2();
-  sample.heap_mib = static_cast<double>(heap.uordblks + heap.hblkhd) / (1 << 20);
+  const ProcessMemory memory = ReadProcessMemory();
+  sample.rss_mib = memory.rss_mib;
+  sample.heap_mib = memory.heap_mib;
   std::error_code ec;
   for (auto it = fs::directory_iterator("/proc/self/fd", ec); !ec && it != fs::directory_iterator(); it.increment(ec)) {
     ++sample.fds;
@@ -322,7 +319,7 @@ std::string SoakText(const SoakSummary& r, const std::filesystem::path& work) {
       "  processing per frame: p50 {:.3f} ms, p99 {:.3f} ms, p99.99 {:.3f} ms, max {:.3f} ms\n"
       "  resident memory {:.1f} -> {:.1f} MiB, slope after warm-up {:+.2f} MiB/h ({:+.3f} MiB per 10^5 frames); heap in use "
       "{:.1f} -> {:.1f} MiB ({:+.3f} MiB per 10^5 frames), of which map tiles "
-      "{:.1f} -> {:.1f} MiB ({:+.3f}); file descriptors {} -> {}; threads {} -> {}\n"
+      "{:.1f} -> {:.1f} MiB ({:+.3f} MiB per 10^5 frames); file descriptors {} -> {}; threads {} -> {}\n"
       "  map and mapping lap in {}\n",
       r.frames, r.driven_s / 3600.0, r.driven_km, r.seconds, r.frames_per_s, 100.0 * r.fix_rate, r.lock_losses,
       r.wrong_fixes, r.relocalizations, r.reanchorings, r.error_rms_mm, r.error_max_mm, r.processing_p50_ms, r.processing_p99_ms,

@@ -205,7 +205,7 @@ SimulatorOptions SimulatorConfigOrDefaults(const std::filesystem::path& file) {
 }
 
 SimulatorOptions SimulatorOptionsFor(const std::filesystem::path& file, const SimulatorOverrides& overrides) {
-  SimulatorOptions options = file.empty() ? SimulatorOptions{} : LoadSimulatorConfig(file);
+  SimulatorOptions options = SimulatorConfigOrDefaults(file);
   if (!overrides.floor.empty()) options.floor = FloorChoice::Named(overrides.floor, options.floor);
   if (overrides.floor_seed) options.floor.seed = *overrides.floor_seed;
   if (overrides.floor_mm_per_texel) options.floor.mm_per_texel = *overrides.floor_mm_per_texel;

@@ -140,10 +140,11 @@ TEST(SimulatorConfig, OverridesApply) {
 TEST(SimulatorConfig, CommandLineOverridesKeepTheRestOfTheFile) {
   test::ScratchDir dir;
   test::WriteFile(dir / "simulator.yaml",
-                  "floor:\n  seed: 4\n  unevenness_mm: 1.5\nroute:\n  name: loop\n  speed_mps: 0.3\n"
+                  "floor:\n  seed: 4\n  unevenness_mm: 1.5\nroute:\n  name: serpentine\n  speed_mps: 0.3\n"
                   "camera:\n  drop_probability: 0.02\nrun:\n  laps: 3\n  seed: 9\n");
   const SimulatorOptions unchanged = SimulatorOptionsFor(dir / "simulator.yaml", {});
-  EXPECT_EQ(unchanged.route.name, "loop");
+  EXPECT_EQ(unchanged.route.name, "serpentine");
+  EXPECT_DOUBLE_EQ(unchanged.route.speed_mps, 0.3);
   EXPECT_EQ(unchanged.laps, 3);
   EXPECT_EQ(unchanged.seed, 9U);
 

@@ -41,7 +41,7 @@ struct SoakSample {
   std::int64_t frames = 0;
   double rss_mib = 0.0;
   double heap_mib = 0.0;  ///< what the program holds of the heap (mallinfo2: in use, mapped chunks included)
-  double cache_mib = 0.0;  ///< of which the map's decoded tiles (the tile cache's slabs, bounded by its budget)
+  double cache_mib = 0.0;  ///< of which the map's decoded tiles: the tile cache's slabs (reused, never freed: at most its budget and one slab)
   std::int64_t fds = 0;
   std::int64_t threads = 0;
 };
