@@ -4,7 +4,6 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
-#include <future>
 #include <random>
 #include <string>
 #include <malloc.h>
@@ -14,6 +13,7 @@
 
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/log.hpp"
+#include "mosaicloc/core/worker_pool.hpp"
 #include "mosaicloc/dataset/dataset.hpp"
 #include "mosaicloc/localizer/localizer.hpp"
 #include "latency_histogram.hpp"
@@ -147,6 +147,7 @@ SoakSummary RunSoak(const SoakOptions& options, const std::function<void(double)
   std::normal_distribution<double> jitter(0.0, drive_options.timestamp_jitter_ms * 1e-3);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   const int threads = std::max(1, drive_options.threads);
+  core::WorkerPool workers(threads);  // the same rendering threads for the whole drive
 
   SoakSummary summary;
   LatencyHistogram processing;
@@ -206,16 +207,10 @@ SoakSummary RunSoak(const SoakOptions& options, const std::function<void(double)
     std::vector<cv::Mat> images(batch);
     for (std::size_t first = 0; first < capture_s.size(); first += batch) {
       const std::size_t count = std::min(batch, capture_s.size() - first);
-      std::vector<std::future<void>> workers;
-      for (int w = 0; w < threads; ++w) {
-        workers.push_back(std::async(std::launch::async, [&, w] {
-          for (std::size_t i = static_cast<std::size_t>(w); i < count; i += static_cast<std::size_t>(threads)) {
-            const double t = capture_s[first + i];
-            images[i] = renderer.Render(t - segment_start_s, sim::FrameSeed(drive_options.seed, slot[first + i]));
-          }
-        }));
-      }
-      for (auto& worker : workers) worker.get();
+      workers.Run(count, [&](std::size_t i) {
+        const double t = capture_s[first + i];
+        images[i] = renderer.Render(t - segment_start_s, sim::FrameSeed(drive_options.seed, slot[first + i]));
+      });
       for (std::size_t i = 0; i < count; ++i) {
         const double t = capture_s[first + i];
         const core::Timestamp time = core::Timestamp::FromSeconds(t);

@@ -2,12 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <future>
 #include <random>
 #include <sstream>
 #include <vector>
 
 #include "mosaicloc/core/error.hpp"
+#include "mosaicloc/core/worker_pool.hpp"
 #include "mosaicloc/dataset/dataset.hpp"
 
 namespace mosaicloc::sim {
@@ -406,18 +406,12 @@ SimulationSummary Simulate(const SimulatorOptions& options, const std::filesyste
   const std::size_t batch = 8 * static_cast<std::size_t>(options.threads);
   std::vector<std::vector<unsigned char>> encoded(batch);
   std::vector<dataset::CameraTruth> camera_truth(batch);
+  core::WorkerPool workers(options.threads);
   for (std::size_t first = 0; first < capture_s.size(); first += batch) {
     const std::size_t count = std::min(batch, capture_s.size() - first);
-    const auto render = [&](std::size_t i) {
+    workers.Run(count, [&](std::size_t i) {
       encoded[i] = dataset::DatasetWriter::EncodeFrame(plan.RenderFrame(first + i, &camera_truth[i]));
-    };
-    std::vector<std::future<void>> workers;
-    for (int w = 0; w < options.threads; ++w) {
-      workers.push_back(std::async(std::launch::async, [&, w] {
-        for (std::size_t i = static_cast<std::size_t>(w); i < count; i += static_cast<std::size_t>(options.threads)) render(i);
-      }));
-    }
-    for (auto& worker : workers) worker.get();
+    });
     for (std::size_t i = 0; i < count; ++i) {
       const auto time = core::Timestamp::FromSeconds(capture_s[first + i]);
       writer.AddEncodedFrame(time, encoded[i]);
