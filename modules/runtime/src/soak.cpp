@@ -240,11 +240,13 @@ SoakSummary RunSoak(const SoakOptions& options, const std::function<void(double)
       }
       if (progress) progress(static_cast<double>(summary.frames) / static_cast<double>(drive_options.frames));
     }
+    // The last sample while the drive is still under way: the segment's renderer, freed below,
+    // would otherwise show as a drop of the heap at the very end.
+    if (summary.frames >= drive_options.frames) sample();
     summary.driven_km += 1e-3 * drive.length_m();
     segment_start_s = segment_end_s;
     frame_index = static_cast<std::int64_t>(std::ceil(segment_start_s / period_s));
   }
-  sample();
   summary.seconds = std::chrono::duration<double>(Clock::now() - start).count();
   summary.frames_per_s = static_cast<double>(summary.frames) / std::max(summary.seconds, 1e-9);
   summary.driven_s = segment_start_s;
