@@ -41,17 +41,15 @@ struct BoardArgs {
 };
 
 void RunBoard(const BoardArgs& args, const GlobalOptions& global) {
-  const camera::BoardSpec board = camera::ParseBoardSpec(args.board);
-  const cv::Mat image = camera::DrawBoard(board, args.px_per_mm);
-  dataset::WritePng(args.out, image);
-  const double width_mm = image.cols / args.px_per_mm, height_mm = image.rows / args.px_per_mm;
+  const runtime::BoardPrint print = runtime::WriteBoardImage(args.board, args.px_per_mm, args.out);
+  const double width_mm = print.width_px / args.px_per_mm, height_mm = print.height_px / args.px_per_mm;
   if (global.json) {
-    PrintJson({{"board", board.ToString()}, {"png", args.out.string()}, {"width_mm", width_mm},
+    PrintJson({{"board", print.board.ToString()}, {"png", args.out.string()}, {"width_mm", width_mm},
                {"height_mm", height_mm}});
   } else {
     std::printf("board %s: %s, %dx%d px, print at %.1f x %.1f mm (%.0f dpi) and check one square with a ruler\n",
-                board.ToString().c_str(), args.out.string().c_str(), image.cols, image.rows, width_mm, height_mm,
-                args.px_per_mm * 25.4);
+                print.board.ToString().c_str(), args.out.string().c_str(), print.width_px, print.height_px, width_mm,
+                height_mm, args.px_per_mm * 25.4);
   }
 }
 

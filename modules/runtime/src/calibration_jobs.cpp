@@ -4,10 +4,21 @@
 
 #include "mosaicloc/calibration/board_images.hpp"
 #include "mosaicloc/calibration/ground.hpp"
+#include "mosaicloc/dataset/dataset.hpp"
 #include "mosaicloc/sim/config.hpp"
 #include "mosaicloc/sim/raw_recordings.hpp"
 
 namespace mosaicloc::runtime {
+
+BoardPrint WriteBoardImage(const std::string& spec, double px_per_mm, const std::filesystem::path& out) {
+  BoardPrint print;
+  print.board = camera::ParseBoardSpec(spec);
+  const cv::Mat image = camera::DrawBoard(print.board, px_per_mm);
+  dataset::WritePng(out, image);
+  print.width_px = image.cols;
+  print.height_px = image.rows;
+  return print;
+}
 
 calibration::VehicleDriveResult CalibrateVehicle(const std::filesystem::path& dataset, const std::filesystem::path& out,
                                                  const std::function<void(double)>& progress) {

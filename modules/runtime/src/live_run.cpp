@@ -730,7 +730,7 @@ class LiveRun::Impl {
     const auto now = io::MonotonicNow();
     if (!memory_read_ || now - *memory_read_ >= core::FromSeconds(10.0)) {
       memory_ = ReadProcessMemory();
-      map_cache_mib_ = map_ ? static_cast<double>(map_->cache().stats().pool_bytes) / (1 << 20) : 0.0;
+      map_cache_mib_ = map_ ? map_->cache_mib() : 0.0;
       memory_read_ = now;
     }
     return {{"t_s", elapsed},

@@ -158,7 +158,7 @@ SoakSummary RunSoak(const SoakOptions& options, const std::function<void(double)
     SoakSample s = SampleProcess();
     s.wall_s = std::chrono::duration<double>(Clock::now() - start).count();
     s.frames = summary.frames;
-    s.cache_mib = static_cast<double>(map.cache().stats().pool_bytes) / (1 << 20);
+    s.cache_mib = map.cache_mib();
     summary.samples.push_back(s);
   };
   sample();

@@ -6,9 +6,19 @@
 #include <string>
 
 #include "mosaicloc/calibration/vehicle_drive.hpp"
+#include "mosaicloc/camera/board.hpp"
 #include "mosaicloc/camera/ideal_camera.hpp"
 
 namespace mosaicloc::runtime {
+
+/// What `mosaicloc calibrate board` wrote: the board and the image's size in pixels.
+struct BoardPrint {
+  camera::BoardSpec board;
+  int width_px = 0, height_px = 0;
+};
+/// `mosaicloc calibrate board`: the board named by `spec` (camera::ParseBoardSpec) drawn at
+/// `px_per_mm` and written to `out` as PNG (atomically). Throws core::Error for a bad spec.
+BoardPrint WriteBoardImage(const std::string& spec, double px_per_mm, const std::filesystem::path& out);
 
 /// `mosaicloc calibrate vehicle`: the camera's place on the vehicle and the wheel geometry
 /// from a calibration drive (calibration::CalibrateVehicleFromDrive), written to `out` (YAML,

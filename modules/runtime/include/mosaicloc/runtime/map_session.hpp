@@ -44,6 +44,8 @@ class MapSession {
   const tracking::PlaceIndex& places() const { return *places_; }
   const mosaic::TileCache& cache() const { return *cache_; }
   mosaic::TileCache& cache() { return *cache_; }
+  /// What the map's decoded tiles take, MiB: the cache's slabs (reused, never freed).
+  double cache_mib() const { return static_cast<double>(cache_->stats().pool_bytes) / (1 << 20); }
   const mosaic::MapGrid& grid() const { return store_->grid(); }
   mosaic::TileStore& store() { return *store_; }
   /// The map file was created empty by this session (MapSessionOptions::writable).
