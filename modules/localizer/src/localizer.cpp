@@ -310,8 +310,10 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   // Lost, and the search around the prediction does not recover it: the vehicle may be
   // anywhere (moved unseen while the view kept matching a little where the estimate says, so
   // no kidnap was seen). Every lost_global_every-th frame, the whole map is searched.
+  // (On a floor known to repeat the whole map never gives a place alone: not searched.)
   if (!outcome.track.ok() && !pose_unknown_ && lock_.state() == estimation::LockState::kLost &&
-      options_.lost_global_every > 0 && places_ != nullptr && places_->usable() &&
+      options_.lost_global_every > 0 && places_ != nullptr && places_->floor_repeats() != true &&
+      places_->usable() &&
       ++lost_frames_ % options_.lost_global_every == 0) {
     tracking::TrackResult everywhere = relocalizer_.SearchEverywhere(frame, *places_, scale_);
     if (everywhere.ok()) {
@@ -667,6 +669,14 @@ tracking::TrackResult Localizer::Relocalize(const cv::Mat& frame, const core::Po
 
 tracking::TrackResult Localizer::CheckedAgainstTheMap(const cv::Mat& frame, tracking::TrackResult found) const {
   if (places_ == nullptr || !places_->usable()) return found;
+  if (places_->floor_repeats() == true) {
+    // The whole map never confirms a place on such a floor (Relocalizer::SearchEverywhere).
+    tracking::TrackResult refused;
+    refused.failure = tracking::TrackFailure::kAmbiguous;
+    refused.reason = "the floor repeats (the map's self-test): the place nearest an untrusted prior may be a copy, "
+                     "and the whole map cannot tell them apart";
+    return refused;
+  }
   tracking::TrackResult everywhere = relocalizer_.SearchEverywhere(frame, *places_, scale_);
   if (everywhere.ok() || everywhere.failure == tracking::TrackFailure::kAmbiguous) return everywhere;
   if (places_->floor_repeats() == false) return found;  // the index did not see the frame: no copy to fear

@@ -127,9 +127,9 @@ class Drive : public ::testing::Test {
     // With a place index, the whole map can be searched (an unknown start).
     std::unique_ptr<tracking::PlaceIndex> places;
     if (unknown_start_) {
-      const tracking::PlaceIndexOptions index;
-      store_->WritePlaces(tracking::PlaceIndexInfoFor(index), tracking::BuildPlaceCells(*store_, index));
-      places = std::make_unique<tracking::PlaceIndex>(*store_);
+      store_->WritePlaces(tracking::PlaceIndexInfoFor(place_index_), tracking::BuildPlaceCells(*store_, place_index_));
+      if (floor_repeats_) store_->WritePlaceRepeatTest(24, 0, 24);  // the self-test's verdict, as map build stores it
+      places = std::make_unique<tracking::PlaceIndex>(*store_, place_index_);
     }
     Localizer localizer(camera, options, *reference_, places.get());
     const double b = options.odometry.wheels.track_width_mm;
@@ -200,6 +200,8 @@ class Drive : public ::testing::Test {
 
   LocalizerOptions options_;  ///< what Localize starts from (tests may change it first)
   bool unknown_start_ = false;  ///< Localize indexes the map and starts without a pose
+  tracking::PlaceIndexOptions place_index_;  ///< that index's options
+  bool floor_repeats_ = false;  ///< the index records the floor's self-test as finding copies
   test::ScratchDir scratch_;
   std::unique_ptr<sim::Floor> floor_;
   std::unique_ptr<mosaic::TileStore> store_;
@@ -386,6 +388,24 @@ TEST_F(RepeatingDrive, AnUnknownStartIsAmbiguousNeverWrong) {
   EXPECT_EQ(run.words.front(), "ambiguous") << run.reasons.front();
   EXPECT_EQ(run.last_state, estimation::LockState::kSearching);
   EXPECT_EQ(run.lock_losses, 0);
+}
+
+// The index proposes a few of the places a frame's corners vote for (max_candidates), not every
+// copy of a floor that repeats: where the self-test found copies, the one place that verifies
+// among them may be a copy of the true place, which was never tried, and is no fix. With one
+// candidate proposed, every search verifies at most one place.
+TEST_F(RepeatingDrive, OnePlaceVerifiedOnAFloorThatRepeatsIsNoFix) {
+  unknown_start_ = true;
+  place_index_.max_candidates = 1;
+  floor_repeats_ = true;
+  const Run run = Localize(0.5, 0.3, Pose2());
+  ASSERT_FALSE(run.errors_mm.empty());
+  EXPECT_EQ(run.fixes, 0);
+  for (const double e : run.fix_errors_mm) EXPECT_LT(e, 1.0);
+  ASSERT_FALSE(run.words.empty());
+  EXPECT_EQ(run.words.front(), "ambiguous") << run.reasons.front();
+  EXPECT_NE(run.reasons.front().find("proposes only some of its copies"), std::string::npos) << run.reasons.front();
+  EXPECT_EQ(run.last_state, estimation::LockState::kSearching);
 }
 
 // vehicle leaves the map and comes back onto it, as on a lane nobody mapped yet. In the band

@@ -174,6 +174,7 @@ TrackResult Relocalizer::SearchEverywhere(const cv::Mat& frame, const PlaceIndex
     if (!r.ok() || r.mean_zncc < options_.min_zncc) continue;
     KeepVerified(&verified, std::move(r));
   }
+  const std::size_t candidates = found.candidates.size();
   if (lookup != nullptr) *lookup = std::move(found);
   if (verified.empty()) return none;
   // Without a prediction to choose by, a second place that verifies at all is a copy of the
@@ -189,6 +190,17 @@ TrackResult Relocalizer::SearchEverywhere(const cv::Mat& frame, const PlaceIndex
                        std::to_string(static_cast<int>(std::lround(
                            Distance(verified[0].world_from_camera, verified[1].world_from_camera)))) +
                        " mm apart)";
+    return ambiguous;
+  }
+  // On a floor whose self-test found copies, the index proposes a few of the places the frame's
+  // corners vote for (max_candidates), not all of its copies: the one place that verified may
+  // be a copy of the true place, which was not among them.
+  if (places.floor_repeats() == true) {
+    TrackResult ambiguous;
+    ambiguous.failure = TrackFailure::kAmbiguous;
+    ambiguous.reason = "global relocalization: one of " + std::to_string(candidates) +
+                       " candidate places verified, but the floor repeats (the map's self-test) and the index "
+                       "proposes only some of its copies";
     return ambiguous;
   }
   return std::move(verified.front());

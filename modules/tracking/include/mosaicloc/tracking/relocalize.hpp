@@ -63,7 +63,9 @@ class Relocalizer {
   /// Searches the whole map, without a prior (design.md section 7b): the place index's
   /// candidates are verified with the tracker, and a verified place is taken only if it is the
   /// only one: with no prediction to choose by, two verified places (a floor that repeats; the
-  /// true place seen partly off the map and a copy whole) make the frame kAmbiguous. kNoMatch when no
+  /// true place seen partly off the map and a copy whole) make the frame kAmbiguous, and so does
+  /// a single verified place on a floor the map's self-test found to repeat (the index proposes
+  /// only some of a frame's copies, so the true place may not have been tried). kNoMatch when no
   /// candidate verifies or the index cannot be used (the reason says which). `lookup`, when
   /// given, gets what the index found.
   TrackResult SearchEverywhere(const cv::Mat& frame, const PlaceIndex& places, double scale = 1.0,
