@@ -236,7 +236,10 @@ class RecordingBlock(ModbusSequentialDataBlock):
 async def serve(plc, args):
     block = RecordingBlock(plc)
     context = ModbusServerContext(slaves=ModbusSlaveContext(hr=block, zero_mode=True), single=True)
-    server = await StartAsyncTcpServer(context=context, address=("127.0.0.1", args.port), defer_start=True)
+    # A PLC restarted on its port must bind it again while the killed one's connections are
+    # still in TIME_WAIT (pymodbus does not set SO_REUSEADDR by default; PLCs do).
+    server = await StartAsyncTcpServer(context=context, address=("127.0.0.1", args.port), defer_start=True,
+                                       allow_reuse_address=True)
     task = asyncio.create_task(server.serve_forever())
 
     def served(done):  # a server that stops by itself (it could not listen, say) is a failure

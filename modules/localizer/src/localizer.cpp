@@ -17,6 +17,35 @@
 namespace mosaicloc::localizer {
 namespace {
 
+// The yaw a registration of `link`'s frame against its keyframe takes in from a view tilted by
+// `tilt` (rad, about the camera's x and y axes) while the camera moved link's translation: a
+// floor point at p (camera mm, y up) is nearer by (tilt_y x - tilt_x y) of the height h, so it
+// moves that much faster, and the least-squares rotation of the inlier templates' extra
+// motion is sum(p' x t g(p)) / sum |p'|² (p' about their centroid).
+double TiltYawBias(const tracking::TrackResult& link, const camera::IdealCamera& camera, const Eigen::Vector2d& tilt,
+                   double height_mm) {
+  std::vector<Eigen::Vector2d> points;
+  Eigen::Vector2d centroid = Eigen::Vector2d::Zero();
+  for (const tracking::TemplateReport& t : link.templates) {
+    if (!t.inlier) continue;
+    const cv::Rect& r = t.spot.rect;
+    points.emplace_back((r.x + 0.5 * r.width - 0.5 - camera.cx()) * camera.mm_per_px(),
+                        -(r.y + 0.5 * r.height - 0.5 - camera.cy()) * camera.mm_per_px());
+    centroid += points.back();
+  }
+  if (points.size() < 2) return 0.0;
+  centroid /= static_cast<double>(points.size());
+  const Eigen::Vector2d t = link.world_from_camera.translation_mm();
+  double moment = 0.0, spread = 0.0;
+  for (const Eigen::Vector2d& p : points) {
+    const Eigen::Vector2d q = p - centroid;
+    const double g = (tilt.y() * p.x() - tilt.x() * p.y()) / height_mm;
+    moment += (q.x() * t.y() - q.y() * t.x()) * g;
+    spread += q.squaredNorm();
+  }
+  return spread > 0.0 ? moment / spread : 0.0;
+}
+
 // d(a * b)/d(a) for SE2 poses (x, y, yaw), b fixed: the lever arm of b's translation turns
 // with a's yaw.
 Eigen::Matrix3d ComposeJacobian(const core::Pose2& a, const core::Pose2& b) {
@@ -97,6 +126,10 @@ bool VisualOdometryOptions::Check(std::string* why) const {
   }
   if (!(link_sigma_floor_mm >= 0.0) || !(link_sigma_floor_rad >= 0.0)) {
     return fail("visual_odometry link sigma floors must be >= 0");
+  }
+  if (!(std::abs(roll_deg_per_mps2) <= 5.0)) return fail("visual_odometry.roll_deg_per_mps2 must be in [-5, 5]");
+  if (!(turn_sigma_fraction >= 0.0 && turn_sigma_fraction <= 0.5)) {
+    return fail("visual_odometry.turn_sigma_fraction must be in [0, 0.5]");
   }
   return true;
 }
@@ -413,7 +446,7 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
                                                                                                 : Mode::kDeadReckoning;
   }
   if (outcome.fixed) {
-    KeepKeyframe(time, frame);
+    KeepKeyframe(time, frame, 0.0);
     outcome.keyframe = options_.visual_odometry.enabled;
   }
   outcome.world_from_vehicle = filter_->PoseAt(time);
@@ -432,9 +465,10 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   return outcome;
 }
 
-void Localizer::KeepKeyframe(core::Timestamp time, const cv::Mat& frame) {
+void Localizer::KeepKeyframe(core::Timestamp time, const cv::Mat& frame, double chain_turn_rad) {
   if (!options_.visual_odometry.enabled) return;
   if (!keyframe_) keyframe_ = Keyframe{};
+  keyframe_->chain_turn_rad = chain_turn_rad;
   keyframe_->time = time;
   frame.copyTo(keyframe_->image);  // reuses the buffer: one copy per kept frame
   keyframe_->world_from_vehicle = filter_->PoseAt(time);
@@ -463,7 +497,7 @@ bool Localizer::VisualOdometry(core::Timestamp time, const cv::Mat& frame, const
                            : fmt::format("; visual odometry: a new keyframe (the view moved {:.2f} of its size from "
                                          "the last, over {:.3f} s)",
                                          shift, core::ToSeconds(time - keyframe_->time));
-    KeepKeyframe(time, frame);
+    KeepKeyframe(time, frame, keyframe_ ? keyframe_->chain_turn_rad : 0.0);
     outcome->keyframe = true;
     return false;
   }
@@ -475,11 +509,22 @@ bool Localizer::VisualOdometry(core::Timestamp time, const cv::Mat& frame, const
   const double sigma_rad = vo.prior_sigma_deg * std::numbers::pi / 180.0;
   const Eigen::Matrix3d prior =
       Eigen::Vector3d(sigma_mm * sigma_mm, sigma_mm * sigma_mm, sigma_rad * sigma_rad).asDiagonal();
-  const tracking::TrackResult link = tracking::RegisterFrames(tracker_, keyframe_->image, frame, prior_motion, prior);
+  tracking::TrackResult link = tracking::RegisterFrames(tracker_, keyframe_->image, frame, prior_motion, prior);
   if (!link.ok()) {
     outcome->reason += std::string("; visual odometry: ") + tracking::ToString(link.failure);
     return false;
   }
+  // The body's roll in the turn (VisualOdometryOptions::roll_deg_per_mps2), about the vehicle's
+  // forward axis (in the camera's axes as mounted), biases the link's yaw (TiltYawBias).
+  const estimation::MotionState motion = filter_->Latest();
+  const double lateral_mps2 = motion.forward_speed_mm_per_s * 1e-3 * motion.yaw_rate_rad_per_s;
+  const double roll_rad = vo.roll_deg_per_mps2 * std::numbers::pi / 180.0 * lateral_mps2;
+  const Eigen::Vector2d tilt_camera = roll_rad * Eigen::Vector2d(std::cos(vehicle_from_camera.yaw_rad()),
+                                                                 -std::sin(vehicle_from_camera.yaw_rad()));
+  const double yaw_bias = TiltYawBias(link, camera_, tilt_camera, options_.tracker.solver.camera_height_mm);
+  link.world_from_camera =
+      core::Pose2(link.world_from_camera.translation_mm(), link.world_from_camera.yaw_rad() - yaw_bias);
+  const double chain_turn_rad = keyframe_->chain_turn_rad + std::abs(link.world_from_camera.yaw_rad());
   // world_from_camera = keyframe_camera * motion: the keyframe's covariance carried through
   // the composition, plus the link's turned into the world.
   Eigen::Matrix3d link_covariance = options_.fix_covariance_scale * link.covariance;
@@ -491,10 +536,14 @@ bool Localizer::VisualOdometry(core::Timestamp time, const cv::Mat& frame, const
   Eigen::Matrix3d turn = Eigen::Matrix3d::Identity();
   turn.topLeftCorner<2, 2>() << c, -s, s, c;
   const Eigen::Matrix3d through = ComposeJacobian(keyframe_camera, link.world_from_camera);
-  const Eigen::Matrix3d camera_covariance =
+  Eigen::Matrix3d camera_covariance =
       through * CameraCovariance(keyframe_->world_from_vehicle, vehicle_from_camera, keyframe_->covariance) *
           through.transpose() +
       turn * link_covariance * turn.transpose();
+  // The chain's yaw bias grows with its turn, the same sign link after link: its variance is
+  // (fraction x turn)², of which the keyframe's covariance holds the part up to the keyframe.
+  camera_covariance(2, 2) += vo.turn_sigma_fraction * vo.turn_sigma_fraction *
+                             (chain_turn_rad * chain_turn_rad - keyframe_->chain_turn_rad * keyframe_->chain_turn_rad);
   const core::Pose2 pose = camera_pose * vehicle_from_camera.Inverse();
   const Eigen::Matrix3d covariance = VehicleCovariance(camera_pose, vehicle_from_camera, camera_covariance);
   filter_->RestartAt(time, pose, covariance);
@@ -514,6 +563,7 @@ bool Localizer::VisualOdometry(core::Timestamp time, const cv::Mat& frame, const
     frame.copyTo(keyframe_->image);
     keyframe_->world_from_vehicle = pose;
     keyframe_->covariance = covariance;
+    keyframe_->chain_turn_rad = chain_turn_rad;
   }
   return true;
 }

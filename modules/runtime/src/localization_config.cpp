@@ -119,6 +119,8 @@ void ReadLocalizerConfig(const YAML::Node& node, const std::string& file_name, L
   vo.Optional("prior_sigma_deg", &v.prior_sigma_deg);
   vo.Optional("link_sigma_floor_mm", &v.link_sigma_floor_mm);
   vo.Optional("link_sigma_floor_rad", &v.link_sigma_floor_rad);
+  vo.Optional("roll_deg_per_mps2", &v.roll_deg_per_mps2);
+  vo.Optional("turn_sigma_fraction", &v.turn_sigma_fraction);
   vo.Check(v);
   vo.Finish();
 

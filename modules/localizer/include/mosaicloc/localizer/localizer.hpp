@@ -54,6 +54,17 @@ struct VisualOdometryOptions {
   /// LocalizerOptions::fix_covariance_scale first), mm and rad.
   double link_sigma_floor_mm = 0.005;
   double link_sigma_floor_rad = 3e-5;
+  /// The body's roll per m/s² of lateral acceleration, leaning out of the turn (degrees; 0: a
+  /// body that does not roll). A view tilted by phi about the camera's x axis that moves t
+  /// forward sees the floor sheared, and the registration takes phi t / (2 h) of it for a
+  /// turn: every link of a turn over-turns the same way, by k v² / (2 h) of the turn (1.2 % at
+  /// 0.2°/(m/s²), 1.2 m/s and 200 mm). Each link's yaw is corrected by it, the roll taken from
+  /// the filter's speed and yaw rate.
+  double roll_deg_per_mps2 = 0.0;
+  /// What is left of that, or all of it where the roll is not given: the chain's yaw is
+  /// uncertain by this share of the turn it made since the last fix, all links alike (a bias,
+  /// not noise that averages out).
+  double turn_sigma_fraction = 0.01;
   bool Check(std::string* why) const;
 };
 
@@ -278,7 +289,7 @@ class Localizer {
   bool VisualOdometry(core::Timestamp time, const cv::Mat& frame, const core::Pose2& predicted,
                       FrameOutcome* outcome);
   // Keeps the frame as the keyframe, at the filter's estimate for its time.
-  void KeepKeyframe(core::Timestamp time, const cv::Mat& frame);
+  void KeepKeyframe(core::Timestamp time, const cv::Mat& frame, double chain_turn_rad);
   // Restarts the filter from a fix (a relocalization, or a re-anchoring) and says so.
   void Restart(core::Timestamp time, const core::Pose2& fix, const Eigen::Matrix3d& fix_covariance,
                bool reanchoring, FrameOutcome* outcome);
@@ -320,6 +331,7 @@ class Localizer {
     cv::Mat image;
     core::Pose2 world_from_vehicle;
     Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+    double chain_turn_rad = 0.0;  ///< how far the chain of links had turned at it since the last fix
   };
   std::optional<Keyframe> keyframe_;
   std::optional<core::Pose2> last_vo_camera_;  ///< the camera pose of the last frame visual odometry registered
