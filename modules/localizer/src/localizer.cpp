@@ -702,7 +702,9 @@ tracking::TrackResult Localizer::Relocalize(const cv::Mat& frame, const core::Po
   const double radius_mm = std::min(options_.relocalize_radius_mm, gate_mm);
   tracking::TrackResult found =
       relocalizer_.Search(frame, prior_camera, prior_camera_covariance, radius_mm,
-                          tracking::RelocalizeGate{options_.filter.gate_chi2, options_.fix_covariance_scale}, scale_);
+                          tracking::RelocalizeGate{options_.filter.gate_chi2, options_.fix_covariance_scale,
+                                                   places_ != nullptr && places_->floor_repeats() == true},
+                          scale_);
   // A gate wider than the search (a long dead reckoning) holds places the search did not see:
   // the nearest of those it saw may be a copy of the floor. Checked against the whole map, as
   // for a kidnap. So is a place found while the lock is lost on a floor not known to be free of

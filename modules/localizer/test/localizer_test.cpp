@@ -141,7 +141,7 @@ class Drive : public ::testing::Test {
     options.reanchor_after_rejections = reanchor_after;
     // With a place index, the whole map can be searched (an unknown start).
     std::unique_ptr<tracking::PlaceIndex> places;
-    if (unknown_start_) {
+    if (unknown_start_ || index_map_) {
       store_->WritePlaces(tracking::PlaceIndexInfoFor(place_index_), tracking::BuildPlaceCells(*store_, place_index_));
       if (floor_repeats_) store_->WritePlaceRepeatTest(24, 0, 24);  // the self-test's verdict, as map build stores it
       places = std::make_unique<tracking::PlaceIndex>(*store_, place_index_);
@@ -228,6 +228,7 @@ class Drive : public ::testing::Test {
   bool unknown_start_ = false;  ///< Localize indexes the map and starts without a pose
   tracking::PlaceIndexOptions place_index_;  ///< that index's options
   bool floor_repeats_ = false;  ///< the index records the floor's self-test as finding copies
+  bool index_map_ = false;  ///< Localize indexes the map (as with unknown_start_) but starts with a pose
   double body_roll_deg_per_mps2_ = 0.0;  ///< the simulated body's roll out of the turn
   test::ScratchDir scratch_;
   std::unique_ptr<sim::Floor> floor_;
@@ -402,7 +403,22 @@ TEST_F(RepeatingDrive, StartNearOneCopyRelocalizesOntoIt) {
   EXPECT_LT(run.errors_mm.back(), 0.05);
 }
 
-// The repeating floor with a 512 mm band across the lane left unmapped (x 448 to 960 mm): a
+// The same 40 mm off with a prior of 100 mm on a map whose self-test found the floor repeats:
+// the copies 216 and 296 mm away lie inside the prediction's gate too. The true place is the
+// nearest, but a prediction wrong by more than it says would put a copy nearest just the same
+// (a vehicle carried unseen): two places inside the gate on such a floor are ambiguous.
+TEST_F(RepeatingDrive, TwoCopiesInsideTheGateOfAFloorKnownToRepeatAreAmbiguous) {
+  index_map_ = true;
+  floor_repeats_ = true;
+  const Run run = Localize(0.5, 0.3, Pose2(40.0, 0.0, 0.0), 100.0);
+  ASSERT_FALSE(run.errors_mm.empty());
+  EXPECT_EQ(run.fixes, 0) << "a place taken where copies of the floor lie inside the gate";
+  for (const double e : run.fix_errors_mm) EXPECT_LT(e, 1.0);
+  ASSERT_FALSE(run.reasons.empty());
+  EXPECT_NE(run.reasons.front().find("inside the prediction's uncertainty and the floor repeats"), std::string::npos)
+      << run.reasons.front();
+}
+
 // No start pose over a floor that repeats: every frame matches several places on the map, so
 // the search says "ambiguous" and gives no fix; never one on a copy.
 TEST_F(RepeatingDrive, AnUnknownStartIsAmbiguousNeverWrong) {
@@ -435,6 +451,7 @@ TEST_F(RepeatingDrive, OnePlaceVerifiedOnAFloorThatRepeatsIsNoFix) {
   EXPECT_EQ(run.last_state, estimation::LockState::kSearching);
 }
 
+// The repeating floor with a 512 mm band across the lane left unmapped (x 448 to 960 mm): a
 // vehicle leaves the map and comes back onto it, as on a lane nobody mapped yet. In the band
 // the nearest mapped copies of its view lie one and two periods behind it.
 class RepeatingExcursion : public Drive {

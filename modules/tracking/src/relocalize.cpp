@@ -143,6 +143,17 @@ TrackResult Relocalizer::Search(const cv::Mat& frame, const core::Pose2& prior,
                                 std::sqrt(prior_covariance(2, 2)) * 180.0 / std::numbers::pi, nearest_nis, gate->chi2);
       return none;
     }
+    if (gate->one_place && allowed.size() > 1) {
+      TrackResult ambiguous;
+      ambiguous.failure = TrackFailure::kAmbiguous;
+      ambiguous.reason = "relocalization: " + std::to_string(allowed.size()) +
+                         " places match the frame inside the prediction's uncertainty and the floor repeats (two of "
+                         "them " +
+                         std::to_string(static_cast<int>(
+                             std::lround(Distance(allowed[0].world_from_camera, allowed[1].world_from_camera)))) +
+                         " mm apart)";
+      return ambiguous;
+    }
     verified = std::move(allowed);
   }
   return ChooseRelocalization(std::move(verified), prior, options_.zncc_tie, options_.nearer_factor);

@@ -63,8 +63,10 @@ struct VisualOdometryOptions {
   double roll_deg_per_mps2 = 0.0;
   /// What is left of that, or all of it where the roll is not given: the chain's yaw is
   /// uncertain by this share of the turn it made since the last fix, all links alike (a bias,
-  /// not noise that averages out).
-  double turn_sigma_fraction = 0.01;
+  /// not noise that averages out). 0 for a body that does not roll: a wider covariance than
+  /// the chain's error widens the search coming back onto the map, and on a floor that repeats
+  /// a gate wider than the floor's period holds copies.
+  double turn_sigma_fraction = 0.0;
   bool Check(std::string* why) const;
 };
 

@@ -40,6 +40,10 @@ struct RelocalizeOptions {
 struct RelocalizeGate {
   double chi2 = 0.0;
   double covariance_scale = 1.0;
+  /// On a floor known to repeat: two places inside the gate are two copies the prediction
+  /// cannot tell apart, however much nearer one is (a prediction wrong by more than its
+  /// covariance says puts a copy nearest), so the frame is kAmbiguous.
+  bool one_place = false;
 };
 
 /// Relocalization: finds where on the map a frame was taken, within a radius of a predicted
