@@ -603,7 +603,6 @@ TEST(CovarianceTransfer, CameraAndVehicleCovariancesAreInverse) {
   EXPECT_LT((back - p).norm(), 1e-9);
 }
 
-}  // namespace
 // A body that rolls out of the turn tilts the view toward its inside: registered frame to
 // frame across an unmapped band in the turn, each link over-turns by a share of its turn that
 // grows with the roll and the speed, the same way link after link. Exaggerated (5°/(m/s²) on
@@ -659,4 +658,5 @@ TEST_F(RollingExcursion, VisualOdometryInATurnTakesTheBodysRollOut) {
   EXPECT_GT(unknown.yaw_sigma_ratio_min, 0.5) << "the covariance covers the bias";
 }
 
+}  // namespace
 }  // namespace mosaicloc::localizer
