@@ -83,12 +83,17 @@ Action AddBenchCommand(CLI::App& app, const GlobalOptions& global) {
     if (soak->parsed()) {
       const runtime::SoakOptions options = runtime::SoakOptionsFor(*soak_args);
       ProgressBar progress("soak", global.quiet || global.json);
-      const runtime::SoakSummary r = runtime::RunSoak(options, progress.Callback());
+      // A stop signal ends the drive with the figures of the frames localized so far.
+      const runtime::SoakSummary r = runtime::RunSoak(options, progress.DrawCallback(), &core::StopSignals::Reason);
       progress.Finish();
       if (global.json) {
         PrintJson(runtime::SoakJson(r, options.work));
       } else {
         std::fputs(runtime::SoakText(r, options.work).c_str(), stdout);
+      }
+      if (!r.stopped.empty()) {
+        throw core::Stopped(core::StopSignals::Signal(), "soak: " + r.stopped + " after " + std::to_string(r.frames) +
+                                                             " frames: their figures are printed");
       }
       return;
     }

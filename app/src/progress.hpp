@@ -27,6 +27,11 @@ class ProgressBar {
   std::function<void(double)> Callback() {
     return [this](double fraction) { Update(fraction); };
   }
+  /// Draws only, for a job that is given core::StopSignals::Reason and ends itself early
+  /// with what it has (a stop signal then does not throw out of it).
+  std::function<void(double)> DrawCallback() {
+    return [this](double fraction) { Draw(fraction); };
+  }
   void Finish();
 
  private:

@@ -121,7 +121,8 @@ SoakOptions SoakOptionsFor(const SoakRequest& request) {
   return options;
 }
 
-SoakSummary RunSoak(const SoakOptions& options, const std::function<void(double)>& progress) {
+SoakSummary RunSoak(const SoakOptions& options, const std::function<void(double)>& progress,
+                    const std::function<std::optional<std::string>()>& stop) {
   std::string why;
   if (!options.Check(&why)) core::ThrowInvalidInput(why);
   const fs::path map_file = MakeSoakMap(options);
@@ -167,7 +168,8 @@ SoakSummary RunSoak(const SoakOptions& options, const std::function<void(double)
   std::int64_t encoder_index = 0;
   std::int64_t frame_index = 0;  // capture slots, dropped ones included
   bool initialized = false;
-  for (std::uint64_t segment = 0; summary.frames < drive_options.frames; ++segment) {
+  double last_frame_s = 0.0;  // drive time of the last frame localized
+  for (std::uint64_t segment = 0; summary.frames < drive_options.frames && summary.stopped.empty(); ++segment) {
     const sim::Drive drive(drive_options.route, options.segment_laps, drive_options.seed + segment);
     const sim::FrameRenderer renderer(drive_options, drive);
     const double segment_end_s = segment_start_s + drive.duration_s();
@@ -206,6 +208,12 @@ SoakSummary RunSoak(const SoakOptions& options, const std::function<void(double)
     const std::size_t batch = 8 * static_cast<std::size_t>(threads);
     std::vector<cv::Mat> images(batch);
     for (std::size_t first = 0; first < capture_s.size(); first += batch) {
+      if (stop) {
+        if (const std::optional<std::string> reason = stop()) {
+          summary.stopped = *reason;
+          break;
+        }
+      }
       const std::size_t count = std::min(batch, capture_s.size() - first);
       workers.Run(count, [&](std::size_t i) {
         const double t = capture_s[first + i];
@@ -220,6 +228,7 @@ SoakSummary RunSoak(const SoakOptions& options, const std::function<void(double)
         const localizer::FrameOutcome outcome = localizer.ProcessFrame(time, images[i]);
         processing.Add(std::chrono::duration<double, std::milli>(Clock::now() - began).count());
         ++summary.frames;
+        last_frame_s = t;
         if (outcome.fixed) {
           ++summary.fixes;
           const core::Pose2 truth = drive.At(t - segment_start_s).world_from_vehicle;
@@ -242,7 +251,12 @@ SoakSummary RunSoak(const SoakOptions& options, const std::function<void(double)
     }
     // The last sample while the drive is still under way: the segment's renderer, freed below,
     // would otherwise show as a drop of the heap at the very end.
-    if (summary.frames >= drive_options.frames) sample();
+    if (summary.frames >= drive_options.frames || !summary.stopped.empty()) sample();
+    if (!summary.stopped.empty()) {  // the segment driven up to its last frame
+      summary.driven_km += 1e-3 * drive.At(last_frame_s - segment_start_s).path_distance_m;
+      segment_start_s = last_frame_s;
+      break;
+    }
     summary.driven_km += 1e-3 * drive.length_m();
     segment_start_s = segment_end_s;
     frame_index = static_cast<std::int64_t>(std::ceil(segment_start_s / period_s));
@@ -303,13 +317,15 @@ nlohmann::json SoakJson(const SoakSummary& r, const std::filesystem::path& work)
           {"cache_slope_mib_per_100k_frames", r.cache_slope_mib_per_100k_frames},
           {"samples_columns", {"wall_s", "frames", "rss_mib", "heap_mib", "cache_mib", "fds", "threads"}},
           {"samples", samples},
+          {"stopped", r.stopped.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.stopped)},
           {"work", work.string()}};
 }
 
 std::string SoakText(const SoakSummary& r, const std::filesystem::path& work) {
   const SoakSample& first = r.samples.front();
   const SoakSample& last = r.samples.back();
-  return fmt::format(
+  const std::string stopped = r.stopped.empty() ? std::string() : "  stopped early: " + r.stopped + "\n";
+  return stopped + fmt::format(
       "soak: {} frames ({:.2f} h driven, {:.2f} km) in {:.0f} s ({:.0f} frames/s, rendering included)\n"
       "  fixes {:.3f} %, lock losses {}, wrong fixes (> 1 mm) {}, relocalizations {}, re-anchorings {}; fix error RMS {:.4f} mm, max "
       "{:.4f} mm\n"

@@ -3,6 +3,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -61,11 +62,15 @@ struct SoakSummary {
   double heap_slope_mib_per_100k_frames = 0.0;   ///< the heap in use, over the same samples
   double cache_slope_mib_per_100k_frames = 0.0;  ///< the map's decoded tiles, over the same samples
   std::vector<SoakSample> samples;
+  std::string stopped;  ///< why the drive ended before its frames (a stop signal), empty when it did not
 };
 
 /// Throws core::Error (invalid input) for bad options or an unreadable floor image.
-/// `progress` gets the share of frames done.
-SoakSummary RunSoak(const SoakOptions& options, const std::function<void(double)>& progress = {});
+/// `progress` gets the share of frames done. `stop`, asked between batches of frames, ends the
+/// drive early when it gives a reason: the summary then covers the frames localized so far
+/// and says why (SoakSummary::stopped).
+SoakSummary RunSoak(const SoakOptions& options, const std::function<void(double)>& progress = {},
+                    const std::function<std::optional<std::string>()>& stop = {});
 
 /// The summary as `bench soak --json` prints it (samples as rows of wall_s, frames, rss_mib, heap_mib, cache_mib,
 /// fds, threads), and as lines of text; `work` is where the map was made.
