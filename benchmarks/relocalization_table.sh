@@ -6,7 +6,9 @@
 #   - replays of that drive starting without a pose, and kidnapped 20 s in (the estimate moved
 #     10 m aside unseen, told as by the PLC's request, and 3 m back along the lane, not told).
 # Usage: relocalization_table.sh [MOSAICLOC] [WORK] [FLOORS] [EVERY]
-#   FLOORS: any of "procedural asphalt brick" (asphalt and brick need ../shared/data).
+#   FLOORS: any of "procedural asphalt asphalt-patches brick" (those but procedural need
+#   ../shared/data). asphalt is the picture tiled, a floor that repeats every 512 mm;
+#   asphalt-patches is a floor of the same material that never repeats (floor.image_layout).
 set -euo pipefail
 HERE="$(cd "$(dirname "$0")" && pwd)"
 MOSAICLOC="${1:-$HERE/../build/dev/app/mosaicloc}"
@@ -15,24 +17,29 @@ FLOORS="${3:-procedural asphalt brick}"
 EVERY="${4:-2}"
 SHARED="${MOSAICLOC_SHARED_DATA:-$HERE/../../shared/data}"
 mkdir -p "$WORK"
-printf 'route: {name: network, network_scale: 1.0, speed_mps: 0.5, max_accel_mps2: 1.0}\nrun: {laps: 1, seed: 81}\nencoders: {left_radius_error: 0.02, right_radius_error: 0.025}\n' >"$WORK/map.yaml"
-printf 'route: {name: network, network_scale: 1.0, speed_mps: 1.5, max_accel_mps2: 1.0}\nrun: {laps: 1, seed: 82}\nencoders: {left_radius_error: 0.02, right_radius_error: 0.025}\n' >"$WORK/drive.yaml"
+for layout in repeat patches; do
+  printf 'route: {name: network, network_scale: 1.0, speed_mps: 0.5, max_accel_mps2: 1.0}\nrun: {laps: 1, seed: 81}\nencoders: {left_radius_error: 0.02, right_radius_error: 0.025}\nfloor: {image_layout: %s}\n' \
+    "$layout" >"$WORK/map-$layout.yaml"
+  printf 'route: {name: network, network_scale: 1.0, speed_mps: 1.5, max_accel_mps2: 1.0}\nrun: {laps: 1, seed: 82}\nencoders: {left_radius_error: 0.02, right_radius_error: 0.025}\nfloor: {image_layout: %s}\n' \
+    "$layout" >"$WORK/drive-$layout.yaml"
+done
 floor_args() {
   case "$1" in
     procedural) echo "--floor procedural" ;;
-    asphalt) echo "--floor $SHARED/textures/asphalt_02_2048.jpg" ;;
+    asphalt | asphalt-patches) echo "--floor $SHARED/textures/asphalt_02_2048.jpg" ;;
     brick) echo "--floor $SHARED/textures/brick_floor_1024.png" ;;
   esac
 }
+layout() { case "$1" in *-patches) echo patches ;; *) echo repeat ;; esac; }
 echo "| floor | frames | found | ambiguous | no match | within 0.05 mm | wrong | ms p50 | ms p99 | index features | index MiB |"
 echo "|---|---|---|---|---|---|---|---|---|---|---|"
 for floor in $FLOORS; do
   dir="$WORK/$floor"
   mkdir -p "$dir"
   # shellcheck disable=SC2046
-  [ -d "$dir/map" ] || "$MOSAICLOC" --quiet simulate --out "$dir/map" $(floor_args "$floor") --config "$WORK/map.yaml" >/dev/null
+  [ -d "$dir/map" ] || "$MOSAICLOC" --quiet simulate --out "$dir/map" $(floor_args "$floor") --config "$WORK/map-$(layout "$floor").yaml" >/dev/null
   # shellcheck disable=SC2046
-  [ -d "$dir/drive" ] || "$MOSAICLOC" --quiet simulate --out "$dir/drive" $(floor_args "$floor") --config "$WORK/drive.yaml" >/dev/null
+  [ -d "$dir/drive" ] || "$MOSAICLOC" --quiet simulate --out "$dir/drive" $(floor_args "$floor") --config "$WORK/drive-$(layout "$floor").yaml" >/dev/null
   [ -f "$dir/truth.mosaic" ] || "$MOSAICLOC" --quiet map build --dataset "$dir/map" --out "$dir/truth.mosaic" --poses groundtruth >/dev/null
   "$MOSAICLOC" --quiet --json locate --map "$dir/truth.mosaic" --dataset "$dir/drive" --every "$EVERY" >"$dir/locate.json"
   /usr/bin/python3 - "$dir/locate.json" "$floor" <<'PY'

@@ -21,6 +21,8 @@ void ReadSimulatorConfig(const YAML::Node& node, const std::string& file_name, S
   floor.Optional("image", &image);
   options->floor.image = image;
   floor.Optional("mm_per_texel", &options->floor.mm_per_texel);
+  floor.Optional("image_layout", &options->floor.image_layout);
+  floor.Optional("patch_mm", &options->floor.patch_mm);
   floor.Optional("unevenness_mm", &options->floor.unevenness_mm);
   floor.Optional("unevenness_wavelength_m", &options->floor.unevenness_wavelength_m);
   // The ranges are the options' Check()s, run per section so that a complaint names its key

@@ -5,6 +5,7 @@
 #include <sstream>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -88,6 +89,115 @@ class ImageFloor final : public Floor {
   ImageFloorOptions options_;
 };
 
+/// The picture cut into squares laid at places drawn from the seed, blended where they
+/// overlap (ImageFloorOptions::layout "patches").
+///
+/// Square (i, j) is centred on texel (i P, j P), P the spacing. Along each axis its weight at
+/// a texel d from its centre is clamp((P/2 + B/2 - |d|) / B, 0, 1), B = P/4 the blend: 1 over
+/// its middle, falling to 0 across the band it shares with its neighbour, and the weights of
+/// two neighbours sum to 1 there. A texel is mean + sum w_k (s_k - mean) / sqrt(sum w_k^2),
+/// s_k what square k cut from the picture: where one square covers it that is the picture's
+/// texel; in a band the sum of independent deviations is scaled back to their variance.
+class PatchedImageFloor final : public Floor {
+ public:
+  PatchedImageFloor(cv::Mat image, ImageFloorOptions options, int spacing)
+      : image_(std::move(image)),
+        options_(std::move(options)),
+        spacing_(spacing),
+        blend_(std::max(2, spacing / 4)),
+        reach_((spacing + blend_ + 1) / 2),
+        mean_(cv::mean(image_)[0]),
+        key_(internal::LayerKey(options_.seed, kLayer)) {}
+
+  double mm_per_texel() const override { return options_.mm_per_texel; }
+
+  cv::Mat Render(std::int64_t col0, std::int64_t row0, int cols, int rows) const override {
+    internal::CheckWindowSize(cols, rows);
+    cv::Mat out(rows, cols, CV_8UC1);
+    if (cols == 0 || rows == 0) return out;
+    cv::Mat deviation(rows, cols, CV_32FC1, cv::Scalar(0.0));
+    cv::Mat weight_squares(rows, cols, CV_32FC1, cv::Scalar(0.0));
+    const std::int64_t first_i = internal::FloorDiv(col0 - reach_, spacing_);
+    const std::int64_t last_i = internal::FloorDiv(col0 + cols - 1 + reach_, spacing_) + 1;
+    const std::int64_t first_j = internal::FloorDiv(row0 - reach_, spacing_);
+    const std::int64_t last_j = internal::FloorDiv(row0 + rows - 1 + reach_, spacing_) + 1;
+    std::vector<float> weight_x;
+    for (std::int64_t j = first_j; j <= last_j; ++j) {
+      const std::int64_t centre_r = j * spacing_;
+      const std::int64_t r_begin = std::max(row0, centre_r - reach_ + 1);
+      const std::int64_t r_end = std::min(row0 + rows, centre_r + reach_);
+      if (r_begin >= r_end) continue;
+      for (std::int64_t i = first_i; i <= last_i; ++i) {
+        const std::int64_t centre_c = i * spacing_;
+        const std::int64_t c_begin = std::max(col0, centre_c - reach_ + 1);
+        const std::int64_t c_end = std::min(col0 + cols, centre_c + reach_);
+        if (c_begin >= c_end) continue;
+        // Where the square's support starts in the picture.
+        internal::CellRandom random(internal::CellKey(key_, i, j));
+        const auto source_x = static_cast<std::int64_t>(random.Next() % static_cast<std::uint64_t>(image_.cols - 2 * reach_ + 1));
+        const auto source_y = static_cast<std::int64_t>(random.Next() % static_cast<std::uint64_t>(image_.rows - 2 * reach_ + 1));
+        const int n = static_cast<int>(c_end - c_begin);
+        weight_x.resize(static_cast<std::size_t>(n));
+        for (int k = 0; k < n; ++k) weight_x[static_cast<std::size_t>(k)] = Weight(c_begin + k - centre_c);
+        for (std::int64_t r = r_begin; r < r_end; ++r) {
+          const float weight_y = Weight(r - centre_r);
+          if (weight_y <= 0.0F) continue;
+          const std::uint8_t* source =
+              image_.ptr<std::uint8_t>(static_cast<int>(source_y + r - (centre_r - reach_))) +
+              (source_x + c_begin - (centre_c - reach_));
+          float* sum = deviation.ptr<float>(static_cast<int>(r - row0)) + (c_begin - col0);
+          float* squares = weight_squares.ptr<float>(static_cast<int>(r - row0)) + (c_begin - col0);
+          const float mean = static_cast<float>(mean_);
+          for (int k = 0; k < n; ++k) {
+            const float w = weight_x[static_cast<std::size_t>(k)] * weight_y;
+            sum[k] += w * (static_cast<float>(source[k]) - mean);
+            squares[k] += w * w;
+          }
+        }
+      }
+    }
+    for (int y = 0; y < rows; ++y) {
+      const float* sum = deviation.ptr<float>(y);
+      const float* squares = weight_squares.ptr<float>(y);
+      std::uint8_t* target = out.ptr<std::uint8_t>(y);
+      for (int x = 0; x < cols; ++x) {
+        target[x] = cv::saturate_cast<std::uint8_t>(mean_ + sum[x] / std::sqrt(squares[x]));
+      }
+    }
+    return out;
+  }
+
+  std::string Describe() const override {
+    std::ostringstream text;
+    text << "image file=" << options_.image.string() << " size=" << image_.cols << "x"
+         << image_.rows << " mm_per_texel=" << options_.mm_per_texel << " layout=patches patch_mm="
+         << options_.patch_mm << " seed=" << options_.seed;
+    return text.str();
+  }
+
+ private:
+  static constexpr std::uint64_t kLayer = 0x7061746368ULL;  // "patch"
+
+  /// A square's weight along one axis at `d` texels from its centre.
+  float Weight(std::int64_t d) const {
+    const double w = (0.5 * (spacing_ + blend_) - static_cast<double>(std::abs(d))) / blend_;
+    return static_cast<float>(std::clamp(w, 0.0, 1.0));
+  }
+
+  cv::Mat image_;  // CV_8UC1, never modified: safe to read from several threads
+  ImageFloorOptions options_;
+  std::int64_t spacing_;
+  std::int64_t blend_;
+  std::int64_t reach_;  // a square's weight is 0 from this many texels off its centre
+  double mean_;
+  std::uint64_t key_;
+};
+
+/// The spacing of the patches in texels.
+int PatchSpacing(const ImageFloorOptions& options) {
+  return static_cast<int>(std::lround(options.patch_mm / options.mm_per_texel));
+}
+
 }  // namespace
 
 bool ImageFloorOptions::Check(std::string* why) const {
@@ -99,6 +209,19 @@ bool ImageFloorOptions::Check(std::string* why) const {
   if (!std::isfinite(mm_per_texel) || mm_per_texel <= 0.0 || mm_per_texel > 100.0) {
     return fail("image floor: mm_per_texel = " + std::to_string(mm_per_texel) +
                 ": must be in (0, 100]");
+  }
+  if (layout != "repeat" && layout != "patches") {
+    return fail("image floor: layout '" + layout + "': must be repeat or patches");
+  }
+  if (layout == "patches") {
+    if (!std::isfinite(patch_mm) || patch_mm <= 0.0 || patch_mm > 10000.0) {
+      return fail("image floor: patch_mm = " + std::to_string(patch_mm) + ": must be in (0, 10000]");
+    }
+    if (PatchSpacing(*this) < 8) {
+      return fail("image floor: patch_mm = " + std::to_string(patch_mm) + " is " +
+                  std::to_string(PatchSpacing(*this)) + " texels of " + std::to_string(mm_per_texel) +
+                  " mm; a patch must be at least 8 texels");
+    }
   }
   return true;
 }
@@ -127,7 +250,17 @@ std::unique_ptr<Floor> MakeImageFloor(const ImageFloorOptions& options) {
                             std::to_string(kMinImageSidePx) + " x " +
                             std::to_string(kMinImageSidePx));
   }
-  return std::make_unique<ImageFloor>(ToGrey8(decoded), options);
+  if (options.layout == "repeat") return std::make_unique<ImageFloor>(ToGrey8(decoded), options);
+  const int spacing = PatchSpacing(options);
+  const int needed = spacing + std::max(2, spacing / 4) + 1;
+  if (decoded.cols < needed || decoded.rows < needed) {
+    core::ThrowInvalidInput("image floor: '" + file + "' is " + std::to_string(decoded.cols) + " x " +
+                            std::to_string(decoded.rows) + " pixels; patches of " +
+                            std::to_string(options.patch_mm) + " mm (" + std::to_string(spacing) +
+                            " texels) and their blend need at least " + std::to_string(needed) +
+                            " x " + std::to_string(needed) + ": choose a smaller patch_mm");
+  }
+  return std::make_unique<PatchedImageFloor>(ToGrey8(decoded), options, spacing);
 }
 
 }  // namespace mosaicloc::sim

@@ -57,6 +57,17 @@ std::vector<std::vector<Eigen::Vector2d>> WheelPaths(const Drive& drive, const S
   return paths;
 }
 
+/// An image floor of `image` laid out as `choice` says (mm_per_texel 0: the default).
+ImageFloorOptions ImageLayout(const FloorChoice& choice, const std::filesystem::path& image, double mm_per_texel) {
+  ImageFloorOptions options;
+  options.image = image;
+  if (mm_per_texel > 0.0) options.mm_per_texel = mm_per_texel;
+  options.layout = choice.image_layout;
+  options.patch_mm = choice.patch_mm;
+  options.seed = choice.seed;
+  return options;
+}
+
 }  // namespace
 
 FloorChoice FloorChoice::Named(const std::string& name, FloorChoice base) {
@@ -72,6 +83,14 @@ bool FloorChoice::Check(std::string* why) const {
   }
   if (kind == "image" && image.empty()) {
     *why = "image must name an image file when kind is image";
+    return false;
+  }
+  if (image_layout != "repeat" && image_layout != "patches") {
+    *why = "image_layout must be repeat or patches, got '" + image_layout + "'";
+    return false;
+  }
+  if (!(patch_mm >= 1.0 && patch_mm <= 10000.0)) {
+    *why = "patch_mm must be in [1, 10000]";
     return false;
   }
   if (!(mm_per_texel >= 0.0 && mm_per_texel <= 100.0)) {
@@ -99,24 +118,18 @@ std::unique_ptr<Floor> MakeFloor(const FloorChoice& choice) {
     return MakeProceduralFloor(options);
   }
   if (choice.kind == "image") {
-    ImageFloorOptions options;
-    options.image = choice.image;
-    if (choice.mm_per_texel > 0.0) options.mm_per_texel = choice.mm_per_texel;
-    return MakeImageFloor(options);
+    return MakeImageFloor(ImageLayout(choice, choice.image, choice.mm_per_texel));
   }
   core::ThrowInvalidInput("floor: kind '" + choice.kind + "'");  // Check() refused it above
 }
 
-std::unique_ptr<Relief> MakeRelief(const Floor& floor, const ReliefOptions& relief) {
+std::unique_ptr<Relief> MakeRelief(const Floor& floor, const FloorChoice& choice, const ReliefOptions& relief) {
   std::string why;
   if (!relief.Check(&why)) core::ThrowInvalidInput("relief: " + why);
   if (!relief.any()) return nullptr;
   if (relief.source == "albedo") return std::make_unique<Relief>(floor, relief);
-  // The height image lies on the floor's texel grid.
-  ImageFloorOptions heights;
-  heights.image = relief.height_image;
-  heights.mm_per_texel = floor.mm_per_texel();
-  return std::make_unique<Relief>(MakeImageFloor(heights), relief);
+  // The height image lies on the floor's texel grid, cut as the floor's picture is.
+  return std::make_unique<Relief>(MakeImageFloor(ImageLayout(choice, relief.height_image, floor.mm_per_texel())), relief);
 }
 
 bool SimulatorOptions::Check(std::string* why) const {
@@ -220,7 +233,7 @@ FrameRenderer::FrameRenderer(const SimulatorOptions& options, const Drive& drive
   floor_ = MakeFloor(options.floor);
   // The relief is the floor's own, not its changes' (grime lies on the tops and in the joints).
   const Floor* base = floor_.get();  // kept alive by `floor_`, which may wrap it
-  relief_ = MakeRelief(*base, options.relief);
+  relief_ = MakeRelief(*base, options.floor, options.relief);
   if (options.changes.any()) floor_ = ChangedFloor(std::move(floor_), options.changes, WheelPaths(drive, options));
   surface_ = Surface{relief_.get(), options.light, options.camera_height_mm};
   // The frames as the camera really sees them: straight down from its true height, or

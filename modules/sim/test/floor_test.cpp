@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <filesystem>
 #include <limits>
 #include <random>
 #include <string>
@@ -443,6 +444,106 @@ TEST(ImageFloor, RealAsphaltTextureRepeatsEvery2048Texels) {
   cv::meanStdDev(across_wrap, mean, stddev);
   EXPECT_GT(stddev[0], 10.0);
   EXPECT_NE(floor->Describe().find("size=2048x2048"), std::string::npos) << floor->Describe();
+}
+
+// A picture cut into patches: 64-texel squares blended over 16 texels, so that the 49 texels
+// around each square's centre (weight 1) are the picture's own.
+ImageFloorOptions Patches(const std::filesystem::path& image) {
+  ImageFloorOptions options;
+  options.image = image;
+  options.mm_per_texel = 0.5;
+  options.layout = "patches";
+  options.patch_mm = 32.0;
+  options.seed = 5;
+  return options;
+}
+
+TEST(ImageFloor, PatchesAreThePicturesOwnTexelsInTheirMiddlesAndTheFloorNeverRepeats) {
+  const test::ScratchDir scratch;
+  const cv::Mat image = RandomImage(200, 150, CV_8UC1, 6);
+  ASSERT_TRUE(cv::imwrite((scratch / "floor.png").string(), image));
+  const auto floor = MakeImageFloor(Patches(scratch / "floor.png"));
+  const std::int64_t col0 = -150;
+  const std::int64_t row0 = -90;
+  const cv::Mat window = floor->Render(col0, row0, 400, 300);
+  // The middle of every square whose middle is in the window is found in the picture, exactly.
+  int squares = 0;
+  std::vector<cv::Point> cut_at;
+  for (std::int64_t j = -1; j <= 3; ++j) {
+    for (std::int64_t i = -2; i <= 3; ++i) {
+      const cv::Rect middle(static_cast<int>(i * 64 - 24 - col0), static_cast<int>(j * 64 - 24 - row0), 49, 49);
+      if ((middle & cv::Rect(0, 0, window.cols, window.rows)) != middle) continue;
+      cv::Mat distance;
+      cv::matchTemplate(image, window(middle), distance, cv::TM_SQDIFF);
+      double best = 0.0;
+      cv::Point at;
+      cv::minMaxLoc(distance, &best, nullptr, &at);  // the DFT's rounding: not exactly 0
+      EXPECT_EQ(CountDifferent(image(cv::Rect(at.x, at.y, 49, 49)), window(middle)), 0)
+          << "square (" << i << ", " << j << ")";
+      cut_at.push_back(at);
+      ++squares;
+    }
+  }
+  EXPECT_GE(squares, 20);
+  // ... from places that differ from square to square (not one picture tiled).
+  std::sort(cut_at.begin(), cut_at.end(), [](cv::Point a, cv::Point b) { return a.x != b.x ? a.x < b.x : a.y < b.y; });
+  EXPECT_GE(std::unique(cut_at.begin(), cut_at.end()) - cut_at.begin(), squares - 2);
+  // No period of the picture's size, and the blend keeps its mean and spread.
+  EXPECT_GT(CountDifferent(floor->Render(col0 + 200, row0, 400, 300), window), 400 * 300 / 2);
+  EXPECT_GT(CountDifferent(floor->Render(col0, row0 + 150, 400, 300), window), 400 * 300 / 2);
+  cv::Scalar picture_mean;
+  cv::Scalar picture_spread;
+  cv::meanStdDev(image, picture_mean, picture_spread);
+  cv::Scalar mean;
+  cv::Scalar spread;
+  cv::meanStdDev(window, mean, spread);
+  EXPECT_NEAR(mean[0], picture_mean[0], 2.0);
+  EXPECT_NEAR(spread[0], picture_spread[0], 0.05 * picture_spread[0]);
+  // A texel is the same whatever window it is rendered in, and the same seed gives the same floor.
+  EXPECT_EQ(CountDifferent(floor->Render(col0 + 37, row0 + 51, 123, 77), window(cv::Rect(37, 51, 123, 77))), 0);
+  EXPECT_EQ(CountDifferent(MakeImageFloor(Patches(scratch / "floor.png"))->Render(col0, row0, 400, 300), window), 0);
+  ImageFloorOptions other = Patches(scratch / "floor.png");
+  other.seed = 6;
+  EXPECT_GT(CountDifferent(MakeImageFloor(other)->Render(col0, row0, 400, 300), window), 400 * 300 / 2);
+  EXPECT_NE(floor->Describe().find("layout=patches patch_mm=32 seed=5"), std::string::npos) << floor->Describe();
+}
+
+TEST(ImageFloor, PatchesLargerThanThePictureAreRefusedNamingTheFile) {
+  const test::ScratchDir scratch;
+  ASSERT_TRUE(cv::imwrite((scratch / "small.png").string(), RandomImage(80, 200, CV_8UC1, 7)));
+  try {
+    MakeImageFloor(Patches(scratch / "small.png"));  // 64 texels and their 16-texel blend
+    ADD_FAILURE() << "no error";
+  } catch (const core::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("small.png"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("patch_mm"), std::string::npos) << e.what();
+  }
+  ImageFloorOptions options = Patches(scratch / "small.png");
+  std::string why;
+  options.layout = "mirror";
+  EXPECT_FALSE(options.Check(&why));
+  EXPECT_NE(why.find("layout 'mirror'"), std::string::npos) << why;
+  options.layout = "patches";
+  options.patch_mm = 2.0;  // 4 texels
+  EXPECT_FALSE(options.Check(&why));
+  EXPECT_NE(why.find("at least 8 texels"), std::string::npos) << why;
+}
+
+TEST(ImageFloor, RealAsphaltInPatchesDoesNotRepeat) {
+  const auto file = test::SharedTexture("asphalt_02_2048.jpg");
+  if (!file) GTEST_SKIP() << test::SharedDataMissingMessage();
+  ImageFloorOptions options;
+  options.image = *file;
+  options.layout = "patches";
+  const auto floor = MakeImageFloor(options);
+  const cv::Mat view = floor->Render(-300, 1900, 640, 480);
+  cv::Mat shifted;
+  cv::absdiff(floor->Render(2048 - 300, 1900 - 2048, 640, 480), view, shifted);
+  EXPECT_GT(cv::mean(shifted)[0], 10.0);
+  cv::Scalar mean;
+  cv::Scalar stddev;
+  cv::meanStdDev(view, mean, stddev);
+  EXPECT_GT(stddev[0], 10.0);
 }
 
 }  // namespace

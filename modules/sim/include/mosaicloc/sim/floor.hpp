@@ -94,15 +94,30 @@ struct ImageFloorOptions {
   std::filesystem::path image;
   /// Size of one image pixel on the floor, mm; in (0, 100].
   double mm_per_texel = 0.25;
+  /// How the picture covers the plane:
+  /// - "repeat": tiled, texel (c, r) = image pixel (c mod W, r mod H). The floor repeats with
+  ///   the picture's size as its period, as printed vinyl or tiles do.
+  /// - "patches": a floor that never repeats, made from the picture as a real floor of the same
+  ///   material would be: squares of `patch_mm` centred on a grid, each cut from the picture at
+  ///   a place drawn from (seed, square), overlapping their neighbours by a quarter of their
+  ///   side, where they are blended with weights that keep the picture's mean and variance
+  ///   (the histogram-preserving blend of Heitz and Neyret, 2018). The middle of each square is
+  ///   the picture's own texels. Suits stochastic textures (asphalt, concrete); a picture with
+  ///   a regular pattern (brick) shows its seams.
+  std::string layout = "repeat";
+  /// "patches": the grid's spacing, mm. The picture must be at least 1.25 times as large in texels.
+  double patch_mm = 64.0;
+  /// "patches": where each square is cut from; the same seed gives the same floor.
+  std::uint64_t seed = 1;
 
-  /// True if a file is named and mm_per_texel is in range; otherwise false with the reason
+  /// True if a file is named and every value is in range; otherwise false with the reason
   /// in *why. Does not open the file.
   bool Check(std::string* why) const;
 };
 
-/// The image tiled over the whole plane: texel (c, r) = image pixel (c mod W, r mod H),
-/// with the non-negative modulus. Throws core::Error (invalid input) naming the file if it
-/// cannot be read, or is smaller than 16 x 16 pixels, or if the options are invalid.
+/// The image over the whole plane, laid out as options.layout says. Throws core::Error
+/// (invalid input) naming the file if it cannot be read, or is smaller than 16 x 16 pixels
+/// (for "patches", than a square and its blend), or if the options are invalid.
 std::unique_ptr<Floor> MakeImageFloor(const ImageFloorOptions& options);
 
 }  // namespace mosaicloc::sim

@@ -27,7 +27,11 @@ namespace mosaicloc::sim {
 struct FloorChoice {
   std::string kind = "procedural";  ///< "procedural" or "image"
   std::uint64_t seed = 1;           ///< procedural floor seed, independent of the noise seed
-  std::filesystem::path image;      ///< for "image": any image file, tiled over the floor
+  std::filesystem::path image;      ///< for "image": any image file, laid over the floor
+  /// For "image": "repeat" (tiled) or "patches" (a floor that never repeats, cut from the
+  /// picture at places drawn from `seed`; ImageFloorOptions::layout), and the patches' spacing.
+  std::string image_layout = "repeat";
+  double patch_mm = 64.0;
   /// Texel size, mm. 0 picks the default: 0.125 for procedural, 0.25 for an image.
   double mm_per_texel = 0.0;
   /// The floor's shape (FloorShape): the standard deviation of its height over the site, mm
@@ -41,9 +45,9 @@ struct FloorChoice {
 
 /// Builds the floor; throws core::Error (invalid input) naming the image file or option.
 std::unique_ptr<Floor> MakeFloor(const FloorChoice& choice);
-/// The relief of `floor` (which must outlive it), null when its depth is 0; throws core::Error
-/// naming the height image.
-std::unique_ptr<Relief> MakeRelief(const Floor& floor, const ReliefOptions& relief);
+/// The relief of `floor` (which must outlive it, built from `choice`), null when its depth is 0;
+/// a height image is laid out as the floor's picture is. Throws core::Error naming the height image.
+std::unique_ptr<Relief> MakeRelief(const Floor& floor, const FloorChoice& choice, const ReliefOptions& relief);
 
 struct SimulatorOptions {
   FloorChoice floor;
