@@ -35,6 +35,9 @@ class Drive : public ::testing::Test {
   /// The simulator's procedural floor, which never repeats (the composite below repeats its
   /// texture turned and mirrored, which a search over all headings sees as copies).
   virtual bool Procedural() const { return false; }
+  /// The texture cut into 64 mm patches at random places (sim::ImageFloorOptions::layout),
+  /// an asphalt floor that never repeats.
+  virtual bool Patches() const { return false; }
   /// The map's extent in 256 px (64 mm) tiles, and a band of tile columns left unmapped.
   virtual int MapCols() const { return 14; }
   virtual int MapRows() const { return 6; }
@@ -52,6 +55,9 @@ class Drive : public ::testing::Test {
       sim::ProceduralFloorOptions procedural;
       procedural.mm_per_texel = 0.125;
       floor_ = sim::MakeProceduralFloor(procedural);
+    } else if (Patches()) {
+      floor_options.layout = "patches";
+      floor_options.patch_mm = 64.0;
     } else if (!Repeating()) {
       const cv::Mat t = cv::imread(texture->string(), cv::IMREAD_GRAYSCALE);
       ASSERT_FALSE(t.empty());
@@ -224,6 +230,17 @@ class Drive : public ::testing::Test {
     return run;
   }
 
+  /// Without a start pose, the first frame is found on the whole map and every fix after it is right.
+  void ExpectAnUnknownStartFound() {
+    unknown_start_ = true;
+    const Run run = Localize(1.0, 0.3, Pose2());
+    ASSERT_FALSE(run.errors_mm.empty());
+    EXPECT_EQ(run.first_fix_frame, 1) << (run.reasons.empty() ? std::string() : run.reasons.front());
+    EXPECT_EQ(run.fixes, static_cast<int>(run.errors_mm.size()));
+    EXPECT_EQ(run.lock_losses, 0);
+    for (const double e : run.fix_errors_mm) EXPECT_LT(e, 0.2);
+  }
+
   LocalizerOptions options_;  ///< what Localize starts from (tests may change it first)
   bool unknown_start_ = false;  ///< Localize indexes the map and starts without a pose
   tracking::PlaceIndexOptions place_index_;  ///< that index's options
@@ -262,15 +279,16 @@ class ProceduralDrive : public Drive {
 
 // No start pose at all: the first frame is looked up on the whole map through its place index
 // and verified, and tracking goes on from there.
-TEST_F(ProceduralDrive, AnUnknownStartIsFoundOnTheWholeMap) {
-  unknown_start_ = true;
-  const Run run = Localize(1.0, 0.3, Pose2());
-  ASSERT_FALSE(run.errors_mm.empty());
-  EXPECT_EQ(run.first_fix_frame, 1) << (run.reasons.empty() ? std::string() : run.reasons.front());
-  EXPECT_EQ(run.fixes, static_cast<int>(run.errors_mm.size()));
-  EXPECT_EQ(run.lock_losses, 0);
-  for (const double e : run.fix_errors_mm) EXPECT_LT(e, 0.2);
-}
+TEST_F(ProceduralDrive, AnUnknownStartIsFoundOnTheWholeMap) { ExpectAnUnknownStartFound(); }
+
+class PatchedAsphaltDrive : public Drive {
+ protected:
+  bool Patches() const override { return true; }
+};
+
+// The same on real asphalt that does not repeat: each view holds several patches of the picture,
+// each also found elsewhere on the map, but only the true place holds them all as they lie.
+TEST_F(PatchedAsphaltDrive, AnUnknownStartIsFoundOnTheWholeMap) { ExpectAnUnknownStartFound(); }
 
 TEST_F(Drive, OffTheMapIsOffMapNotLost) {
   // Start 2 m away from the mapped strip: no fix can be made, and none is expected there. The
