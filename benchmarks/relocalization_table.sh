@@ -9,6 +9,8 @@
 #   FLOORS: any of "procedural asphalt asphalt-patches brick" (those but procedural need
 #   ../shared/data). asphalt is the picture tiled, a floor that repeats every 512 mm;
 #   asphalt-patches is a floor of the same material that never repeats (floor.image_layout).
+#   A floor name ending in -changed (procedural-changed, asphalt-patches-changed) drives over
+#   that floor changed since it was mapped: grime over 20 %, stains and tyre marks.
 set -euo pipefail
 HERE="$(cd "$(dirname "$0")" && pwd)"
 MOSAICLOC="${1:-$HERE/../build/dev/app/mosaicloc}"
@@ -17,29 +19,38 @@ FLOORS="${3:-procedural asphalt brick}"
 EVERY="${4:-2}"
 SHARED="${MOSAICLOC_SHARED_DATA:-$HERE/../../shared/data}"
 mkdir -p "$WORK"
-for layout in repeat patches; do
-  printf 'route: {name: network, network_scale: 1.0, speed_mps: 0.5, max_accel_mps2: 1.0}\nrun: {laps: 1, seed: 81}\nencoders: {left_radius_error: 0.02, right_radius_error: 0.025}\nfloor: {image_layout: %s}\n' \
-    "$layout" >"$WORK/map-$layout.yaml"
-  printf 'route: {name: network, network_scale: 1.0, speed_mps: 1.5, max_accel_mps2: 1.0}\nrun: {laps: 1, seed: 82}\nencoders: {left_radius_error: 0.02, right_radius_error: 0.025}\nfloor: {image_layout: %s}\n' \
-    "$layout" >"$WORK/drive-$layout.yaml"
-done
 floor_args() {
   case "$1" in
-    procedural) echo "--floor procedural" ;;
-    asphalt | asphalt-patches) echo "--floor $SHARED/textures/asphalt_02_2048.jpg" ;;
-    brick) echo "--floor $SHARED/textures/brick_floor_1024.png" ;;
+    procedural*) echo "--floor procedural" ;;
+    asphalt*) echo "--floor $SHARED/textures/asphalt_02_2048.jpg" ;;
+    brick*) echo "--floor $SHARED/textures/brick_floor_1024.png" ;;
   esac
 }
-layout() { case "$1" in *-patches) echo patches ;; *) echo repeat ;; esac; }
+# The mapping lap and the later drive of FLOOR into DIR/map.yaml and DIR/drive.yaml.
+write_configs() {
+  local layout=repeat changes="{}"
+  case "$1" in *-patches*) layout=patches ;; esac
+  case "$1" in *-changed) changes="{seed: 3, grime_fraction: 0.2, grime_strength: 0.3, stains_per_m2: 0.3, tyre_marks: 0.15}" ;; esac
+  printf 'route: {name: network, network_scale: 1.0, speed_mps: 0.5, max_accel_mps2: 1.0}\nrun: {laps: 1, seed: 81}\nencoders: {left_radius_error: 0.02, right_radius_error: 0.025}\nfloor: {image_layout: %s}\n' \
+    "$layout" >"$2/map.yaml"
+  printf 'route: {name: network, network_scale: 1.0, speed_mps: 1.5, max_accel_mps2: 1.0}\nrun: {laps: 1, seed: 82}\nencoders: {left_radius_error: 0.02, right_radius_error: 0.025}\nfloor: {image_layout: %s}\nchanges: %s\n' \
+    "$layout" "$changes" >"$2/drive.yaml"
+}
 echo "| floor | frames | found | ambiguous | no match | within 0.05 mm | wrong | ms p50 | ms p99 | index features | index MiB |"
 echo "|---|---|---|---|---|---|---|---|---|---|---|"
 for floor in $FLOORS; do
   dir="$WORK/$floor"
   mkdir -p "$dir"
+  write_configs "$floor" "$dir"
+  # A changed floor is located on the map of the floor as it was.
+  base="$WORK/${floor%-changed}"
+  if [ "$base" != "$dir" ] && [ -f "$base/truth.mosaic" ] && [ ! -f "$dir/truth.mosaic" ]; then
+    cp "$base/truth.mosaic" "$dir/truth.mosaic"
+  fi
   # shellcheck disable=SC2046
-  [ -d "$dir/map" ] || "$MOSAICLOC" --quiet simulate --out "$dir/map" $(floor_args "$floor") --config "$WORK/map-$(layout "$floor").yaml" >/dev/null
+  [ -d "$dir/map" ] || [ -f "$dir/truth.mosaic" ] || "$MOSAICLOC" --quiet simulate --out "$dir/map" $(floor_args "$floor") --config "$dir/map.yaml" >/dev/null
   # shellcheck disable=SC2046
-  [ -d "$dir/drive" ] || "$MOSAICLOC" --quiet simulate --out "$dir/drive" $(floor_args "$floor") --config "$WORK/drive-$(layout "$floor").yaml" >/dev/null
+  [ -d "$dir/drive" ] || "$MOSAICLOC" --quiet simulate --out "$dir/drive" $(floor_args "$floor") --config "$dir/drive.yaml" >/dev/null
   [ -f "$dir/truth.mosaic" ] || "$MOSAICLOC" --quiet map build --dataset "$dir/map" --out "$dir/truth.mosaic" --poses groundtruth >/dev/null
   "$MOSAICLOC" --quiet --json locate --map "$dir/truth.mosaic" --dataset "$dir/drive" --every "$EVERY" >"$dir/locate.json"
   /usr/bin/python3 - "$dir/locate.json" "$floor" <<'PY'

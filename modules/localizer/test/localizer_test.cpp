@@ -35,7 +35,7 @@ class Drive : public ::testing::Test {
   /// The simulator's procedural floor, which never repeats (the composite below repeats its
   /// texture turned and mirrored, which a search over all headings sees as copies).
   virtual bool Procedural() const { return false; }
-  /// The texture cut into 64 mm patches at random places (sim::ImageFloorOptions::layout),
+  /// The texture cut into patches at random places and turns (sim::ImageFloorOptions::layout),
   /// an asphalt floor that never repeats.
   virtual bool Patches() const { return false; }
   /// The map's extent in 256 px (64 mm) tiles, and a band of tile columns left unmapped.
@@ -57,7 +57,6 @@ class Drive : public ::testing::Test {
       floor_ = sim::MakeProceduralFloor(procedural);
     } else if (Patches()) {
       floor_options.layout = "patches";
-      floor_options.patch_mm = 64.0;
     } else if (!Repeating()) {
       const cv::Mat t = cv::imread(texture->string(), cv::IMREAD_GRAYSCALE);
       ASSERT_FALSE(t.empty());

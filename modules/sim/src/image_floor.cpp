@@ -89,15 +89,16 @@ class ImageFloor final : public Floor {
   ImageFloorOptions options_;
 };
 
-/// The picture cut into squares laid at places drawn from the seed, blended where they
-/// overlap (ImageFloorOptions::layout "patches").
+/// The picture cut into squares at places drawn from the seed, each turned by a multiple of
+/// 90 degrees and perhaps mirrored (one of the square's eight symmetries, also drawn), blended
+/// where they overlap (ImageFloorOptions::layout "patches").
 ///
 /// Square (i, j) is centred on texel (i P, j P), P the spacing. Along each axis its weight at
 /// a texel d from its centre is clamp((P/2 + B/2 - |d|) / B, 0, 1), B = P/4 the blend: 1 over
 /// its middle, falling to 0 across the band it shares with its neighbour, and the weights of
 /// two neighbours sum to 1 there. A texel is mean + sum w_k (s_k - mean) / sqrt(sum w_k^2),
-/// s_k what square k cut from the picture: where one square covers it that is the picture's
-/// texel; in a band the sum of independent deviations is scaled back to their variance.
+/// s_k what square k cut from the picture: where one square covers it that is a texel of the
+/// picture; in a band the sum of independent deviations is scaled back to their variance.
 class PatchedImageFloor final : public Floor {
  public:
   PatchedImageFloor(cv::Mat image, ImageFloorOptions options, int spacing)
@@ -132,25 +133,34 @@ class PatchedImageFloor final : public Floor {
         const std::int64_t c_begin = std::max(col0, centre_c - reach_ + 1);
         const std::int64_t c_end = std::min(col0 + cols, centre_c + reach_);
         if (c_begin >= c_end) continue;
-        // Where the square's support starts in the picture.
+        // Where the square's centre is in the picture, and how it is turned and mirrored: the
+        // picture's texel for (du, dv) off the centre is centre + du a + dv b.
         internal::CellRandom random(internal::CellKey(key_, i, j));
-        const auto source_x = static_cast<std::int64_t>(random.Next() % static_cast<std::uint64_t>(image_.cols - 2 * reach_ + 1));
-        const auto source_y = static_cast<std::int64_t>(random.Next() % static_cast<std::uint64_t>(image_.rows - 2 * reach_ + 1));
+        const auto span = static_cast<std::uint64_t>(2 * reach_ - 1);
+        const auto source_x = static_cast<std::int64_t>(random.Next() % (static_cast<std::uint64_t>(image_.cols) - span + 1));
+        const auto source_y = static_cast<std::int64_t>(random.Next() % (static_cast<std::uint64_t>(image_.rows) - span + 1));
+        const auto orientation = static_cast<int>(random.Next() % 8U);
+        const std::uint8_t* centre = image_.ptr<std::uint8_t>(static_cast<int>(source_y + reach_ - 1)) + (source_x + reach_ - 1);
+        const auto step = static_cast<std::ptrdiff_t>(image_.step1());
+        const std::ptrdiff_t sign_u = (orientation & 1) != 0 ? -1 : 1;
+        const std::ptrdiff_t sign_v = (orientation & 2) != 0 ? -1 : 1;
+        const bool transposed = (orientation & 4) != 0;
+        const std::ptrdiff_t a = sign_u * (transposed ? step : 1);
+        const std::ptrdiff_t b = sign_v * (transposed ? 1 : step);
         const int n = static_cast<int>(c_end - c_begin);
         weight_x.resize(static_cast<std::size_t>(n));
         for (int k = 0; k < n; ++k) weight_x[static_cast<std::size_t>(k)] = Weight(c_begin + k - centre_c);
+        const float mean = static_cast<float>(mean_);
         for (std::int64_t r = r_begin; r < r_end; ++r) {
           const float weight_y = Weight(r - centre_r);
           if (weight_y <= 0.0F) continue;
-          const std::uint8_t* source =
-              image_.ptr<std::uint8_t>(static_cast<int>(source_y + r - (centre_r - reach_))) +
-              (source_x + c_begin - (centre_c - reach_));
+          const std::uint8_t* source = centre + static_cast<std::ptrdiff_t>(r - centre_r) * b +
+                                       static_cast<std::ptrdiff_t>(c_begin - centre_c) * a;
           float* sum = deviation.ptr<float>(static_cast<int>(r - row0)) + (c_begin - col0);
           float* squares = weight_squares.ptr<float>(static_cast<int>(r - row0)) + (c_begin - col0);
-          const float mean = static_cast<float>(mean_);
           for (int k = 0; k < n; ++k) {
             const float w = weight_x[static_cast<std::size_t>(k)] * weight_y;
-            sum[k] += w * (static_cast<float>(source[k]) - mean);
+            sum[k] += w * (static_cast<float>(source[static_cast<std::ptrdiff_t>(k) * a]) - mean);
             squares[k] += w * w;
           }
         }

@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <limits>
+#include <optional>
 #include <random>
 #include <string>
 #include <thread>
@@ -446,8 +447,8 @@ TEST(ImageFloor, RealAsphaltTextureRepeatsEvery2048Texels) {
   EXPECT_NE(floor->Describe().find("size=2048x2048"), std::string::npos) << floor->Describe();
 }
 
-// A picture cut into patches: 64-texel squares blended over 16 texels, so that the 49 texels
-// around each square's centre (weight 1) are the picture's own.
+// A picture cut into patches: 64-texel squares blended over 16 texels, so that the 49 x 49
+// texels around each square's centre (weight 1) are the picture's own, turned or mirrored.
 ImageFloorOptions Patches(const std::filesystem::path& image) {
   ImageFloorOptions options;
   options.image = image;
@@ -458,7 +459,7 @@ ImageFloorOptions Patches(const std::filesystem::path& image) {
   return options;
 }
 
-TEST(ImageFloor, PatchesAreThePicturesOwnTexelsInTheirMiddlesAndTheFloorNeverRepeats) {
+TEST(ImageFloor, PatchesAreThePicturesOwnTexelsTurnedInTheirMiddlesAndTheFloorNeverRepeats) {
   const test::ScratchDir scratch;
   const cv::Mat image = RandomImage(200, 150, CV_8UC1, 6);
   ASSERT_TRUE(cv::imwrite((scratch / "floor.png").string(), image));
@@ -473,14 +474,20 @@ TEST(ImageFloor, PatchesAreThePicturesOwnTexelsInTheirMiddlesAndTheFloorNeverRep
     for (std::int64_t i = -2; i <= 3; ++i) {
       const cv::Rect middle(static_cast<int>(i * 64 - 24 - col0), static_cast<int>(j * 64 - 24 - row0), 49, 49);
       if ((middle & cv::Rect(0, 0, window.cols, window.rows)) != middle) continue;
-      cv::Mat distance;
-      cv::matchTemplate(image, window(middle), distance, cv::TM_SQDIFF);
-      double best = 0.0;
-      cv::Point at;
-      cv::minMaxLoc(distance, &best, nullptr, &at);  // the DFT's rounding: not exactly 0
-      EXPECT_EQ(CountDifferent(image(cv::Rect(at.x, at.y, 49, 49)), window(middle)), 0)
-          << "square (" << i << ", " << j << ")";
-      cut_at.push_back(at);
+      // Turned back by each of the square's eight symmetries, one is found exactly.
+      std::optional<cv::Point> found;
+      for (int symmetry = 0; symmetry < 8 && !found; ++symmetry) {
+        cv::Mat turned = window(middle).clone();
+        if (symmetry & 4) cv::transpose(turned, turned);
+        if (symmetry & 3) cv::flip(turned, turned, (symmetry & 3) == 1 ? 1 : (symmetry & 3) == 2 ? 0 : -1);
+        cv::Mat distance;
+        cv::matchTemplate(image, turned, distance, cv::TM_SQDIFF);
+        cv::Point at;
+        cv::minMaxLoc(distance, nullptr, nullptr, &at);  // the DFT's rounding: not exactly 0
+        if (CountDifferent(image(cv::Rect(at.x, at.y, 49, 49)), turned) == 0) found = at;
+      }
+      ASSERT_TRUE(found) << "square (" << i << ", " << j << ") is not in the picture";
+      cut_at.push_back(*found);
       ++squares;
     }
   }

@@ -30,6 +30,13 @@ void KeepVerified(std::vector<TrackResult>* verified, TrackResult r) {
   }
 }
 
+/// "3 of 4 templates (ZNCC 0.91)": what a verified place rests on.
+std::string InlierSummary(const TrackResult& r) {
+  int searched = 0;
+  for (const TemplateReport& t : r.templates) searched += t.off_map ? 0 : 1;
+  return fmt::format("{} of {} templates (ZNCC {:.2f})", r.inliers, searched, r.mean_zncc);
+}
+
 }  // namespace
 
 bool RelocalizeOptions::Check(std::string* why) const {
@@ -42,6 +49,10 @@ bool RelocalizeOptions::Check(std::string* why) const {
   if (!(zncc_tie >= 0.0 && zncc_tie <= 1.0)) return fail("relocalization zncc_tie must be in [0, 1]");
   if (!(nearer_factor >= 1.0)) return fail("relocalization nearer_factor must be >= 1");
   if (!(min_coverage > 0.0 && min_coverage <= 1.0)) return fail("relocalization min_coverage must be in (0, 1]");
+  if (whole_view_templates < 0 || whole_view_templates > 64) {
+    return fail("relocalization whole_view_templates must be in [0, 64]");
+  }
+  if (!(min_inlier_share >= 0.0 && min_inlier_share <= 1.0)) return fail("relocalization min_inlier_share must be in [0, 1]");
   return true;
 }
 
@@ -49,6 +60,24 @@ Relocalizer::Relocalizer(const Tracker& tracker, const ReferenceRaster& referenc
     : tracker_(tracker), reference_(reference), options_(options) {
   std::string why;
   if (!options_.Check(&why)) core::ThrowInvalidInput("relocalization options: " + why);
+  if (options_.whole_view_templates > 0) {
+    TrackerOptions whole = tracker.options();
+    whole.templates.mode = TemplateMode::kSpread;
+    whole.templates.count = options_.whole_view_templates;
+    whole_view_.emplace(tracker.camera(), whole);
+  }
+}
+
+std::optional<TrackResult> Relocalizer::WholeView(const cv::Mat& frame, const TrackResult& place, double scale) const {
+  if (!whole_view_) return place;
+  // Around the place found: a template's search then reaches a few pixels.
+  const Eigen::Matrix3d around = Eigen::Vector3d(0.25, 0.25, std::pow(0.2 * std::numbers::pi / 180.0, 2)).asDiagonal();
+  TrackResult whole = whole_view_->Track(frame, place.world_from_camera, around, reference_, scale);
+  if (!whole.ok() || whole.mean_zncc < options_.min_zncc) return std::nullopt;
+  int searched = 0;
+  for (const TemplateReport& t : whole.templates) searched += t.off_map ? 0 : 1;
+  if (whole.inliers < options_.min_inlier_share * searched) return std::nullopt;
+  return whole;
 }
 
 TrackResult Relocalizer::Search(const cv::Mat& frame, const core::Pose2& prior,
@@ -180,10 +209,21 @@ TrackResult Relocalizer::SearchEverywhere(const cv::Mat& frame, const PlaceIndex
   const double sigma_rad = 1.0 * std::numbers::pi / 180.0;
   const Eigen::Matrix3d around = Eigen::Vector3d(sigma_mm * sigma_mm, sigma_mm * sigma_mm, sigma_rad * sigma_rad).asDiagonal();
   std::vector<TrackResult> verified;
+  int partial = 0;  // places that verified on some templates but not over the whole view
   for (const PlaceCandidate& candidate : found.candidates) {
     TrackResult r = tracker_.Track(frame, candidate.world_from_camera, around, reference_, scale);
     if (!r.ok() || r.mean_zncc < options_.min_zncc) continue;
-    KeepVerified(&verified, std::move(r));
+    std::optional<TrackResult> whole = WholeView(frame, r, scale);
+    if (!whole) {
+      ++partial;
+      continue;
+    }
+    KeepVerified(&verified, std::move(*whole));
+  }
+  if (verified.empty() && partial > 0) {
+    none.reason = "global relocalization: " + std::to_string(partial) + " of " +
+                  std::to_string(found.candidates.size()) +
+                  " candidate places matched part of the frame, none the whole of it";
   }
   const std::size_t candidates = found.candidates.size();
   if (lookup != nullptr) *lookup = std::move(found);
@@ -200,7 +240,7 @@ TrackResult Relocalizer::SearchEverywhere(const cv::Mat& frame, const PlaceIndex
                        " places match the frame (the floor repeats; two of them " +
                        std::to_string(static_cast<int>(std::lround(
                            Distance(verified[0].world_from_camera, verified[1].world_from_camera)))) +
-                       " mm apart)";
+                       " mm apart, on " + InlierSummary(verified[0]) + " and " + InlierSummary(verified[1]) + ")";
     return ambiguous;
   }
   // On a floor whose self-test found copies, the index proposes a few of the places the frame's

@@ -99,14 +99,18 @@ struct ImageFloorOptions {
   ///   the picture's size as its period, as printed vinyl or tiles do.
   /// - "patches": a floor that never repeats, made from the picture as a real floor of the same
   ///   material would be: squares of `patch_mm` centred on a grid, each cut from the picture at
-  ///   a place drawn from (seed, square), overlapping their neighbours by a quarter of their
-  ///   side, where they are blended with weights that keep the picture's mean and variance
-  ///   (the histogram-preserving blend of Heitz and Neyret, 2018). The middle of each square is
-  ///   the picture's own texels. Suits stochastic textures (asphalt, concrete); a picture with
-  ///   a regular pattern (brick) shows its seams.
+  ///   a place drawn from (seed, square) and turned by a multiple of 90 degrees and perhaps
+  ///   mirrored (also drawn), overlapping their neighbours by a quarter of their side, where
+  ///   they are blended with weights that keep the picture's mean and variance (the
+  ///   histogram-preserving blend of Heitz and Neyret, 2018). The middle of each square is the
+  ///   picture's own texels. Suits textures without a direction (asphalt, concrete); a picture
+  ///   with a regular pattern (brick) or a light from one side shows its seams. A square is
+  ///   smaller than a camera's view, so that a view holds several, and no place but its own
+  ///   holds them as they lie: with the asphalt picture (512 mm) over 85 m of lanes, squares of
+  ///   64 mm still matched three of a view's four templates elsewhere on the map.
   std::string layout = "repeat";
   /// "patches": the grid's spacing, mm. The picture must be at least 1.25 times as large in texels.
-  double patch_mm = 64.0;
+  double patch_mm = 32.0;
   /// "patches": where each square is cut from; the same seed gives the same floor.
   std::uint64_t seed = 1;
 

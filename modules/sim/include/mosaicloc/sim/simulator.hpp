@@ -31,7 +31,7 @@ struct FloorChoice {
   /// For "image": "repeat" (tiled) or "patches" (a floor that never repeats, cut from the
   /// picture at places drawn from `seed`; ImageFloorOptions::layout), and the patches' spacing.
   std::string image_layout = "repeat";
-  double patch_mm = 64.0;
+  double patch_mm = 32.0;
   /// Texel size, mm. 0 picks the default: 0.125 for procedural, 0.25 for an image.
   double mm_per_texel = 0.0;
   /// The floor's shape (FloorShape): the standard deviation of its height over the site, mm

@@ -31,6 +31,12 @@ struct RelocalizeOptions {
   /// Share of a candidate place the map must cover. Less than 1: a vehicle that mapped one
   /// lane and drives it a few mm aside sees a sliver of floor the map does not have.
   float min_coverage = 0.75F;
+  /// A place found without a prior (SearchEverywhere) is verified once more on this many
+  /// templates spread over the whole frame, and kept only if at least `min_inlier_share` of
+  /// those searched on the map agree: the view must match as a whole, not in a corner whose
+  /// floor also lies elsewhere (0: not verified again).
+  int whole_view_templates = 12;
+  double min_inlier_share = 0.5;
   bool Check(std::string* why) const;
 };
 
@@ -76,9 +82,14 @@ class Relocalizer {
                                PlaceLookup* lookup = nullptr) const;
 
  private:
+  /// Verifies a place the tracker registered once more over the whole frame
+  /// (RelocalizeOptions::whole_view_templates); nullopt when the view does not match as a whole.
+  std::optional<TrackResult> WholeView(const cv::Mat& frame, const TrackResult& place, double scale) const;
+
   const Tracker& tracker_;
   const ReferenceRaster& reference_;
   RelocalizeOptions options_;
+  std::optional<Tracker> whole_view_;  ///< the tracker with whole_view_templates
 };
 
 /// Of the places a relocalization verified (distinct, each a successful registration), the
