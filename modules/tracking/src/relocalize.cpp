@@ -219,6 +219,8 @@ TrackResult Relocalizer::SearchEverywhere(const cv::Mat& frame, const PlaceIndex
       continue;
     }
     KeepVerified(&verified, std::move(*whole));
+    // The answer is settled: two places are ambiguous, and on a floor known to repeat so is one.
+    if (verified.size() > 1 || places.floor_repeats() == true) break;
   }
   if (verified.empty() && partial > 0) {
     none.reason = "global relocalization: " + std::to_string(partial) + " of " +
@@ -236,8 +238,7 @@ TrackResult Relocalizer::SearchEverywhere(const cv::Mat& frame, const PlaceIndex
               [](const TrackResult& a, const TrackResult& b) { return a.mean_zncc > b.mean_zncc; });
     TrackResult ambiguous;
     ambiguous.failure = TrackFailure::kAmbiguous;
-    ambiguous.reason = "global relocalization: " + std::to_string(verified.size()) +
-                       " places match the frame (the floor repeats; two of them " +
+    ambiguous.reason = "global relocalization: two places match the frame (the floor repeats; " +
                        std::to_string(static_cast<int>(std::lround(
                            Distance(verified[0].world_from_camera, verified[1].world_from_camera)))) +
                        " mm apart, on " + InlierSummary(verified[0]) + " and " + InlierSummary(verified[1]) + ")";
@@ -249,8 +250,8 @@ TrackResult Relocalizer::SearchEverywhere(const cv::Mat& frame, const PlaceIndex
   if (places.floor_repeats() == true) {
     TrackResult ambiguous;
     ambiguous.failure = TrackFailure::kAmbiguous;
-    ambiguous.reason = "global relocalization: one of " + std::to_string(candidates) +
-                       " candidate places verified, but the floor repeats (the map's self-test) and the index "
+    ambiguous.reason = "global relocalization: a place of " + std::to_string(candidates) +
+                       " candidates verified, but the floor repeats (the map's self-test) and the index "
                        "proposes only some of its copies";
     return ambiguous;
   }
