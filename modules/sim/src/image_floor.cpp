@@ -203,9 +203,9 @@ class PatchedImageFloor final : public Floor {
   std::uint64_t key_;
 };
 
-/// The spacing of the patches in texels.
+/// The spacing of the patches in texels (a million at most: no picture is that large).
 int PatchSpacing(const ImageFloorOptions& options) {
-  return static_cast<int>(std::lround(options.patch_mm / options.mm_per_texel));
+  return static_cast<int>(std::lround(std::min(1e6, options.patch_mm / options.mm_per_texel)));
 }
 
 }  // namespace
