@@ -732,12 +732,13 @@ tracking::TrackResult Localizer::CheckedAgainstTheMap(const cv::Mat& frame, trac
   tracking::TrackResult everywhere = relocalizer_.SearchEverywhere(frame, *places_, scale_);
   if (everywhere.ok() || everywhere.failure == tracking::TrackFailure::kAmbiguous) return everywhere;
   if (places_->floor_repeats() == false) return found;  // the index did not see the frame: no copy to fear
-  // On a floor that repeats (or one never tested), the place nearest a prior that is not to be
-  // trusted is no better than any copy of it, and the whole map could not say which it is.
+  // On a floor never tested for copies (an index without the self-test's verdict, or none of
+  // whose views could be placed), the place nearest a prior that is not to be trusted may be a
+  // copy of the true place, and the whole map could not say which it is.
   tracking::TrackResult refused;
   refused.failure = tracking::TrackFailure::kAmbiguous;
-  refused.reason = "the floor repeats (the map's self-test) and the whole map could not place the frame: the place "
-                   "nearest an untrusted prior may be a copy";
+  refused.reason = "the floor was never tested for copies (`mosaicloc map index` tests it) and the whole map could "
+                   "not place the frame: the place nearest an untrusted prior may be a copy";
   return refused;
 }
 
