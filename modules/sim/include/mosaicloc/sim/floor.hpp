@@ -105,9 +105,9 @@ struct ImageFloorOptions {
   ///   histogram-preserving blend of Heitz and Neyret, 2018). The middle of each square is the
   ///   picture's own texels. Suits textures without a direction (asphalt, concrete); a picture
   ///   with a regular pattern (brick) or a light from one side shows its seams. A square is
-  ///   smaller than a camera's view, so that a view holds several, and no place but its own
+  ///   much smaller than a camera's view, so that a view holds many, and no place but its own
   ///   holds them as they lie: with the asphalt picture (512 mm) over 85 m of lanes, squares of
-  ///   64 mm still matched three of a view's four templates elsewhere on the map.
+  ///   64 mm laid unturned gave 17 % of the views a second place that verified.
   std::string layout = "repeat";
   /// "patches": the grid's spacing, mm. The picture must be at least 1.25 times as large in texels.
   double patch_mm = 32.0;
