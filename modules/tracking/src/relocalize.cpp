@@ -30,11 +30,15 @@ void KeepVerified(std::vector<TrackResult>* verified, TrackResult r) {
   }
 }
 
+/// The templates a registration searched on the map (those that fell off it are not evidence).
+int SearchedOnMap(const TrackResult& r) {
+  return static_cast<int>(std::count_if(r.templates.begin(), r.templates.end(),
+                                        [](const TemplateReport& t) { return !t.off_map; }));
+}
+
 /// "3 of 4 templates (ZNCC 0.91)": what a verified place rests on.
 std::string InlierSummary(const TrackResult& r) {
-  int searched = 0;
-  for (const TemplateReport& t : r.templates) searched += t.off_map ? 0 : 1;
-  return fmt::format("{} of {} templates (ZNCC {:.2f})", r.inliers, searched, r.mean_zncc);
+  return fmt::format("{} of {} templates (ZNCC {:.2f})", r.inliers, SearchedOnMap(r), r.mean_zncc);
 }
 
 }  // namespace
@@ -74,9 +78,7 @@ std::optional<TrackResult> Relocalizer::WholeView(const cv::Mat& frame, const Tr
   const Eigen::Matrix3d around = Eigen::Vector3d(0.25, 0.25, std::pow(0.2 * std::numbers::pi / 180.0, 2)).asDiagonal();
   TrackResult whole = whole_view_->Track(frame, place.world_from_camera, around, reference_, scale);
   if (!whole.ok() || whole.mean_zncc < options_.min_zncc) return std::nullopt;
-  int searched = 0;
-  for (const TemplateReport& t : whole.templates) searched += t.off_map ? 0 : 1;
-  if (whole.inliers < options_.min_inlier_share * searched) return std::nullopt;
+  if (whole.inliers < options_.min_inlier_share * SearchedOnMap(whole)) return std::nullopt;
   return whole;
 }
 
