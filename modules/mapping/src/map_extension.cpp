@@ -166,7 +166,13 @@ void MapExtender::Commit(const std::optional<Node>& end, const std::optional<Pos
     graph.nodes.push_back(end->world_from_camera);
     graph.edges.push_back(*end_edge);
     graph.fixed.push_back(static_cast<int>(graph.nodes.size()) - 1);
-    const OptimizeReport report = Optimize(graph);
+    // The return is the stretch's one hold at its far end, verified by its registration: it
+    // pulls with its full weight. Under a robust loss a closure of some millimetres (hundreds of
+    // its sigmas) would pull with a bounded force, and the chain's drift would stay standing
+    // as a seam where the stretch meets the map.
+    OptimizeOptions solve;
+    solve.loop_huber_sigmas = 0.0;
+    const OptimizeReport report = Optimize(graph, solve);
     core::Log().info("map extension: a stretch of {} keyframes ({:.2f} m) closed onto the map, {:.3f} mm corrected "
                      "({} iterations)",
                      segment_.size() - 1, segment_mm_ / 1000.0, correction_mm, report.iterations);

@@ -230,7 +230,8 @@ OptimizeReport Optimize(PoseGraph& graph, const OptimizeOptions& options) {
     auto* cost = new ceres::AutoDiffCostFunction<EdgeCost, 3, 2, 1, 2, 1>(
         new EdgeCost(edge.from_T_to, SqrtInformation(edge)));
     ceres::LossFunction* loss =
-        edge.kind == EdgeKind::kLoop ? new ceres::HuberLoss(options.loop_huber_sigmas) : nullptr;
+        edge.kind == EdgeKind::kLoop && options.loop_huber_sigmas > 0.0 ? new ceres::HuberLoss(options.loop_huber_sigmas)
+                                                                         : nullptr;
     problem.AddResidualBlock(cost, loss, &positions[2 * edge.from], &yaws[edge.from], &positions[2 * edge.to],
                              &yaws[edge.to]);
     parent[Root(parent, edge.from)] = Root(parent, edge.to);

@@ -45,7 +45,9 @@ Eigen::Vector3d EdgeResidual(const PoseGraph& graph, const PoseGraphEdge& edge);
 
 struct OptimizeOptions {
   /// Loop edges are weighted by a Huber loss of this many (whitened) standard deviations, so
-  /// a wrong loop closure pulls with a bounded force instead of bending the map.
+  /// a wrong loop closure pulls with a bounded force instead of bending the map. 0: no robust
+  /// loss, for a loop that is the only hold a chain has at its end (a bounded force there
+  /// leaves the chain's drift standing where it meets the map).
   double loop_huber_sigmas = 3.0;
   int max_iterations = 200;
   int threads = 1;
