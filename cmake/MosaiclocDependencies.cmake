@@ -31,6 +31,18 @@ mosaicloc_require_package(CLI11 libcli11-dev)
 mosaicloc_require_package(nlohmann_json nlohmann-json3-dev 3.10)
 mosaicloc_require_package(OpenCV libopencv-dev 4.5 COMPONENTS core imgproc imgcodecs calib3d video features2d flann)
 mosaicloc_require_package(Ceres libceres-dev 2.1)
+# CHOLMOD (SuiteSparse, which Ceres solves with too): the supernodal sparse Cholesky factorization.
+find_path(MOSAICLOC_CHOLMOD_INCLUDE_DIR cholmod.h PATH_SUFFIXES suitesparse)
+find_library(MOSAICLOC_CHOLMOD_LIBRARY cholmod)
+if(NOT MOSAICLOC_CHOLMOD_INCLUDE_DIR OR NOT MOSAICLOC_CHOLMOD_LIBRARY)
+  message(FATAL_ERROR
+    "mosaicloc needs CHOLMOD: install the Debian package 'libsuitesparse-dev' "
+    "(sudo apt-get install libsuitesparse-dev), or run scripts/install-deps.sh")
+endif()
+add_library(mosaicloc_cholmod INTERFACE)
+target_include_directories(mosaicloc_cholmod SYSTEM INTERFACE ${MOSAICLOC_CHOLMOD_INCLUDE_DIR})
+target_link_libraries(mosaicloc_cholmod INTERFACE ${MOSAICLOC_CHOLMOD_LIBRARY})
+add_library(mosaicloc::cholmod ALIAS mosaicloc_cholmod)
 mosaicloc_require_pkgconfig(sqlite3 libsqlite3-dev MOSAICLOC_SQLITE3)
 mosaicloc_require_package(ZLIB zlib1g-dev)
 mosaicloc_require_package(PNG libpng-dev)

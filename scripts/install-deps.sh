@@ -7,7 +7,7 @@ PACKAGES=(
   # toolchain
   cmake ninja-build g++ pkg-config
   # libraries (design.md section 2)
-  libvisp-dev libopencv-dev libeigen3-dev libceres-dev libmodbus-dev libv4l-dev
+  libvisp-dev libopencv-dev libeigen3-dev libceres-dev libsuitesparse-dev libmodbus-dev libv4l-dev
   libsqlite3-dev zlib1g-dev libpng-dev libyaml-cpp-dev libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev python3
