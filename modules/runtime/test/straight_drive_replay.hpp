@@ -4,6 +4,7 @@
 // calibrated. Shared by the unit tests of the replay and the system tests of real floors.
 
 #include <chrono>
+#include <cstdio>
 #include <string>
 #include <vector>
 
@@ -84,6 +85,9 @@ class StraightDriveReplay : public ::testing::Test {
   // within `rms_mm` and `max_mm` of the truth.
   static void ExpectHeld(const dataset::Metrics& m, double fix_rate, double rms_mm, double max_mm) {
     ASSERT_TRUE(m.fix_rate && m.wrong_fixes && m.position_rms_mm && m.position_max_mm && m.lock_losses);
+    std::printf("%.4f fixes, %lld wrong, %lld lock losses, position %.4f / %.4f mm RMS / max\n", *m.fix_rate,
+                static_cast<long long>(*m.wrong_fixes), static_cast<long long>(*m.lock_losses), *m.position_rms_mm,
+                *m.position_max_mm);
     EXPECT_GE(*m.fix_rate, fix_rate);
     EXPECT_EQ(*m.wrong_fixes, 0);
     EXPECT_EQ(*m.lock_losses, 0);
