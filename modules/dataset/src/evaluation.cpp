@@ -390,6 +390,7 @@ void WriteMetricsJson(const std::filesystem::path& file, const Metrics& metrics)
     json["map_extension_keyframes"] = ToJson(metrics.map_extension_keyframes);
     json["map_extension_tiles"] = ToJson(metrics.map_extension_tiles);
     json["map_extension_unanchored"] = ToJson(metrics.map_extension_unanchored);
+    json["map_extension_bridged"] = ToJson(metrics.map_extension_bridged);
     json["map_extension_closure_max_mm"] = ToJson(metrics.map_extension_closure_max_mm);
     json["map_extension_pose_rms_mm"] = ToJson(metrics.map_extension_pose_rms_mm);
     json["map_extension_pose_max_mm"] = ToJson(metrics.map_extension_pose_max_mm);

@@ -104,18 +104,9 @@ void MapExtender::Frame(const ExtensionFrame& frame) {
     if (segment_.size() >= 2) {
       // Back on the map: the fix, registered against the stretch's last keyframe, closes the
       // loop, and the stretch is solved between the two places the map holds.
-      const Node& last = segment_.back();
-      const double sigma_rad = options_.return_prior_sigma_deg * std::numbers::pi / 180.0;
-      const double s = options_.return_prior_sigma_mm;
-      const tracking::TrackResult back =
-          tracking::RegisterFrames(tracker_, last.image, frame.image, Between(last.world_from_camera, frame.world_from_camera),
-                                   Eigen::Vector3d(s * s, s * s, sigma_rad * sigma_rad).asDiagonal());
-      if (back.ok()) {
-        const int n = static_cast<int>(segment_.size());
-        // The same inflation and floors as the localizer's links would have.
-        Eigen::Matrix3d covariance = 4.0 * back.covariance;
-        covariance.diagonal() += Eigen::Vector3d(2.5e-5, 2.5e-5, 1e-9);
-        Commit(NodeOf(frame), PoseGraphEdge{n - 1, n, back.world_from_camera, InformationOf(covariance), EdgeKind::kLoop});
+      tracking::TrackResult back;
+      if (const std::optional<PoseGraphEdge> edge = RegisterToLast(frame, EdgeKind::kLoop, &back)) {
+        Commit(NodeOf(frame), *edge);
       } else {
         summary_.warnings.push_back(fmt::format("the return onto the map at {:.3f} s did not register against the "
                                                 "last keyframe ({}): its stretch is held at its start only",
@@ -130,18 +121,52 @@ void MapExtender::Frame(const ExtensionFrame& frame) {
     return;
   }
   if (frame.keyframe) {
-    // The localizer started a new chain where the wheels put it: the stretch ends here.
+    // The localizer started a new chain where the wheels put it (its registrations failed for
+    // a few frames): if this frame still registers against the stretch's last keyframe, around
+    // the wheels' motion since and as widely as a return onto the map, it bridges the break,
+    // and the stretch goes on without the wheels' drift in it.
+    tracking::TrackResult bridge;
+    if (segment_.size() >= 2) {
+      if (const std::optional<PoseGraphEdge> edge = RegisterToLast(frame, EdgeKind::kSequential, &bridge)) {
+        Node node = NodeOf(frame);
+        segment_mm_ += core::Distance(segment_.back().world_from_camera, node.world_from_camera);
+        edges_.push_back(*edge);
+        keyframe_ = node;
+        segment_.push_back(std::move(node));
+        ++summary_.bridged;
+        if (segment_mm_ >= 1000.0 * options_.max_segment_m) Commit(std::nullopt, std::nullopt);
+        return;
+      }
+    }
+    // Otherwise the stretch ends here.
     if (segment_.size() >= 2) {
       summary_.warnings.push_back(fmt::format(
           "frames off the map stopped registering at {:.3f} s (faster than the overlap speed limit, or a floor "
-          "without texture): the floor after it is mapped only from the next fix on",
-          core::ToSeconds(frame.time - core::Timestamp())));
+          "without texture; the frame there against the stretch's last keyframe: {}): the floor after it is "
+          "mapped only from the next fix on",
+          core::ToSeconds(frame.time - core::Timestamp()), bridge.reason));
       core::Log().warn("map extension: {}", summary_.warnings.back());
       Commit(std::nullopt, std::nullopt);
     }
     segment_.clear();
     keyframe_ = NodeOf(frame);
   }
+}
+
+std::optional<PoseGraphEdge> MapExtender::RegisterToLast(const ExtensionFrame& frame, EdgeKind kind,
+                                                         tracking::TrackResult* result) const {
+  const Node& last = segment_.back();
+  const double sigma_rad = options_.return_prior_sigma_deg * std::numbers::pi / 180.0;
+  const double s = options_.return_prior_sigma_mm;
+  *result = tracking::RegisterFrames(tracker_, last.image, frame.image,
+                                     Between(last.world_from_camera, frame.world_from_camera),
+                                     Eigen::Vector3d(s * s, s * s, sigma_rad * sigma_rad).asDiagonal());
+  if (!result->ok()) return std::nullopt;
+  const int n = static_cast<int>(segment_.size());
+  // The same inflation and floors as the localizer's links would have.
+  Eigen::Matrix3d covariance = 4.0 * result->covariance;
+  covariance.diagonal() += Eigen::Vector3d(2.5e-5, 2.5e-5, 1e-9);
+  return PoseGraphEdge{n - 1, n, result->world_from_camera, InformationOf(covariance), kind};
 }
 
 void MapExtender::Finish() {

@@ -346,6 +346,7 @@ class LiveRun::Impl {
       summary["map_extension_keyframes"] = kept.extension.keyframes;
       summary["map_extension_tiles"] = kept.extension.tiles_written;
       summary["map_extension_unanchored"] = kept.extension.unanchored;
+      summary["map_extension_bridged"] = kept.extension.bridged;
       summary["map_extension_overspeed_frames"] = kept.overspeed_frames;
       summary["map_extension_speed_max_mps"] = kept.mapping_speed_max_mps;
       summary["map_updates"] = kept.updates.updates;

@@ -356,6 +356,7 @@ void RecordExtension(const MapKeeper& keeper, const MapKeepingSummary& kept,
   known->map_extension_keyframes = s.keyframes;
   known->map_extension_tiles = s.tiles_written;
   known->map_extension_unanchored = s.unanchored;
+  known->map_extension_bridged = s.bridged;
   known->map_extension_closure_max_mm = s.closure_max_mm;
   dataset::Trajectory painted;
   double sum_sq = 0.0, worst = 0.0;

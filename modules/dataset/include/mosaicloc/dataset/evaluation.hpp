@@ -103,6 +103,7 @@ struct Metrics {
   std::optional<std::int64_t> map_extension_keyframes;
   std::optional<std::int64_t> map_extension_tiles;
   std::optional<std::int64_t> map_extension_unanchored;
+  std::optional<std::int64_t> map_extension_bridged;
   std::optional<double> map_extension_closure_max_mm;
   std::optional<double> map_extension_pose_rms_mm;
   std::optional<double> map_extension_pose_max_mm;

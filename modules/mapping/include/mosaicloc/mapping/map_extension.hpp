@@ -56,6 +56,7 @@ struct ExtensionSummary {
   std::int64_t keyframes = 0;       ///< frames painted
   std::int64_t tiles_written = 0;   ///< level-0 tiles written (the pyramid above them too)
   std::int64_t unanchored = 0;      ///< frames off the map not mapped: no confident keyframe to start from
+  std::int64_t bridged = 0;         ///< breaks of the localizer's chain that the stretch registered across
   double closure_max_mm = 0.0;      ///< the largest correction a return made at a stretch's end
   double seconds = 0.0;             ///< spent committing (optimizing and painting)
   std::vector<std::string> warnings;
@@ -66,7 +67,8 @@ struct ExtensionSummary {
 /// start); the keyframes after it are its nodes, the localizer's frame-to-keyframe
 /// registrations its edges. It ends when the vehicle comes back onto the map (the first fix,
 /// registered against the last keyframe, holds the far end: a loop closure), when it has
-/// grown to max_segment_m, or when the chain breaks. Then the stretch's pose graph is solved
+/// grown to max_segment_m, or when the chain breaks and the frame the localizer starts its
+/// next chain from does not register against the stretch's last keyframe either. Then the stretch's pose graph is solved
 /// with both ends (or the start) held, and its keyframes painted at the solved poses into the
 /// pixels the map does not have yet, in one transaction with the pyramid above them; the
 /// mapped floor is never moved or overwritten. The cache is told, so the tracker sees the new
@@ -97,6 +99,10 @@ class MapExtender {
   // Ends the stretch: `end` (a fix on the map) held with `end_edge` from the last node to it,
   // or the start alone; paints and writes. The stretch is empty after.
   void Commit(const std::optional<Node>& end, const std::optional<PoseGraphEdge>& end_edge);
+  // `frame` registered against the stretch's last keyframe around the motion the localizer
+  // gives it, uncertain as a return onto the map is: the edge from that keyframe to it, or none.
+  std::optional<PoseGraphEdge> RegisterToLast(const ExtensionFrame& frame, EdgeKind kind,
+                                              tracking::TrackResult* result) const;
   // Paints the nodes (not the held ends) into the pixels the map lacks; one transaction.
   void Paint(const std::vector<Node>& nodes);
 
