@@ -1,7 +1,8 @@
 # Faults the computer on a vehicle meets, each reported clearly and with nothing lost:
 # - long commands stopped by SIGINT or SIGTERM: they say where they stopped and what is kept,
 #   exit with 128 + the signal, and leave no half-written dataset, map or report (an
-#   interrupted `map build` goes on with --resume to the same map);
+#   interrupted `map build` goes on with --resume to the same map; `map poses`, `map index`
+#   and `map quality` leave the map as it was);
 # - a full disk (RLIMIT_FSIZE: the files may not grow) while a dataset or a map is written,
 #   and while a drive extends its map: the error names the file and the reason, the map
 #   checks clean afterwards, and localization goes on to the end of the drive;
@@ -76,6 +77,33 @@ stop_at TERM "replay: 25" "$M" replay --dataset "$W/ds" --map "$W/map.db" --out 
 expect_code 143
 expect_in "$SCRATCH/err" "replay: terminated (SIGTERM) at "
 [ ! -e "$W/stopped-report/metrics.json" ] || fail "an interrupted replay wrote metrics"
+
+# The map's other long commands stop the same way: nothing half-written, the map as it was.
+stop_at TERM "map poses: 25" "$M" map poses --dataset "$W/ds" --out "$W/stopped.tum" --report "$W/stopped-poses"
+expect_code 143
+expect_in "$SCRATCH/err" "map poses: terminated (SIGTERM) at "
+[ ! -e "$W/stopped.tum" ] && [ ! -e "$W/stopped-poses" ] || fail "an interrupted map poses wrote its trajectory or report"
+no_leftovers "$W"
+"$M" --quiet --json map info "$W/map.db" >"$W/info-before.json" || fail "map info failed"
+for stage in index quality; do
+  cp "$W/map.db" "$W/stopped-$stage.db"
+  if [ "$stage" = index ]; then
+    stop_at TERM "map index: 25" "$M" map index "$W/stopped-$stage.db"
+  else
+    stop_at TERM "map quality: 50" "$M" map quality "$W/stopped-$stage.db" --out "$W/stopped-quality" --rebuild
+  fi
+  expect_code 143
+  expect_in "$SCRATCH/err" "map $stage: terminated (SIGTERM) at "
+  expect_in "$SCRATCH/err" "as they were"
+  expect_exit 0 "$M" map check "$W/stopped-$stage.db"
+  "$M" --quiet --json map info "$W/stopped-$stage.db" >"$W/info-after.json" || fail "map info failed"
+  python3 - "$W/info-before.json" "$W/info-after.json" <<'PY' || fail "an interrupted map $stage changed the map"
+import json, sys
+before, after = (json.load(open(f)) for f in sys.argv[1:3])
+for key in ("tiles", "place_index", "quality", "updates"):
+    assert before[key] == after[key], (key, before[key], after[key])
+PY
+done
 
 echo "== a full disk"
 expect_exit 1 small_files 100 "$M" simulate --out "$W/full-ds" --frames 60 --seed 3
