@@ -4,8 +4,10 @@
 
 #include <charconv>
 #include <chrono>
+#include <cmath>
 #include <ctime>
 #include <cstring>
+#include <limits>
 #include <map>
 
 #include "mosaicloc/core/error.hpp"
@@ -126,8 +128,17 @@ std::unique_ptr<TileStore> TileStore::Open(const std::filesystem::path& file, bo
   grid.mm_per_px = number("mm_per_px");
   grid.origin_x_mm = number("origin_x_mm");
   grid.origin_y_mm = number("origin_y_mm");
-  grid.tile_size_px = static_cast<int>(number("tile_size_px"));
-  grid.levels = static_cast<int>(number("levels"));
+  // A whole number that an int holds, before it becomes one (the grid's Check then bounds it).
+  const auto integer = [&](const char* key) {
+    const double value = number(key);
+    if (!(std::trunc(value) == value && std::abs(value) <= std::numeric_limits<int>::max())) {
+      core::ThrowInvalidInput(file.string() + ": metadata key '" + key + "' must be a whole number within " +
+                              std::to_string(std::numeric_limits<int>::max()) + ": '" + metadata[key] + "'");
+    }
+    return static_cast<int>(value);
+  };
+  grid.tile_size_px = integer("tile_size_px");
+  grid.levels = integer("levels");
   std::string why;
   if (!grid.Check(&why)) core::ThrowInvalidInput(file.string() + ": metadata: " + why);
   if (writable) store->Execute("PRAGMA journal_mode=WAL; PRAGMA synchronous=FULL;");

@@ -429,6 +429,17 @@ TEST(TileStore, BadMetadataIsNamed) {
   } catch (const core::Error& e) {
     EXPECT_THAT(e.what(), HasSubstr("metadata key 'levels' is missing"));
   }
+  // A number no int holds, or not a whole one, is named before it becomes an int.
+  for (const char* levels : {"7.8e43", "-3e12", "6.5"}) {
+    SqlOn(dir / "m.mosaic", std::string("INSERT OR REPLACE INTO metadata VALUES ('levels', '") + levels + "')");
+    try {
+      TileStore::Open(dir / "m.mosaic", false);
+      FAIL() << levels;
+    } catch (const core::Error& e) {
+      EXPECT_THAT(e.what(), HasSubstr(std::string("metadata key 'levels' must be a whole number within 2147483647: '") +
+                                      levels + "'"));
+    }
+  }
   test::WriteFile(dir / "junk.mosaic", "this is not a database");
   EXPECT_THROW(TileStore::Open(dir / "junk.mosaic", false), core::Error);
   EXPECT_THROW(TileStore::Open(dir / "none.mosaic", false), core::Error);
