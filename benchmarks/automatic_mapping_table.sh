@@ -19,26 +19,14 @@ HERE="$(cd "$(dirname "$0")/.." && pwd)"
 MOSAICLOC=${1:-$HERE/build/release/app/mosaicloc}
 WORK=${2:-$(mktemp -d)}
 CASES=${3:-network:procedural}
-TEXTURES=${MOSAICLOC_SHARED_DATA:-$HERE/../shared/data}/textures
-PYTHON=/usr/bin/python3
+source "$HERE/benchmarks/table_lib.sh"
 mkdir -p "$WORK"
-
-floor_path() {  # floor_path NAME: what --floor takes
-  case $1 in
-    procedural) echo procedural ;;
-    asphalt) echo "$TEXTURES/asphalt_02_2048.jpg" ;;
-    brick) echo "$TEXTURES/brick_floor_1024.png" ;;
-  esac
-}
 
 # config ROUTE SPEED SEED: a simulator.yaml
 config() {
   printf 'route: {name: %s, network_scale: 1.0, speed_mps: %s}\nrun: {laps: 1, seed: %s}\n%s\n' "$1" "$2" "$3" \
     'encoders: {left_radius_error: 0.02, right_radius_error: 0.025}'
 }
-
-# aligned TUM GROUNDTRUTH_TUM: "rms max" of the positions after the best rigid alignment
-aligned() { "$PYTHON" "$HERE/benchmarks/aligned.py" "$1" "$2"; }
 
 printf '%-22s %8s %8s %8s %8s %12s %6s %7s | %-5s %8s %6s %8s %8s  %s\n' case pose_rms pose_max al_rms al_max \
   stretches keyfr corr_mm drive fix% losses al_rms repeat "no fix"

@@ -23,17 +23,8 @@ HERE="$(cd "$(dirname "$0")/.." && pwd)"
 MOSAICLOC=${1:-$HERE/build/release/app/mosaicloc}
 WORK=${2:-$(mktemp -d)}
 CASES=${3:-network:procedural network:asphalt network:brick serpentine:procedural}
-TEXTURES=${MOSAICLOC_SHARED_DATA:-$HERE/../shared/data}/textures
-PYTHON=/usr/bin/python3
+source "$HERE/benchmarks/table_lib.sh"
 mkdir -p "$WORK"
-
-floor_path() {  # floor_path NAME: what --floor takes
-  case $1 in
-    procedural) echo procedural ;;
-    asphalt) echo "$TEXTURES/asphalt_02_2048.jpg" ;;
-    brick) echo "$TEXTURES/brick_floor_1024.png" ;;
-  esac
-}
 
 # config ROUTE SPEED ACCEL SEED WHEELS: a simulator.yaml
 config() {
@@ -42,9 +33,6 @@ config() {
   printf 'route: {name: %s, network_scale: 1.0, speed_mps: %s, max_accel_mps2: %s}\nrun: {laps: 1, seed: %s}\n%s\n' \
     "$1" "$2" "$3" "$4" "$wheels"
 }
-
-# aligned TUM GROUNDTRUTH_TUM: "rms max" of the positions after the best rigid alignment
-aligned() { "$PYTHON" "$HERE/benchmarks/aligned.py" "$1" "$2"; }
 
 printf '%-22s %-5s %9s %9s %8s %8s %9s %7s %7s | %-5s %8s %6s %6s %8s %8s %8s\n' case map err_rms err_max seam_rms \
   seam_max loops est_s build_s drive fix% losses wrong rms_mm aligned repeat

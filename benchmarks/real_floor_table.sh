@@ -31,8 +31,7 @@ MOSAICLOC=${1:-$HERE/build/release/app/mosaicloc}
 WORK=${2:-$(mktemp -d)}
 TABLES=${3:-geometry fast changes share}
 FLOORS=${4:-procedural asphalt brick}
-TEXTURES=${MOSAICLOC_SHARED_DATA:-$HERE/../shared/data}/textures
-PYTHON=/usr/bin/python3
+source "$HERE/benchmarks/table_lib.sh"
 case ${MAP_POSES:=groundtruth} in
   groundtruth) MAP_POSES_ARGS=(--poses groundtruth) ;;
   estimated) MAP_POSES_ARGS=() ;;
@@ -44,14 +43,6 @@ sed 's/estimate_tilt: false/estimate_tilt: true/; s/  count: 4 /  count: 12 /' "
   > "$WORK/tilt0.yaml"
 sed 's/tilt_pivot_height_mm: 0.0 /tilt_pivot_height_mm: 100.0 /' "$WORK/tilt0.yaml" > "$WORK/tilt100.yaml"
 grep -q "count: 12 " "$WORK/tilt0.yaml" && grep -q "tilt_pivot_height_mm: 100.0 " "$WORK/tilt100.yaml"
-
-floor_path() {  # floor_path NAME: what --floor takes
-  case $1 in
-    procedural) echo procedural ;;
-    asphalt) echo "$TEXTURES/asphalt_02_2048.jpg" ;;
-    brick) echo "$TEXTURES/brick_floor_1024.png" ;;
-  esac
-}
 
 # The replay's figures in one row; $1 case, $2 case directory, $3 report directory.
 row() {
