@@ -381,10 +381,11 @@ void DatasetWriter::AddFrame(core::Timestamp time, const cv::Mat& image) {
 
 std::vector<unsigned char> DatasetWriter::EncodeFrame(const cv::Mat& image) {
   std::vector<unsigned char> png;
-  // Camera frames are noisy: LZ77 matching finds little, so Huffman-only coding is both
-  // faster (5 ms against 9 ms for 640x480) and smaller (5 %) than zlib's default strategy.
-  if (!cv::imencode(".png", image, png,
-                    {cv::IMWRITE_PNG_COMPRESSION, 1, cv::IMWRITE_PNG_STRATEGY, cv::IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY})) {
+  // OpenCV's speed-tuned PNG (no parameters: the SUB filter on every row, zlib's fastest level,
+  // run-length matching). A compression level given explicitly makes libpng try all five row
+  // filters on every row, which costs more than the compression: for 640x480 camera frames
+  // (brick floor) this writes in 0.57 of the time of level 1 with Huffman-only coding, 8 % larger.
+  if (!cv::imencode(".png", image, png)) {
     core::ThrowRuntime("dataset writer: cannot encode a frame as PNG");
   }
   return png;
