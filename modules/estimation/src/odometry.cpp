@@ -84,6 +84,31 @@ WheelOdometry::WheelOdometry(const OdometryOptions& options, const core::Pose2& 
   if (!options_.Check(&why)) core::ThrowInvalidInput("odometry: " + why);
 }
 
+Eigen::Matrix3d TickQuantizationCovariance(const core::WheelGeometry& wheels) {
+  const auto tick_variance = [&wheels](double radius_mm) {
+    const double q = wheels.TicksToMm(radius_mm, 1);
+    return q * q / 6.0;
+  };
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+  if (wheels.kind == core::DriveKind::kTricycle) {
+    const double v = tick_variance(wheels.drive_wheel_radius_mm), l = wheels.wheelbase_mm;
+    covariance.diagonal() << v, 0.0, v / (l * l);
+  } else if (wheels.kind == core::DriveKind::kMecanum) {
+    // (left, right, rear left, rear right) to (dx, dy, dtheta), as the odometry turns them.
+    const double l = 0.5 * (wheels.track_width_mm + wheels.wheelbase_mm);
+    Eigen::Matrix<double, 3, 4> d_motion;
+    d_motion << 0.25, 0.25, 0.25, 0.25, -0.25, 0.25, 0.25, -0.25, -0.25 / l, 0.25 / l, -0.25 / l, 0.25 / l;
+    covariance = tick_variance(wheels.mecanum_wheel_radius_mm) * d_motion * d_motion.transpose();
+  } else {
+    const double b = wheels.track_width_mm;
+    Eigen::Matrix<double, 3, 2> d_motion;  // (left, right) to (dx, dy, dtheta)
+    d_motion << 0.5, 0.5, 0.0, 0.0, -1.0 / b, 1.0 / b;
+    const Eigen::Vector2d variance(tick_variance(wheels.left_wheel_radius_mm), tick_variance(wheels.right_wheel_radius_mm));
+    covariance = d_motion * variance.asDiagonal() * d_motion.transpose();
+  }
+  return covariance;
+}
+
 double WheelOdometry::LeftTicksToMm(std::int64_t ticks) const {
   return options_.wheels.TicksToMm(options_.wheels.left_wheel_radius_mm, ticks);
 }

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <random>
 
 #include <gtest/gtest.h>
 
@@ -163,6 +164,36 @@ TEST(WheelOdometry, TricycleSteeringOffsetAndItsUncertainty) {
   const double expected = 0.01 * 1000.0 * std::pow(std::sin(phi) / 1200.0, 2) +
                           sigma_rad * sigma_rad * std::pow(1000.0 * std::cos(phi) / 1200.0, 2);
   EXPECT_NEAR(standing.covariance()(2, 2), expected, 1e-12);
+}
+
+// The counts' quantization: whole ticks at both ends of a stretch of any length. Drawn: each
+// wheel's encoder phase at the start and a travel of up to 40 ticks, counted as the encoder
+// counts (whole ticks passed); the motion's error through the kinematics.
+TEST(WheelOdometry, TickQuantizationIsTheCountsErrorOverAnyStretch) {
+  core::WheelGeometry wheels;  // differential, 75 mm wheels, 4096 ticks, track 500 mm
+  const double q = wheels.TicksToMm(wheels.left_wheel_radius_mm, 1), b = wheels.track_width_mm;
+  std::mt19937 random(5);
+  std::uniform_real_distribution<double> phase(0.0, 1.0), travel(0.0, 40.0);
+  const auto counted_error_mm = [&] {
+    const double start = phase(random), ticks = travel(random);
+    return q * (std::floor(start + ticks) - ticks);
+  };
+  Eigen::Matrix3d sampled = Eigen::Matrix3d::Zero();
+  const int n = 200000;
+  for (int i = 0; i < n; ++i) {
+    const double left = counted_error_mm(), right = counted_error_mm();
+    const Eigen::Vector3d e(0.5 * (left + right), 0.0, (right - left) / b);
+    sampled += e * e.transpose() / n;
+  }
+  const Eigen::Matrix3d model = TickQuantizationCovariance(wheels);
+  EXPECT_NEAR(model(0, 0), q * q / 12.0, 1e-15);
+  EXPECT_NEAR(sampled(0, 0), model(0, 0), 0.02 * model(0, 0));
+  EXPECT_NEAR(sampled(2, 2), model(2, 2), 0.02 * model(2, 2));
+  EXPECT_NEAR(sampled(0, 2), model(0, 2), 0.02 * model(2, 2) * b);
+  EXPECT_EQ(model(1, 1), 0.0);
+  // A tick is 0.115 mm here: the counts' error is 33 micrometres along the heading, whatever
+  // the distance.
+  EXPECT_NEAR(std::sqrt(model(0, 0)), 0.0332, 0.0005);
 }
 
 OdometryOptions Mecanum() {

@@ -204,6 +204,7 @@ Localizer::Localizer(const camera::IdealCamera& camera, const LocalizerOptions& 
       relocalizer_(tracker_, reference, options.relocalize),
       odometry_(options.odometry),
       lock_(options.lock),
+      tick_quantization_(estimation::TickQuantizationCovariance(options.odometry.wheels)),
       scale_variance_(options.scale_sigma * options.scale_sigma) {
   // The filter's calibration states are those of the vehicle's kinematics.
   options_.filter.kind = options_.odometry.wheels.kind;
@@ -297,6 +298,12 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
       unmodelled += sigma_s * sigma_s * motion * motion.transpose();
     }
   }
+  // Up to a tick of each wheel is not counted yet (estimation::TickQuantizationCovariance): a
+  // bounded error, so it widens this prediction and is not carried on to the next. Without it a
+  // creeping vehicle's fixes, which see the micrometres the counts do not, are refused.
+  Eigen::Matrix3d heading = Eigen::Matrix3d::Identity();
+  heading.topLeftCorner<2, 2>() = predicted.Rotation();
+  unmodelled += heading * tick_quantization_ * heading.transpose();
   // The map's own distortion between where the vehicle left it and where it is now
   // (LocalizerOptions::map_distortion_mm_per_m): the path counts while the last frame was off
   // the map.

@@ -271,6 +271,19 @@ TEST_F(Drive, TracksToAFractionOfAMillimetreWithBiasedOdometry) {
   EXPECT_LT(max, 0.2);
 }
 
+// Creeping at 1 mm/s (docking): the encoders tick every 0.115 mm, so for three or four frames
+// at a time the wheels say the vehicle stands while it has moved up to a tick. The fixes see
+// every micrometre of it; a filter that took "no tick" for "no motion" would refuse them.
+TEST_F(Drive, ACreepingVehicleKeepsItsFixesBetweenEncoderTicks) {
+  const Run run = Localize(1.5, 0.001, Pose2());
+  ASSERT_FALSE(run.errors_mm.empty());
+  EXPECT_EQ(run.rejected, 0) << run.first_rejection;
+  EXPECT_EQ(run.fixes, static_cast<int>(run.errors_mm.size()))
+      << (run.reasons.empty() ? std::string() : run.reasons.front());
+  EXPECT_EQ(run.lock_losses, 0);
+  EXPECT_LT(*std::max_element(run.errors_mm.begin(), run.errors_mm.end()), 0.02);
+}
+
 class ProceduralDrive : public Drive {
  protected:
   bool Procedural() const override { return true; }

@@ -33,6 +33,16 @@ struct OdometryOptions {
 /// 2^31 ticks between two samples.
 std::int32_t TickDelta(std::int32_t previous, std::int32_t current);
 
+/// The covariance, in the vehicle frame (dx mm, dy mm, dtheta rad), of the motion the counts
+/// leave out: travel is counted in whole ticks, so at each end of any stretch up to a tick of
+/// each wheel is not counted yet. Over any distance the counted travel is off by the
+/// difference of two such phases (a triangular error of variance q^2 / 6 for a tick of q mm),
+/// bounded, not growing with travel: while the vehicle creeps, the counts say it stands for
+/// frames at a time. Per kind: the wheels' errors through the kinematics of OdometryIncrement;
+/// for a tricycle, whose steering angle is not known here, the drive wheel's error taken whole
+/// along the heading and whole in the turn.
+Eigen::Matrix3d TickQuantizationCovariance(const core::WheelGeometry& wheels);
+
 /// Why an encoder sample was not used.
 enum class OdometryFailure {
   kNotIncreasingTime,  ///< timestamp not after the previous sample

@@ -309,6 +309,7 @@ class Localizer {
   estimation::WheelOdometry odometry_;
   std::optional<estimation::PoseFilter> filter_;
   estimation::LockMonitor lock_;
+  Eigen::Matrix3d tick_quantization_;  ///< the counts' quantization, vehicle frame
   std::int64_t relocalizations_ = 0;
   std::int64_t reanchorings_ = 0;
   // The run of consecutive fixes the gate rejected: how many, the last one's offset from the
