@@ -518,7 +518,8 @@ bool Localizer::VisualOdometry(core::Timestamp time, const cv::Mat& frame, const
       Eigen::Vector3d(sigma_mm * sigma_mm, sigma_mm * sigma_mm, sigma_rad * sigma_rad).asDiagonal();
   tracking::TrackResult link = tracking::RegisterFrames(tracker_, keyframe_->image, frame, prior_motion, prior);
   if (!link.ok()) {
-    outcome->reason += std::string("; visual odometry: ") + tracking::ToString(link.failure);
+    outcome->reason += std::string("; visual odometry: ") + tracking::ToString(link.failure) +
+                       (link.reason.empty() ? std::string() : " (" + link.reason + ")");
     return false;
   }
   // The body's roll in the turn (VisualOdometryOptions::roll_deg_per_mps2), about the vehicle's
