@@ -83,18 +83,25 @@ class FrameRegistration {
   }
 
   // Spare templates, chosen only when the coarse search rejects some of the first ones
-  // (ambiguous, off the map): a finer grid, most textured first, away from those tried.
+  // (ambiguous, off the map): a finer grid, most textured first, away from those tried and
+  // from each other. Where some templates fell off the reference and some did not (a view
+  // that left most of a keyframe, or the map's edge), the overlap may be a corner of the view
+  // that the first grid gave one cell: the grid is then four times as fine, and the spares off
+  // the reference are dropped by the search as the first ones were. (A view wholly off the
+  // reference keeps the coarser grid: nothing to find there.)
   void AddSpares() {
     spares_added_ = true;
     TemplateOptions more = options_.templates;
     more.count += options_.spare_templates;
+    if (off_map_ > 0 && off_map_ < static_cast<int>(result_.templates.size())) {
+      more.count = std::min(4 * more.count, TemplateOptions::kMaxCount);
+    }
     std::vector<TemplateSpot> extra = SelectTemplates(frame_, *half_, more);
     std::stable_sort(extra.begin(), extra.end(),
                      [](const TemplateSpot& a, const TemplateSpot& b) { return a.texture > b.texture; });
-    const std::size_t tried = spots_.size();
     for (const TemplateSpot& candidate : extra) {
       bool overlaps = false;
-      for (std::size_t i = 0; i < tried && !overlaps; ++i) {
+      for (std::size_t i = 0; i < spots_.size() && !overlaps; ++i) {
         overlaps = (candidate.rect & spots_[i].rect).area() * 2 > candidate.rect.area();
       }
       if (!overlaps) spots_.push_back(candidate);
