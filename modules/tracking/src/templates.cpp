@@ -290,8 +290,7 @@ bool TemplateOptions::Check(std::string* why) const {
     if (why != nullptr) *why = message;
     return false;
   };
-  static_assert(kMaxCount == 64, "the message below names the bound");
-  if (mode == TemplateMode::kSpread && (count < 1 || count > kMaxCount)) return fail("count must be in [1, 64]");
+  if (mode == TemplateMode::kSpread && (count < 1 || count > 64)) return fail("count must be in [1, 64]");
   if (mode == TemplateMode::kSpread && (size_px < 8 || size_px > 1024)) return fail("size_px must be in [8, 1024]");
   if (mode == TemplateMode::kTiled && (tile_cols < 1 || tile_rows < 1 || tile_cols * tile_rows > 256)) {
     return fail("tile_cols and tile_rows must be >= 1 and their product <= 256");

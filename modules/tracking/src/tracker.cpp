@@ -78,41 +78,27 @@ class FrameRegistration {
     spots_ = SelectTemplates(frame_, half, options_.templates);
     if (spots_.empty()) return Fail(TrackFailure::kNoTexture, "no template of the frame has enough texture");
     wanted_ = spots_.size();
-    spare_rounds_ = options_.templates.mode != TemplateMode::kSpread || options_.spare_templates == 0 ? 2 : 0;
+    spares_added_ = options_.templates.mode != TemplateMode::kSpread || options_.spare_templates == 0;
     return true;
   }
 
   // Spare templates, chosen only when the coarse search rejects some of the first ones
-  // (ambiguous, off the map), in up to two rounds. First a finer grid (count + spare_templates
-  // cells), most textured first, away from the templates tried. Then, where that still leaves
-  // fewer matches than a pose needs while some templates fell off the reference and some did
-  // not (a view turning away from its keyframe, or at the map's edge), the overlap may be a
-  // corner of the view the grids gave a cell or two: a grid four times as fine, away from every
-  // template so far; those off the reference are dropped by the search as before. (A view
-  // wholly off the reference gets no second round: nothing to find there.) False when no
-  // round is left.
-  bool AddSpares() {
-    if (spare_rounds_ >= 2) return false;
-    const int round = ++spare_rounds_;
+  // (ambiguous, off the map): a finer grid, most textured first, away from those tried.
+  void AddSpares() {
+    spares_added_ = true;
     TemplateOptions more = options_.templates;
     more.count += options_.spare_templates;
-    const std::size_t tried = spots_.size();
-    if (round == 2) {
-      const bool partly_off = off_map_ > 0 && off_map_ < static_cast<int>(result_.templates.size());
-      if (!partly_off || static_cast<int>(coarse_.size()) >= options_.solver.min_inliers) return false;
-      more.count = std::min(4 * more.count, TemplateOptions::kMaxCount);
-    }
     std::vector<TemplateSpot> extra = SelectTemplates(frame_, *half_, more);
     std::stable_sort(extra.begin(), extra.end(),
                      [](const TemplateSpot& a, const TemplateSpot& b) { return a.texture > b.texture; });
+    const std::size_t tried = spots_.size();
     for (const TemplateSpot& candidate : extra) {
       bool overlaps = false;
-      for (std::size_t i = 0; i < (round == 2 ? spots_.size() : tried) && !overlaps; ++i) {
+      for (std::size_t i = 0; i < tried && !overlaps; ++i) {
         overlaps = (candidate.rect & spots_[i].rect).area() * 2 > candidate.rect.area();
       }
       if (!overlaps) spots_.push_back(candidate);
     }
-    return true;
   }
 
   // Coarse: each template searched around its predicted place at half resolution (the
@@ -139,9 +125,14 @@ class FrameRegistration {
   // Searches templates in order (spares when the first ones run out) until `target` have a
   // coarse match; resumable, so the refinement can ask for more.
   void SearchUntil(std::size_t target) {
-    while (coarse_.size() < target) {
-      if (next_spot_ == spots_.size() && !AddSpares()) break;
-      if (next_spot_ < spots_.size()) SearchTemplate(spots_[next_spot_++]);
+    for (; next_spot_ < spots_.size() || !spares_added_; ++next_spot_) {
+      if (next_spot_ == spots_.size()) {
+        if (coarse_.size() >= target) break;
+        AddSpares();
+        if (next_spot_ == spots_.size()) break;
+      }
+      if (coarse_.size() >= target) break;
+      SearchTemplate(spots_[next_spot_]);
     }
   }
 
@@ -384,7 +375,7 @@ class FrameRegistration {
   const cv::Mat* half_ = nullptr;  // the frame's 2x2 average
   std::vector<TemplateSpot> spots_;
   std::size_t wanted_ = 0;
-  int spare_rounds_ = 0;  ///< of AddSpares (2: none left)
+  bool spares_added_ = false;
 
   // The coarse search: where it looks, and what it found so far.
   double sigma_position_px_ = 0.0, sigma_yaw_ = 0.0;

@@ -17,9 +17,8 @@ const char* ToString(TemplateMode mode);
 inline constexpr TemplateMode kTemplateModes[] = {TemplateMode::kSpread, TemplateMode::kTiled};
 
 struct TemplateOptions {
-  static constexpr int kMaxCount = 64;  ///< kSpread: the most templates (grid cells) a frame is split into
   TemplateMode mode = TemplateMode::kSpread;
-  int count = 4;        ///< kSpread: number of templates (the frame is split into this many cells), 1 to kMaxCount
+  int count = 4;        ///< kSpread: number of templates (the frame is split into this many cells)
   int size_px = 96;     ///< kSpread: template side, px
   int tile_cols = 4;    ///< kTiled
   int tile_rows = 3;    ///< kTiled
