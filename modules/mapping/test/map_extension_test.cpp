@@ -85,6 +85,16 @@ class ExtensionDrive : public ::testing::Test {
     extender.Finish();
   }
 
+  // Every keyframe the extender painted is within `tolerance_mm` of its true pose (frames 0.1 s
+  // apart from time 0).
+  void ExpectPaintedWithin(const MapExtender& extender, double tolerance_mm) const {
+    for (const auto& [time, pose] : extender.painted()) {
+      const auto i = static_cast<std::size_t>(std::lround(core::ToSeconds(time - core::Timestamp()) / 0.1));
+      ASSERT_LT(i, truth_.size());
+      EXPECT_LT(core::Distance(pose, truth_[i]), tolerance_mm) << "frame " << i;
+    }
+  }
+
   const camera::IdealCamera camera_{camera::IdealCameraOptions{}};
   test::ScratchDir scratch_;
   cv::Mat floor_image_;
@@ -113,10 +123,7 @@ TEST_F(ExtensionDrive, AStretchOffTheMapIsClosedOntoItAndPaintedWhereTheMapHadNo
   ASSERT_EQ(history.size(), 1u);
   EXPECT_NE(history.front().reason.find("automatic mapping"), std::string::npos) << history.front().reason;
   EXPECT_EQ(history.front().tiles, s.tiles_written);
-  for (const auto& [time, pose] : extender.painted()) {
-    const std::size_t i = static_cast<std::size_t>(std::lround(core::ToSeconds(time - core::Timestamp()) / 0.1));
-    EXPECT_LT(core::Distance(pose, truth_[i]), 0.02) << "frame " << i;
-  }
+  ExpectPaintedWithin(extender, 0.02);
   // The tracker finds a frame in the middle on the new floor, where it is.
   const mosaic::MapRenderer renderer(*cache_);
   const tracking::MapReference reference(renderer, 0);
@@ -148,10 +155,7 @@ TEST_F(ExtensionDrive, AReturnMillimetresOffIsTakenOutInFull) {
   EXPECT_EQ(s.closed, 1);
   EXPECT_NEAR(s.closure_max_mm, 0.2 * static_cast<double>(truth_.size() - 2), 0.05);
   ASSERT_EQ(extender.painted().size(), truth_.size() - 2);
-  for (const auto& [time, pose] : extender.painted()) {
-    const std::size_t i = static_cast<std::size_t>(std::lround(core::ToSeconds(time - core::Timestamp()) / 0.1));
-    EXPECT_LT(core::Distance(pose, truth_[i]), 0.06) << "frame " << i;
-  }
+  ExpectPaintedWithin(extender, 0.06);
 }
 
 // The localizer's chain breaks in the middle of the stretch and starts again where the wheels
@@ -167,10 +171,7 @@ TEST_F(ExtensionDrive, ABreakInTheChainIsBridged) {
   EXPECT_EQ(s.closed, 1);
   EXPECT_TRUE(s.warnings.empty()) << s.warnings.front();
   ASSERT_EQ(extender.painted().size(), truth_.size() - 2);
-  for (const auto& [time, pose] : extender.painted()) {
-    const std::size_t i = static_cast<std::size_t>(std::lround(core::ToSeconds(time - core::Timestamp()) / 0.1));
-    EXPECT_LT(core::Distance(pose, truth_[i]), 0.02) << "frame " << i;
-  }
+  ExpectPaintedWithin(extender, 0.02);
 }
 
 // A start whose pose is not known well enough is never built on.
