@@ -5,8 +5,9 @@
 # network route at 1.5 m/s on the asphalt texture with 2 % / 2.5 % wheel radius errors, over a
 # map built from one slow mapping lap (frames and encoders only), so every other lap leaves the
 # map on lanes the mapping lap did not take. Every 10 s the run's resident memory, threads and
-# open file descriptors are sampled from /proc. Prints the run's summary, the PLC's view of the
-# fixes (against the truth after the best rigid alignment of the map's frame) and the
+# open file descriptors are sampled from /proc, the memory split into anonymous, file-backed
+# and shared. Prints the run's summary, the PLC's view of the fixes (against the truth after
+# the best rigid alignment of the map's frame) and the
 # resources: first and last, and the memory's least-squares slope after the first tenth, also
 # of the heap in use and the map's decoded tiles (from the run's status lines).
 # CONTEND=1 starves the run of the CPU now and then, as other work on a vehicle's computer
@@ -58,14 +59,20 @@ if [ "${CONTEND:-0}" = 1 ]; then
     done
   ) &
 fi
-echo "# wall_s rss_mib threads fds" > "$WORK/resources.txt"
+# Resident memory split as the kernel counts it: anonymous (the heap, stacks, the allocator's
+# arenas), file-backed (the program, its libraries, mapped files) and shared memory (SQLite's
+# WAL index).
+echo "# wall_s rss_mib threads fds anon_mib file_mib shmem_mib" > "$WORK/resources.txt"
 t0=$(date +%s)
 while kill -0 "$run" 2>/dev/null; do
   if [ -r "/proc/$run/status" ]; then
-    rss=$(awk '/^VmRSS/{print $2 / 1024}' "/proc/$run/status" 2>/dev/null || true)
-    threads=$(awk '/^Threads/{print $2}' "/proc/$run/status" 2>/dev/null || true)
+    sample=$(awk '/^VmRSS/{r=$2} /^Threads/{t=$2} /^RssAnon/{a=$2} /^RssFile/{f=$2} /^RssShmem/{s=$2}
+                  END {if (r != "") print r / 1024, t, a / 1024, f / 1024, s / 1024}' "/proc/$run/status" 2>/dev/null || true)
     fds=$(ls "/proc/$run/fd" 2>/dev/null | wc -l)
-    [ -n "$rss" ] && echo "$(( $(date +%s) - t0 )) $rss $threads $fds" >> "$WORK/resources.txt"
+    if [ -n "$sample" ]; then
+      set -- $sample
+      echo "$(( $(date +%s) - t0 )) $1 $2 $fds $3 $4 $5" >> "$WORK/resources.txt"
+    fi
   fi
   sleep 10
 done
@@ -87,11 +94,15 @@ rows = [l.split() for l in open(f"{work}/resources.txt") if not l.startswith("#"
 t = [float(r[0]) for r in rows]; rss = [float(r[1]) for r in rows]
 th = [int(r[2]) for r in rows]; fd = [int(r[3]) for r in rows]
 after = [i for i in range(len(t)) if t[i] >= 0.1 * t[-1]]
-n = len(after); mt = sum(t[i] for i in after) / n; mr = sum(rss[i] for i in after) / n
-slope = sum((t[i] - mt) * (rss[i] - mr) for i in after) / max(1e-9, sum((t[i] - mt) ** 2 for i in after))
+def slope_of(v):
+    n = len(after); mt = sum(t[i] for i in after) / n; mv = sum(v[i] for i in after) / n
+    return 3600 * sum((t[i] - mt) * (v[i] - mv) for i in after) / max(1e-9, sum((t[i] - mt) ** 2 for i in after))
 print(f"resources: {len(rows)} samples over {t[-1] / 60:.1f} min; RSS {rss[0]:.1f} -> {rss[-1]:.1f} MiB "
-      f"(max {max(rss):.1f}), slope after the first tenth {slope * 3600:.2f} MiB/h; threads {th[0]} -> {th[-1]} "
+      f"(max {max(rss):.1f}), slope after the first tenth {slope_of(rss):.2f} MiB/h; threads {th[0]} -> {th[-1]} "
       f"(max {max(th)}); fds {fd[0]} -> {fd[-1]} (max {max(fd)})")
+print("resident, split: " + "; ".join(
+    f"{name} {float(rows[0][col]):.1f} -> {float(rows[-1][col]):.1f} MiB, slope {slope_of([float(r[col]) for r in rows]):+.2f} MiB/h"
+    for name, col in (("anonymous", 4), ("file-backed", 5), ("shared memory", 6))))
 # What grows, from the run's own status lines (one a second): the map's decoded tiles, the rest
 # of the heap, and what the allocator holds beyond the heap in use.
 lines = [json.loads(l) for l in open(f"{work}/run.jsonl") if '"rss_mib"' in l]
