@@ -48,9 +48,11 @@ struct MapperOptions {
   /// have drifted a whole pattern period.
   double loop_gate_chi2 = 16.27;
   /// The registration's own covariance is floored by these (one standard deviation): the
-  /// tracker's estimate ignores biases that do not average out.
-  double edge_min_sigma_mm = 0.01;
-  double edge_min_sigma_deg = 0.005;
+  /// tracker's estimate ignores biases that do not average out. Low enough that the links'
+  /// own covariances, not the floor, tell a precise link from a loose one (design.md
+  /// section 8: the keyframe links' yaw is four times looser than the consecutive ones').
+  double edge_min_sigma_mm = 0.002;
+  double edge_min_sigma_deg = 0.0005;
   /// The wheels' motion between two frames, where their images do not register: uncertain by
   /// wheel_sigma_mm + wheel_sigma_fraction x its length and wheel_sigma_deg.
   double wheel_sigma_mm = 2.0;
