@@ -31,12 +31,7 @@ config() {
 printf '%-22s %8s %8s %8s %8s %12s %6s %7s | %-5s %8s %6s %8s %8s  %s\n' case pose_rms pose_max al_rms al_max \
   stretches keyfr corr_mm drive fix% losses al_rms repeat "no fix"
 for case in $CASES; do
-  route=${case%%:*} floor=${case#*:}
-  floor_arg=$(floor_path "$floor")
-  if [ "$floor" != procedural ] && [ ! -f "$floor_arg" ]; then
-    echo "$case: skipped, $floor_arg is missing"
-    continue
-  fi
+  table_case "$case" || continue
   D="$WORK/$route-$floor"
   mkdir -p "$D"
   config "$route" 0.5 81 > "$D/lap1.yaml"

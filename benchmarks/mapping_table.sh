@@ -37,12 +37,7 @@ config() {
 printf '%-22s %-5s %9s %9s %8s %8s %9s %7s %7s | %-5s %8s %6s %6s %8s %8s %8s\n' case map err_rms err_max seam_rms \
   seam_max loops est_s build_s drive fix% losses wrong rms_mm aligned repeat
 for case in $CASES; do
-  route=${case%%:*} floor=${case#*:}
-  floor_arg=$(floor_path "$floor")
-  if [ "$floor" != procedural ] && [ ! -f "$floor_arg" ]; then
-    echo "$case: skipped, $floor_arg is missing"
-    continue
-  fi
+  table_case "$case" || continue
   D="$WORK/$route-$floor"
   mkdir -p "$D"
   config "$route" 0.5 1.0 81 miscalibrated > "$D/map.yaml"
