@@ -59,6 +59,20 @@ Eigen::Vector3d WheelTravel::Motion(const Eigen::Vector2d& c, Eigen::Matrix<doub
   return {0.5 * (left + right), 0.0, (right - left) / base_mm};
 }
 
+Eigen::Matrix<double, 3, 4> WheelTravel::InputJacobian() const {
+  Eigen::Matrix<double, 3, 4> d_motion = Eigen::Matrix<double, 3, 4>::Zero();
+  const double l = base_mm;
+  if (kind == core::DriveKind::kTricycle) {
+    const double cos_phi = std::cos(steering_rad), sin_phi = std::sin(steering_rad), s = drive_mm;
+    d_motion.leftCols<2>() << cos_phi, -s * sin_phi, 0.0, 0.0, sin_phi / l, s * cos_phi / l;
+  } else if (kind == core::DriveKind::kMecanum) {
+    d_motion << 0.25, 0.25, 0.25, 0.25, -0.25, 0.25, 0.25, -0.25, -0.25 / l, 0.25 / l, -0.25 / l, 0.25 / l;
+  } else {
+    d_motion.leftCols<2>() << 0.5, 0.5, 0.0, 0.0, -1.0 / l, 1.0 / l;
+  }
+  return d_motion;
+}
+
 WheelTravel WheelTravel::Part(double fraction) const {
   WheelTravel part = *this;
   part.left_mm *= fraction;
@@ -89,24 +103,23 @@ Eigen::Matrix3d TickQuantizationCovariance(const core::WheelGeometry& wheels) {
     const double q = wheels.TicksToMm(radius_mm, 1);
     return q * q / 6.0;
   };
-  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
   if (wheels.kind == core::DriveKind::kTricycle) {
     const double v = tick_variance(wheels.drive_wheel_radius_mm), l = wheels.wheelbase_mm;
-    covariance.diagonal() << v, 0.0, v / (l * l);
-  } else if (wheels.kind == core::DriveKind::kMecanum) {
-    // (left, right, rear left, rear right) to (dx, dy, dtheta), as the odometry turns them.
-    const double l = 0.5 * (wheels.track_width_mm + wheels.wheelbase_mm);
-    Eigen::Matrix<double, 3, 4> d_motion;
-    d_motion << 0.25, 0.25, 0.25, 0.25, -0.25, 0.25, 0.25, -0.25, -0.25 / l, 0.25 / l, -0.25 / l, 0.25 / l;
-    covariance = tick_variance(wheels.mecanum_wheel_radius_mm) * d_motion * d_motion.transpose();
-  } else {
-    const double b = wheels.track_width_mm;
-    Eigen::Matrix<double, 3, 2> d_motion;  // (left, right) to (dx, dy, dtheta)
-    d_motion << 0.5, 0.5, 0.0, 0.0, -1.0 / b, 1.0 / b;
-    const Eigen::Vector2d variance(tick_variance(wheels.left_wheel_radius_mm), tick_variance(wheels.right_wheel_radius_mm));
-    covariance = d_motion * variance.asDiagonal() * d_motion.transpose();
+    return Eigen::Vector3d(v, 0.0, v / (l * l)).asDiagonal();
   }
-  return covariance;
+  // Through the kinematics the odometry turns the wheels' travels with.
+  WheelTravel travel;
+  travel.kind = wheels.kind;
+  Eigen::Vector4d variance = Eigen::Vector4d::Zero();
+  if (wheels.kind == core::DriveKind::kMecanum) {
+    travel.base_mm = 0.5 * (wheels.track_width_mm + wheels.wheelbase_mm);
+    variance.setConstant(tick_variance(wheels.mecanum_wheel_radius_mm));
+  } else {
+    travel.base_mm = wheels.track_width_mm;
+    variance.head<2>() << tick_variance(wheels.left_wheel_radius_mm), tick_variance(wheels.right_wheel_radius_mm);
+  }
+  const Eigen::Matrix<double, 3, 4> d_motion = travel.InputJacobian();
+  return d_motion * variance.asDiagonal() * d_motion.transpose();
 }
 
 double WheelOdometry::LeftTicksToMm(std::int64_t ticks) const {
@@ -136,10 +149,9 @@ core::Result<OdometryIncrement, OdometryFailure> WheelOdometry::Update(core::Tim
   increment.dt = time - *last_time_;
   WheelTravel& travel = increment.travel;
   travel.kind = wheels.kind;
-  // The measured inputs' variances (up to four: wheel travels or a steering angle) and
-  // d(dx, dy, dtheta)/d(inputs); unused inputs have variance 0.
+  // The measured inputs' variances (up to four: wheel travels or a steering angle, in the
+  // order of WheelTravel::InputJacobian); unused inputs have variance 0.
   Eigen::Vector4d variance = Eigen::Vector4d::Zero();
-  Eigen::Matrix<double, 3, 4> d_motion = Eigen::Matrix<double, 3, 4>::Zero();
   double fastest_mm = 0.0;
   const double k = options_.wheel_variance_mm;
   if (wheels.kind == core::DriveKind::kTricycle) {
@@ -155,9 +167,6 @@ core::Result<OdometryIncrement, OdometryFailure> WheelOdometry::Update(core::Tim
     const double sigma_rad = options_.steering_sigma_deg * std::numbers::pi / 180.0;
     variance.head<2>() = Eigen::Vector2d(k * std::abs(travel.drive_mm),
                                          sigma_rad * sigma_rad + (after - before) * (after - before) / 12.0);
-    const double cos_phi = std::cos(travel.steering_rad), sin_phi = std::sin(travel.steering_rad);
-    const double s = travel.drive_mm, l = travel.base_mm;
-    d_motion.leftCols<2>() << cos_phi, -s * sin_phi, 0.0, 0.0, sin_phi / l, s * cos_phi / l;  // drive, steering
   } else if (wheels.kind == core::DriveKind::kMecanum) {
     travel.base_mm = 0.5 * (wheels.track_width_mm + wheels.wheelbase_mm);
     const double r = wheels.mecanum_wheel_radius_mm;
@@ -168,16 +177,12 @@ core::Result<OdometryIncrement, OdometryFailure> WheelOdometry::Update(core::Tim
     const Eigen::Vector4d wheel(travel.left_mm, travel.right_mm, travel.rear_left_mm, travel.rear_right_mm);
     fastest_mm = wheel.cwiseAbs().maxCoeff();
     variance = k * wheel.cwiseAbs();
-    const double l = travel.base_mm;
-    d_motion << 0.25, 0.25, 0.25, 0.25, -0.25, 0.25, 0.25, -0.25, -0.25 / l, 0.25 / l, -0.25 / l, 0.25 / l;
   } else {
     travel.base_mm = wheels.track_width_mm;
     travel.left_mm = LeftTicksToMm(TickDelta(last_.left_ticks, counts.left_ticks));
     travel.right_mm = RightTicksToMm(TickDelta(last_.right_ticks, counts.right_ticks));
     fastest_mm = std::max(std::abs(travel.left_mm), std::abs(travel.right_mm));
-    variance.head<2>() = Eigen::Vector2d(k * std::abs(travel.right_mm), k * std::abs(travel.left_mm));
-    const double b = travel.base_mm;
-    d_motion.leftCols<2>() << 0.5, 0.5, 0.0, 0.0, 1.0 / b, -1.0 / b;  // right, left
+    variance.head<2>() = Eigen::Vector2d(k * std::abs(travel.left_mm), k * std::abs(travel.right_mm));
   }
   last_time_ = time;
   last_ = counts;
@@ -205,7 +210,7 @@ core::Result<OdometryIncrement, OdometryFailure> WheelOdometry::Update(core::Tim
   f_pose(1, 2) = dy_dphi;
   Eigen::Matrix3d f_motion;  // d(x', y', theta')/d(dx, dy, dtheta)
   f_motion << c, -s, 0.5 * dx_dphi, s, c, 0.5 * dy_dphi, 0.0, 0.0, 1.0;
-  const Eigen::Matrix<double, 3, 4> f_wheels = f_motion * d_motion;
+  const Eigen::Matrix<double, 3, 4> f_wheels = f_motion * travel.InputJacobian();
   const Eigen::Matrix3d wheel_part = f_wheels * variance.asDiagonal() * f_wheels.transpose();
   covariance_ = f_pose * covariance_ * f_pose.transpose() + wheel_part;
   // The same in the previous vehicle frame: rotate the world-frame part back by its yaw.

@@ -75,6 +75,10 @@ struct WheelTravel {
   bool measured() const { return base_mm > 0.0; }
   /// (dx mm, dy mm, dtheta rad) with calibration errors c, and d(dx, dy, dtheta)/dc when asked.
   Eigen::Vector3d Motion(const Eigen::Vector2d& c, Eigen::Matrix<double, 3, 2>* jacobian = nullptr) const;
+  /// d(dx, dy, dtheta)/d(what the encoders measure), at c = 0: the columns are the left and
+  /// right wheels' travels (differential), the four wheels' (mecanum: left, right, rear left,
+  /// rear right) or the drive wheel's travel and the steering angle (tricycle); unused ones 0.
+  Eigen::Matrix<double, 3, 4> InputJacobian() const;
   /// The share `fraction` of it: the travels scaled, the steering angle the same.
   WheelTravel Part(double fraction) const;
   /// How far the wheel behind each calibration state rolled, mm: what its random walk grows
