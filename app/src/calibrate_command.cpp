@@ -282,23 +282,10 @@ void RunVehicle(const VehicleArgs& args, const GlobalOptions& global) {
   if (!args.out.empty()) std::printf("vehicle calibration: %s\n", args.out.string().c_str());
 }
 
-struct DriveArgs {
-  std::filesystem::path out;
-  core::DriveKind kind = core::DriveKind::kDifferential;
-  std::uint64_t seed = 1;
-  double mounting_yaw_deg = sim::CalibrationDriveOptions{}.vehicle_from_camera.yaw_rad() * 180.0 / M_PI;
-  double ramp_frames = 0.0;
-  bool overwrite = false;
-};
-
-void RunSimulateDrive(const DriveArgs& args, const GlobalOptions& global) {
-  sim::CalibrationDriveOptions options = sim::CalibrationDriveFor(args.kind);
-  options.seed = args.seed;
-  options.floor.seed = args.seed;
-  options.vehicle_from_camera = core::Pose2(options.vehicle_from_camera.x_mm(), options.vehicle_from_camera.y_mm(),
-                                            args.mounting_yaw_deg * M_PI / 180.0);
-  options.ramp_frames = args.ramp_frames;
-  const sim::CalibrationDriveSummary summary = sim::WriteCalibrationDrive(options, args.out, args.overwrite);
+void RunSimulateDrive(const runtime::CalibrationDriveJob& args, const GlobalOptions& global) {
+  const runtime::SimulatedCalibrationDrive drive = runtime::SimulateCalibrationDrive(args);
+  const sim::CalibrationDriveOptions& options = drive.options;
+  const sim::CalibrationDriveSummary& summary = drive.summary;
   if (global.json) {
     PrintJson(nlohmann::json{{"dataset", args.out.string()}, {"frames", summary.frames}});
   } else {
@@ -416,7 +403,7 @@ Action AddCalibrateCommand(CLI::App& app, const GlobalOptions& global) {
       ->required();
   vehicle->add_option("--out", vehicle_args->out, "Vehicle calibration YAML to write");
 
-  auto drive_args = std::make_shared<DriveArgs>();
+  auto drive_args = std::make_shared<runtime::CalibrationDriveJob>();
   CLI::App* drive = command->add_subcommand("simulate-drive", "A simulated calibration drive with known truth");
   drive->add_option("--out", drive_args->out, "Dataset directory to write")->required();
   std::map<std::string, core::DriveKind> kinds;

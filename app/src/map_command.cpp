@@ -33,36 +33,9 @@ struct MapArgs {
   std::int64_t update_id = 0;  ///< map revert
 };
 
-// The estimated poses' figures, as JSON and as the lines printed.
-nlohmann::json MappingJson(const runtime::MapPosesSummary& s) {
-  const mapping::MappingResult& m = s.mapping;
-  double after_sq = 0.0, after_max = 0.0;
-  for (const mapping::Seam& seam : m.seams) {
-    after_sq += seam.after_px * seam.after_px;
-    after_max = std::max(after_max, seam.after_px);
-  }
-  auto error = [](const std::optional<runtime::AlignedError>& e) -> nlohmann::json {
-    if (!e) return nullptr;
-    return {{"rms_mm", e->rms_mm}, {"max_mm", e->max_mm}};
-  };
-  return {{"frames", m.frames},
-          {"drives", s.poses.size()},
-          {"pieces", m.pieces},
-          {"path_length_m", m.path_length_m},
-          {"registered", m.registered},
-          {"loops_tried", m.loops_tried},
-          {"loops_accepted", m.loops_accepted},
-          {"gaps", m.gaps.size()},
-          {"seam_rms_px", m.seams.empty() ? 0.0 : std::sqrt(after_sq / static_cast<double>(m.seams.size()))},
-          {"seam_max_px", after_max},
-          {"seconds", s.seconds},
-          {"vs_groundtruth", error(s.error)},
-          {"chained_vs_groundtruth", error(s.chained_error)},
-          {"warnings", m.warnings}};
-}
-
+// The estimated poses' figures, as the lines printed.
 void PrintMapping(const runtime::MapPosesSummary& s) {
-  const nlohmann::json j = MappingJson(s);
+  const nlohmann::json j = s.ToJson();
   std::printf("poses from %lld frames and the encoders (%.1f m, %.1f s): %lld of %lld loop closures accepted, "
               "seams %.4f px RMS (max %.4f) after optimization\n",
               static_cast<long long>(s.mapping.frames), s.mapping.path_length_m, s.seconds,
@@ -81,7 +54,7 @@ void Poses(const runtime::MapPosesOptions& args, const GlobalOptions& global) {
   const runtime::MapPosesSummary r = runtime::EstimateMapPoses(args, progress.Callback());
   progress.Finish();
   if (global.json) {
-    PrintJson(MappingJson(r));
+    PrintJson(r.ToJson());
     return;
   }
   PrintMapping(r);
@@ -101,13 +74,7 @@ void Build(const runtime::MapBuildOptions& args, const GlobalOptions& global) {
   const runtime::MapBuildSummary r = runtime::BuildMap(args, progress.Callback());
   progress.Finish();
   if (global.json) {
-    nlohmann::json result = {{"map", fs::absolute(args.out).string()}, {"frames_painted", r.painted},
-                             {"frames_without_pose", r.without_pose}, {"tiles", r.tiles},
-                             {"level0_tiles", r.level0_tiles}, {"resumed_after_frames", r.resumed_after},
-                             {"place_features", r.place_features},
-                             {"poses", args.poses}};
-    if (r.mapping) result["mapping"] = MappingJson(*r.mapping);
-    PrintJson(result);
+    PrintJson(r.ToJson(args));
     return;
   }
   if (r.mapping && !global.quiet) PrintMapping(*r.mapping);
@@ -126,31 +93,8 @@ void Build(const runtime::MapBuildOptions& args, const GlobalOptions& global) {
 void Info(const MapArgs& args, const GlobalOptions& global) {
   const runtime::MapInfo info = runtime::InspectMap(args.map);
   const mosaic::MapGrid& grid = info.grid;
-  nlohmann::json levels = nlohmann::json::array();
-  for (int k = 0; k < grid.levels; ++k) {
-    levels.push_back({{"level", k}, {"mm_per_px", grid.LevelMmPerPx(k)}, {"tiles", info.tiles_per_level[k]}});
-  }
   if (global.json) {
-    nlohmann::json result = {{"map", args.map.string()}, {"format_version", mosaic::kMapFormatVersion},
-                             {"mm_per_px", grid.mm_per_px}, {"origin_x_mm", grid.origin_x_mm},
-                             {"origin_y_mm", grid.origin_y_mm}, {"tile_size_px", grid.tile_size_px},
-                             {"levels", levels}, {"tiles", info.tiles}, {"bytes_on_disk", info.bytes_on_disk}};
-    if (!info.extent_mm.empty()) result["extent_mm"] = info.extent_mm;
-    if (info.places) {
-      result["place_index"] = {{"format_version", info.places->format_version}, {"method", info.places->method},
-                               {"level", info.places->level}, {"cells", info.places->cells},
-                               {"features", info.places->bytes / static_cast<std::int64_t>(tracking::kPlaceRecordBytes)},
-                               {"bytes", info.places->bytes},
-                               {"repeat_test", nullptr}};
-      if (const auto test = runtime::FloorRepeatTest::Of(*info.places)) result["place_index"]["repeat_test"] = test->ToJson();
-    } else {
-      result["place_index"] = nullptr;
-    }
-    result["quality"] = info.quality ? nlohmann::json{{"level", info.quality->level}, {"cells", info.quality->cells}}
-                                     : nlohmann::json(nullptr);
-    result["updates"] = info.updates;
-    result["updates_in_force"] = info.updates_in_force;
-    PrintJson(result);
+    PrintJson(info.ToJson(args.map));
     return;
   }
   std::printf("map %s: format %d, %.4g mm/px, tiles of %d px, %d levels, %lld tiles, %.1f MiB on disk\n",
@@ -192,9 +136,7 @@ void Index(const MapArgs& args, const GlobalOptions& global) {
   const runtime::MapIndexSummary r = runtime::IndexMap(args.map, progress.Callback());
   progress.Finish();
   if (global.json) {
-    PrintJson({{"map", args.map.string()}, {"cells", r.cells}, {"features", r.features}, {"bytes", r.bytes},
-               {"seconds", r.seconds},
-               {"repeat_test", r.repeat_test.ToJson()}});
+    PrintJson(r.ToJson(args.map));
     return;
   }
   std::printf("%s: place index of %lld features in %lld cells, %.1f MiB, built in %.1f s\n", args.map.string().c_str(),
@@ -248,12 +190,7 @@ void Check(const MapArgs& args, const GlobalOptions& global) {
 void History(const MapArgs& args, const GlobalOptions& global) {
   const std::vector<mosaic::MapUpdate> history = runtime::MapHistory(args.map);
   if (global.json) {
-    nlohmann::json updates = nlohmann::json::array();
-    for (const mosaic::MapUpdate& u : history) {
-      updates.push_back({{"id", u.id}, {"time", u.time}, {"reason", u.reason}, {"tiles", u.tiles},
-                         {"reverted", u.reverted.empty() ? nlohmann::json() : nlohmann::json(u.reverted)}});
-    }
-    PrintJson({{"map", args.map.string()}, {"updates", updates}});
+    PrintJson(runtime::MapHistoryJson(args.map, history));
     return;
   }
   if (history.empty()) {
@@ -271,9 +208,7 @@ void History(const MapArgs& args, const GlobalOptions& global) {
 void Revert(const MapArgs& args, const GlobalOptions& global) {
   const runtime::MapRevertSummary r = runtime::RevertMapUpdate(args.map, args.update_id);
   if (global.json) {
-    PrintJson({{"map", args.map.string()}, {"update", r.revert.id}, {"reason", r.revert.reason},
-               {"tiles_restored", r.revert.restored}, {"tiles_removed", r.revert.removed},
-               {"place_index_rebuilt", r.reindexed}, {"quality_layer_rebuilt", r.reassessed}});
+    PrintJson(r.ToJson(args.map));
     return;
   }
   std::printf("%s: update %lld reverted (%s): %lld tiles restored, %lld removed%s\n", args.map.string().c_str(),

@@ -1,5 +1,6 @@
 #include "mosaicloc/runtime/calibration_jobs.hpp"
 
+#include <numbers>
 #include <optional>
 
 #include "mosaicloc/calibration/board_images.hpp"
@@ -54,6 +55,19 @@ std::int64_t SimulateRawRecording(const std::filesystem::path& dataset, const st
                                   const std::function<void(double)>& progress) {
   const sim::SimulatorOptions options = sim::SimulatorConfigOrDefaults(config);
   return sim::WriteRawDrive(dataset, options, out, overwrite, progress);
+}
+
+SimulatedCalibrationDrive SimulateCalibrationDrive(const CalibrationDriveJob& job) {
+  SimulatedCalibrationDrive drive;
+  sim::CalibrationDriveOptions& options = drive.options;
+  options = sim::CalibrationDriveFor(job.kind);
+  options.seed = job.seed;
+  options.floor.seed = job.seed;
+  options.vehicle_from_camera = core::Pose2(options.vehicle_from_camera.x_mm(), options.vehicle_from_camera.y_mm(),
+                                            job.mounting_yaw_deg * std::numbers::pi / 180.0);
+  options.ramp_frames = job.ramp_frames;
+  drive.summary = sim::WriteCalibrationDrive(options, job.out, job.overwrite);
+  return drive;
 }
 
 }  // namespace mosaicloc::runtime

@@ -253,6 +253,61 @@ MapInfo InspectMap(const std::filesystem::path& map) {
   return info;
 }
 
+nlohmann::json MapInfo::ToJson(const std::filesystem::path& map) const {
+  nlohmann::json levels = nlohmann::json::array();
+  for (int k = 0; k < grid.levels; ++k) {
+    levels.push_back({{"level", k}, {"mm_per_px", grid.LevelMmPerPx(k)}, {"tiles", tiles_per_level[k]}});
+  }
+  nlohmann::json result = {{"map", map.string()}, {"format_version", mosaic::kMapFormatVersion},
+                           {"mm_per_px", grid.mm_per_px}, {"origin_x_mm", grid.origin_x_mm},
+                           {"origin_y_mm", grid.origin_y_mm}, {"tile_size_px", grid.tile_size_px},
+                           {"levels", levels}, {"tiles", tiles}, {"bytes_on_disk", bytes_on_disk}};
+  if (!extent_mm.empty()) result["extent_mm"] = extent_mm;
+  result["place_index"] = nullptr;
+  if (places) {
+    result["place_index"] = {{"format_version", places->format_version}, {"method", places->method},
+                             {"level", places->level}, {"cells", places->cells},
+                             {"features", places->bytes / static_cast<std::int64_t>(tracking::kPlaceRecordBytes)},
+                             {"bytes", places->bytes},
+                             {"repeat_test", nullptr}};
+    if (const auto test = FloorRepeatTest::Of(*places)) result["place_index"]["repeat_test"] = test->ToJson();
+  }
+  result["quality"] = quality ? nlohmann::json{{"level", quality->level}, {"cells", quality->cells}}
+                              : nlohmann::json(nullptr);
+  result["updates"] = updates;
+  result["updates_in_force"] = updates_in_force;
+  return result;
+}
+
+nlohmann::json MapHistoryJson(const std::filesystem::path& map, const std::vector<mosaic::MapUpdate>& history) {
+  nlohmann::json updates = nlohmann::json::array();
+  for (const mosaic::MapUpdate& u : history) {
+    updates.push_back({{"id", u.id}, {"time", u.time}, {"reason", u.reason}, {"tiles", u.tiles},
+                       {"reverted", u.reverted.empty() ? nlohmann::json() : nlohmann::json(u.reverted)}});
+  }
+  return {{"map", map.string()}, {"updates", updates}};
+}
+
+nlohmann::json MapRevertSummary::ToJson(const std::filesystem::path& map) const {
+  return {{"map", map.string()}, {"update", revert.id}, {"reason", revert.reason},
+          {"tiles_restored", revert.restored}, {"tiles_removed", revert.removed},
+          {"place_index_rebuilt", reindexed}, {"quality_layer_rebuilt", reassessed}};
+}
+
+nlohmann::json MapIndexSummary::ToJson(const std::filesystem::path& map) const {
+  return {{"map", map.string()}, {"cells", cells},     {"features", features},
+          {"bytes", bytes},      {"seconds", seconds}, {"repeat_test", repeat_test.ToJson()}};
+}
+
+nlohmann::json MapBuildSummary::ToJson(const MapBuildOptions& options) const {
+  nlohmann::json result = {{"map", fs::absolute(options.out).string()}, {"frames_painted", painted},
+                           {"frames_without_pose", without_pose}, {"tiles", tiles},
+                           {"level0_tiles", level0_tiles}, {"resumed_after_frames", resumed_after},
+                           {"place_features", place_features}, {"poses", options.poses}};
+  if (mapping) result["mapping"] = mapping->ToJson();
+  return result;
+}
+
 std::vector<mosaic::MapUpdate> MapHistory(const std::filesystem::path& map) {
   return mosaic::TileStore::Open(map, false)->History();
 }

@@ -177,6 +177,25 @@ mapping::MappingResult OptimizeImported(const fs::path& file, const mapping::Map
 
 }  // namespace
 
+nlohmann::json MapPosesSummary::ToJson() const {
+  const mapping::MappingResult& m = mapping;
+  const SeamFigures seams = FiguresOf(m.seams, std::nullopt);
+  return {{"frames", m.frames},
+          {"drives", poses.size()},
+          {"pieces", m.pieces},
+          {"path_length_m", m.path_length_m},
+          {"registered", m.registered},
+          {"loops_tried", m.loops_tried},
+          {"loops_accepted", m.loops_accepted},
+          {"gaps", m.gaps.size()},
+          {"seam_rms_px", seams.after_rms},
+          {"seam_max_px", seams.after_max},
+          {"seconds", seconds},
+          {"vs_groundtruth", JsonOf(error)},
+          {"chained_vs_groundtruth", JsonOf(chained_error)},
+          {"warnings", m.warnings}};
+}
+
 mapping::MapperOptions DefaultMapperOptions() {
   mapping::MapperOptions options;
   options.tracker = localizer::LocalizerOptions{}.tracker;

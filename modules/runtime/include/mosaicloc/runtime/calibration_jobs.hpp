@@ -3,11 +3,14 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <numbers>
 #include <string>
 
 #include "mosaicloc/calibration/vehicle_drive.hpp"
 #include "mosaicloc/camera/board.hpp"
 #include "mosaicloc/camera/ideal_camera.hpp"
+#include "mosaicloc/core/wheel_geometry.hpp"
+#include "mosaicloc/sim/calibration_drive.hpp"
 
 namespace mosaicloc::runtime {
 
@@ -51,5 +54,22 @@ RectifiedDataset RectifyRecording(const std::filesystem::path& dataset, const st
 std::int64_t SimulateRawRecording(const std::filesystem::path& dataset, const std::filesystem::path& config,
                                   const std::filesystem::path& out, bool overwrite,
                                   const std::function<void(double)>& progress = {});
+
+/// `mosaicloc calibrate simulate-drive`: the calibration drive of a vehicle of the given kind
+/// (sim::CalibrationDriveFor), its floor and noise from `seed`, its camera turned by
+/// `mounting_yaw_deg` on the vehicle.
+struct CalibrationDriveJob {
+  std::filesystem::path out;
+  core::DriveKind kind = core::DriveKind::kDifferential;
+  std::uint64_t seed = 1;
+  double mounting_yaw_deg = sim::CalibrationDriveOptions{}.vehicle_from_camera.yaw_rad() * 180.0 / std::numbers::pi;
+  double ramp_frames = 0.0;  ///< sim::CalibrationDriveOptions::ramp_frames
+  bool overwrite = false;
+};
+struct SimulatedCalibrationDrive {
+  sim::CalibrationDriveOptions options;  ///< as driven
+  sim::CalibrationDriveSummary summary;
+};
+SimulatedCalibrationDrive SimulateCalibrationDrive(const CalibrationDriveJob& job);
 
 }  // namespace mosaicloc::runtime

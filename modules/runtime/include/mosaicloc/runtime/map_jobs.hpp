@@ -44,6 +44,10 @@ struct MapBuildSummary {
   std::int64_t level0_tiles = 0;
   std::int64_t place_features = 0;  ///< in the place index built with the map
   std::optional<MapPosesSummary> mapping;  ///< with poses "estimate"
+
+  /// What `map build --json` prints: the map written (absolute path), the counts, the poses
+  /// used, and with "estimate" the mapping's figures (MapPosesSummary::ToJson).
+  nlohmann::json ToJson(const MapBuildOptions& options) const;
 };
 
 /// The map is written with its place index (IndexMap) and its quality layer (AssessStore).
@@ -80,6 +84,10 @@ struct MapInfo {
   /// Recorded updates (`map history`), and how many of them are in force (not reverted).
   std::int64_t updates = 0;
   std::int64_t updates_in_force = 0;
+
+  /// What `map info --json` prints: the grid, per-level tiles, extent, place index (with its
+  /// floor self-test), quality layer and history counts; absent parts are null.
+  nlohmann::json ToJson(const std::filesystem::path& map) const;
 };
 MapInfo InspectMap(const std::filesystem::path& map);
 
@@ -113,6 +121,8 @@ struct MapIndexSummary {
   std::int64_t bytes = 0;
   double seconds = 0.0;
   FloorRepeatTest repeat_test;
+
+  nlohmann::json ToJson(const std::filesystem::path& map) const;  ///< `map index --json`
 };
 MapIndexSummary IndexMap(const std::filesystem::path& map, const std::function<void(double)>& progress = {});
 /// The same into an open, writable store.
@@ -120,6 +130,8 @@ MapIndexSummary IndexStore(mosaic::TileStore& store, const std::function<void(do
 
 /// `mosaicloc map history`: the map's recorded updates, oldest first.
 std::vector<mosaic::MapUpdate> MapHistory(const std::filesystem::path& map);
+/// `map history --json`: the map and its updates (id, time, reason, tiles, reverted or null).
+nlohmann::json MapHistoryJson(const std::filesystem::path& map, const std::vector<mosaic::MapUpdate>& history);
 
 /// `mosaicloc map revert`: undoes a recorded update (mosaic::RevertUpdate), then rebuilds the
 /// place index and the quality layer where the map has them, so that they describe its floor.
@@ -127,6 +139,8 @@ struct MapRevertSummary {
   mosaic::RevertSummary revert;
   bool reindexed = false;
   bool reassessed = false;
+
+  nlohmann::json ToJson(const std::filesystem::path& map) const;  ///< `map revert --json`
 };
 MapRevertSummary RevertMapUpdate(const std::filesystem::path& map, std::int64_t id);
 

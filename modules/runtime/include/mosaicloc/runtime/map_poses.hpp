@@ -5,6 +5,8 @@
 #include <optional>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "mosaicloc/core/pose2.hpp"
 #include "mosaicloc/dataset/dataset.hpp"
 #include "mosaicloc/dataset/trajectory.hpp"
@@ -64,6 +66,10 @@ struct MapPosesSummary {
   std::optional<AlignedError> chained_error;
   double seconds = 0.0;
   std::int64_t encoder_samples_rejected = 0;
+
+  /// What `map poses --json` prints (and `map build --json` under "mapping"): the counts, the
+  /// seams after optimization, the errors against the ground truth (null without one), warnings.
+  nlohmann::json ToJson() const;
 };
 
 /// Estimates the drive's poses (mapping::MapPoses), writes what the options ask for, and
