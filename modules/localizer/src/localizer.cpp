@@ -216,6 +216,7 @@ void Localizer::Initialize(core::Timestamp time, const core::Pose2& world_from_v
                            const Eigen::Matrix3d& covariance) {
   filter_.emplace(options_.filter, time, world_from_vehicle, covariance);
   keyframe_.reset();
+  last_registered_.reset();
   off_map_path_mm_ = 0.0;
   last_predicted_.reset();
   rejected_run_ = 0;
@@ -229,6 +230,7 @@ void Localizer::SetPose(core::Timestamp time, const core::Pose2& world_from_vehi
   if (!filter_) core::ThrowRuntime("localizer: SetPose before Initialize");
   filter_->RestartAt(time, world_from_vehicle, covariance);
   keyframe_.reset();  // it was placed by the estimate given up
+  last_registered_.reset();
   rejected_run_ = 0;
   unmatched_run_ = 0;
 }
@@ -508,20 +510,40 @@ bool Localizer::VisualOdometry(core::Timestamp time, const cv::Mat& frame, const
     outcome->keyframe = true;
     return false;
   }
-  const core::Pose2 keyframe_camera = keyframe_->world_from_vehicle * vehicle_from_camera;
-  // The wheels' motion since the keyframe, as the camera saw it, with its uncertainty.
-  const core::Pose2 prior_motion = Between(keyframe_camera, predicted_camera);
-  const double base_mm = vo.prior_sigma_mm + vo.prior_sigma_fraction * prior_motion.translation_mm().norm();
-  const double sigma_mm = std::sqrt(base_mm * base_mm + timing_mm * timing_mm);
-  const double sigma_rad = vo.prior_sigma_deg * std::numbers::pi / 180.0;
-  const Eigen::Matrix3d prior =
-      Eigen::Vector3d(sigma_mm * sigma_mm, sigma_mm * sigma_mm, sigma_rad * sigma_rad).asDiagonal();
-  tracking::TrackResult link = tracking::RegisterFrames(tracker_, keyframe_->image, frame, prior_motion, prior);
+  // The wheels' motion since an earlier frame of the chain, as the camera saw it, with its
+  // uncertainty, as the registration's prior.
+  const auto register_against = [&](const Keyframe& earlier) {
+    const core::Pose2 prior_motion = Between(earlier.world_from_vehicle * vehicle_from_camera, predicted_camera);
+    const double base_mm = vo.prior_sigma_mm + vo.prior_sigma_fraction * prior_motion.translation_mm().norm();
+    const double sigma_mm = std::sqrt(base_mm * base_mm + timing_mm * timing_mm);
+    const double sigma_rad = vo.prior_sigma_deg * std::numbers::pi / 180.0;
+    const Eigen::Matrix3d prior =
+        Eigen::Vector3d(sigma_mm * sigma_mm, sigma_mm * sigma_mm, sigma_rad * sigma_rad).asDiagonal();
+    return tracking::RegisterFrames(tracker_, earlier.image, frame, prior_motion, prior);
+  };
+  const auto failed = [](const tracking::TrackResult& r) {
+    return std::string(tracking::ToString(r.failure)) + (r.reason.empty() ? std::string() : " (" + r.reason + ")");
+  };
+  const Keyframe* base = &*keyframe_;
+  tracking::TrackResult link = register_against(*base);
   if (!link.ok()) {
-    outcome->reason += std::string("; visual odometry: ") + tracking::ToString(link.failure) +
-                       (link.reason.empty() ? std::string() : " (" + link.reason + ")");
-    return false;
+    // The frame before overlaps this one far more than the keyframe does: in a turn, or where
+    // the view has moved on, its templates still fall on it.
+    if (last_registered_ && last_registered_->time > keyframe_->time && last_registered_->time < time &&
+        last_registered_->image.size() == frame.size()) {
+      tracking::TrackResult before = register_against(*last_registered_);
+      if (before.ok()) {
+        outcome->reason += "; visual odometry: registered to the frame before (the keyframe: " + failed(link) + ")";
+        link = std::move(before);
+        base = &*last_registered_;
+      }
+    }
+    if (!link.ok()) {
+      outcome->reason += "; visual odometry: " + failed(link);
+      return false;
+    }
   }
+  const core::Pose2 base_camera = base->world_from_vehicle * vehicle_from_camera;
   // The body's roll in the turn (VisualOdometryOptions::roll_deg_per_mps2), about the vehicle's
   // forward axis (in the camera's axes as mounted), biases the link's yaw (TiltYawBias).
   const estimation::MotionState motion = filter_->Latest();
@@ -532,47 +554,49 @@ bool Localizer::VisualOdometry(core::Timestamp time, const cv::Mat& frame, const
   const double yaw_bias = TiltYawBias(link, camera_, tilt_camera, options_.tracker.solver.camera_height_mm);
   link.world_from_camera =
       core::Pose2(link.world_from_camera.translation_mm(), link.world_from_camera.yaw_rad() - yaw_bias);
-  const double chain_turn_rad = keyframe_->chain_turn_rad + std::abs(link.world_from_camera.yaw_rad());
-  // world_from_camera = keyframe_camera * motion: the keyframe's covariance carried through
+  const double chain_turn_rad = base->chain_turn_rad + std::abs(link.world_from_camera.yaw_rad());
+  // world_from_camera = base_camera * motion: the covariance of the frame registered against carried through
   // the composition, plus the link's turned into the world.
   Eigen::Matrix3d link_covariance = options_.fix_covariance_scale * link.covariance;
   link_covariance(0, 0) += vo.link_sigma_floor_mm * vo.link_sigma_floor_mm;
   link_covariance(1, 1) += vo.link_sigma_floor_mm * vo.link_sigma_floor_mm;
   link_covariance(2, 2) += vo.link_sigma_floor_rad * vo.link_sigma_floor_rad;
-  const core::Pose2 camera_pose = keyframe_camera * link.world_from_camera;
-  const double c = std::cos(keyframe_camera.yaw_rad()), s = std::sin(keyframe_camera.yaw_rad());
+  const core::Pose2 camera_pose = base_camera * link.world_from_camera;
+  const double c = std::cos(base_camera.yaw_rad()), s = std::sin(base_camera.yaw_rad());
   Eigen::Matrix3d turn = Eigen::Matrix3d::Identity();
   turn.topLeftCorner<2, 2>() << c, -s, s, c;
-  const Eigen::Matrix3d through = ComposeJacobian(keyframe_camera, link.world_from_camera);
+  const Eigen::Matrix3d through = ComposeJacobian(base_camera, link.world_from_camera);
   Eigen::Matrix3d camera_covariance =
-      through * CameraCovariance(keyframe_->world_from_vehicle, vehicle_from_camera, keyframe_->covariance) *
+      through * CameraCovariance(base->world_from_vehicle, vehicle_from_camera, base->covariance) *
           through.transpose() +
       turn * link_covariance * turn.transpose();
   // The chain's yaw bias grows with its turn, the same sign link after link: its variance is
   // (fraction x turn)², of which the keyframe's covariance holds the part up to the keyframe.
   camera_covariance(2, 2) += vo.turn_sigma_fraction * vo.turn_sigma_fraction *
-                             (chain_turn_rad * chain_turn_rad - keyframe_->chain_turn_rad * keyframe_->chain_turn_rad);
+                             (chain_turn_rad * chain_turn_rad - base->chain_turn_rad * base->chain_turn_rad);
   const core::Pose2 pose = camera_pose * vehicle_from_camera.Inverse();
   const Eigen::Matrix3d covariance = VehicleCovariance(camera_pose, vehicle_from_camera, camera_covariance);
   filter_->RestartAt(time, pose, covariance);
   outcome->fix_world_from_vehicle = pose;
   outcome->fix_quality = std::clamp(link.mean_zncc, 0.0, 1.0);
-  outcome->link = tracking::FrameLink{keyframe_->time, link.world_from_camera, link_covariance};
+  outcome->link = tracking::FrameLink{base->time, link.world_from_camera, link_covariance};
   // A keyframe once the view has moved or turned far enough from the last, or when the next
   // frame, at this frame's pace, would lie beyond what registers against the last (a frame
   // just short of keyframe_fraction must not leave the next one beyond max_fraction).
-  const double moved = ViewShift(camera_, keyframe_camera, camera_pose);
+  // Registered to the frame before, the keyframe no longer registers: this frame replaces it.
+  const double moved = ViewShift(camera_, base_camera, camera_pose);
   const double step = last_vo_camera_ ? ViewShift(camera_, *last_vo_camera_, camera_pose) : 0.0;
   last_vo_camera_ = camera_pose;
-  if (moved >= vo.keyframe_fraction || moved + step > 0.9 * vo.max_fraction ||
-      std::abs(link.world_from_camera.yaw_rad()) >= vo.keyframe_turn_deg * std::numbers::pi / 180.0) {
-    outcome->keyframe = true;
-    keyframe_->time = time;
-    frame.copyTo(keyframe_->image);
-    keyframe_->world_from_vehicle = pose;
-    keyframe_->covariance = covariance;
-    keyframe_->chain_turn_rad = chain_turn_rad;
-  }
+  const bool replace = base != &*keyframe_ || moved >= vo.keyframe_fraction || moved + step > 0.9 * vo.max_fraction ||
+                       std::abs(link.world_from_camera.yaw_rad()) >= vo.keyframe_turn_deg * std::numbers::pi / 180.0;
+  if (!replace && !last_registered_) last_registered_.emplace();
+  Keyframe& kept = replace ? *keyframe_ : *last_registered_;  // buffers reused: one copy per frame
+  outcome->keyframe = replace;
+  kept.time = time;
+  frame.copyTo(kept.image);
+  kept.world_from_vehicle = pose;
+  kept.covariance = covariance;
+  kept.chain_turn_rad = chain_turn_rad;
   return true;
 }
 

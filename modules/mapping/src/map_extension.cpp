@@ -56,6 +56,14 @@ MapExtender::Node MapExtender::NodeOf(const ExtensionFrame& frame) {
   return Node{frame.time, frame.image.clone(), frame.world_from_camera, frame.covariance};
 }
 
+void MapExtender::Append(Node node, const tracking::FrameLink& link) {
+  const int n = static_cast<int>(segment_.size());
+  edges_.push_back(PoseGraphEdge{n - 1, n, link.earlier_from_camera, InformationOf(link.covariance),
+                                 EdgeKind::kSequential});
+  segment_mm_ += core::Distance(segment_.back().world_from_camera, node.world_from_camera);
+  segment_.push_back(std::move(node));
+}
+
 void MapExtender::Frame(const ExtensionFrame& frame) {
   if (frame.link) {
     const tracking::FrameLink& link = *frame.link;
@@ -83,20 +91,35 @@ void MapExtender::Frame(const ExtensionFrame& frame) {
       edges_.clear();
       segment_mm_ = 0.0;
     }
+    // The localizer registered this frame against the frame before where its keyframe did not
+    // register: that frame, registered against the keyframe, joins the stretch first.
+    if (between_.held && link.earlier_time == between_.node.time &&
+        between_.link.earlier_time == segment_.back().time) {
+      const Node& b = between_.node;
+      Append(Node{b.time, b.image.clone(), b.world_from_camera, b.covariance}, between_.link);
+    }
+    between_.held = false;
     if (link.earlier_time != segment_.back().time) {
       // Registered against a keyframe the stretch does not end in: the chain is broken here.
       Commit(std::nullopt, std::nullopt);
       if (frame.keyframe) keyframe_ = NodeOf(frame);
       return;
     }
-    if (!frame.keyframe) return;  // the keyframes cover the floor: the frames between add nothing
+    if (!frame.keyframe) {
+      // The keyframes cover the floor: the frames between add nothing, unless the next keyframe
+      // is registered against one of them.
+      if (frame.image.empty()) return;
+      between_.node.time = frame.time;
+      frame.image.copyTo(between_.node.image);  // reuses the buffer
+      between_.node.world_from_camera = frame.world_from_camera;
+      between_.node.covariance = frame.covariance;
+      between_.link = link;
+      between_.held = true;
+      return;
+    }
     Node node = NodeOf(frame);
-    const int n = static_cast<int>(segment_.size());
-    edges_.push_back(PoseGraphEdge{n - 1, n, link.earlier_from_camera, InformationOf(link.covariance),
-                                   EdgeKind::kSequential});
-    segment_mm_ += core::Distance(segment_.back().world_from_camera, node.world_from_camera);
-    keyframe_ = node;
-    segment_.push_back(std::move(node));
+    keyframe_ = node;  // shares the image with the stretch's node
+    Append(std::move(node), link);
     if (segment_mm_ >= 1000.0 * options_.max_segment_m) Commit(std::nullopt, std::nullopt);
     return;
   }

@@ -52,16 +52,19 @@ class ExtensionDrive : public ::testing::Test {
   // odometry whose every link is `bias` off (a drift), every frame a keyframe, and a fix on
   // the truth at the last frame back on the map. The start is known to `start_sigma_mm`. At
   // frame `break_at`, if given, the localizer's registration failed and it starts a new chain
-  // where the wheels put it, `wheel_drift` off the truth.
+  // where the wheels put it, `wheel_drift` off the truth. Frame `not_keyframe`, if given, is
+  // registered but not kept as the keyframe, so the frame after it is registered against it,
+  // as the localizer does where its keyframe does not register.
   void Drive(MapExtender& extender, const core::Pose2& bias, double start_sigma_mm = 0.01,
-             std::optional<std::size_t> break_at = std::nullopt, const core::Pose2& wheel_drift = core::Pose2()) {
+             std::optional<std::size_t> break_at = std::nullopt, const core::Pose2& wheel_drift = core::Pose2(),
+             std::optional<std::size_t> not_keyframe = std::nullopt) {
     core::Pose2 chained = truth_.front();
     Eigen::Matrix3d covariance = Eigen::Vector3d(start_sigma_mm * start_sigma_mm, start_sigma_mm * start_sigma_mm, 1e-8).asDiagonal();
     for (std::size_t i = 0; i < truth_.size(); ++i) {
       ExtensionFrame frame;
       frame.time = core::Timestamp::FromSeconds(0.1 * static_cast<double>(i));
       frame.image = Frame(truth_[i]);
-      frame.keyframe = true;
+      frame.keyframe = !not_keyframe || i != *not_keyframe;
       if (i == 0 || i + 1 == truth_.size()) {
         frame.fixed = true;
         frame.world_from_camera = truth_[i];
@@ -171,6 +174,21 @@ TEST_F(ExtensionDrive, ABreakInTheChainIsBridged) {
   EXPECT_EQ(s.closed, 1);
   EXPECT_TRUE(s.warnings.empty()) << s.warnings.front();
   ASSERT_EQ(extender.painted().size(), truth_.size() - 2);
+  ExpectPaintedWithin(extender, 0.02);
+}
+
+// The localizer registered a frame against the frame before it, not its keyframe (which it
+// no longer overlapped enough): that frame joins the stretch as a node, the chain goes on
+// unbroken, and the stretch is closed onto the map as a whole.
+TEST_F(ExtensionDrive, AKeyframeRegisteredToTheFrameBeforeContinuesTheStretch) {
+  MapExtender extender(*store_, *cache_, camera_, tracking::TrackerOptions{}, MapExtensionOptions{});
+  Drive(extender, core::Pose2(0.0, 0.02, 0.0), 0.01, std::nullopt, core::Pose2(), truth_.size() / 2);
+  const ExtensionSummary& s = extender.summary();
+  EXPECT_EQ(s.segments, 1);
+  EXPECT_EQ(s.closed, 1);
+  EXPECT_EQ(s.bridged, 0);
+  EXPECT_TRUE(s.warnings.empty()) << s.warnings.front();
+  ASSERT_EQ(extender.painted().size(), truth_.size() - 2) << "the frame before is painted too";
   ExpectPaintedWithin(extender, 0.02);
 }
 

@@ -55,8 +55,9 @@ void MapKeeper::Frame(core::Timestamp time, const cv::Mat& image, const localize
   }
   const Eigen::Matrix3d covariance =
       localizer::CameraCovariance(outcome.world_from_vehicle, vehicle_from_camera_, outcome.covariance);
-  // Automatic mapping keeps the keyframes' and the fixes' images, map updates look at fixes'.
-  const bool needed = outcome.keyframe || outcome.fixed;
+  // Automatic mapping keeps the keyframes' and the fixes' images, and the last frame registered
+  // off the map (the next keyframe may be registered against it); map updates look at fixes'.
+  const bool needed = outcome.keyframe || outcome.fixed || outcome.link.has_value();
   const cv::Mat kept = !needed ? cv::Mat() : background_ ? image.clone() : image;
   item.extension.time = time;
   item.extension.image = kept;

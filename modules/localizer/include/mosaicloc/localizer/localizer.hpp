@@ -33,7 +33,10 @@ const char* ToString(Mode mode);
 /// Visual odometry off the map (design.md section 7c): a frame off the map is registered
 /// against the keyframe (the last frame with a fix or registered so, kept as the view moves on)
 /// around the wheels' motion since it, and the estimate chained on from the keyframe's with the
-/// registration's covariance added; the wheels carry it only where that fails.
+/// registration's covariance added. Where the keyframe does not register (the view turned or
+/// moved so that too few templates fall on it), the frame is registered against the frame
+/// before it, which overlaps it far more, and becomes the keyframe; the wheels carry the
+/// estimate only where that fails too.
 struct VisualOdometryOptions {
   bool enabled = true;
   /// A registered frame becomes the keyframe once its view centre is this share of the view's
@@ -286,8 +289,9 @@ class Localizer {
   /// tilt it measured (LocalizerOptions::tilt_pivot_height_mm).
   core::Pose2 MountingPoint(const tracking::TrackResult& track) const;
   tracking::TrackResult AtTheEdge(const cv::Mat& frame, tracking::TrackResult found) const;
-  // Off the map: registers the frame against the keyframe and chains the estimate on from it
-  // (true), or makes it the keyframe where it cannot be registered (false, and why).
+  // Off the map: registers the frame against the keyframe (or the frame before) and chains the
+  // estimate on from it (true), or makes it the keyframe where it cannot be registered (false,
+  // and why).
   bool VisualOdometry(core::Timestamp time, const cv::Mat& frame, const core::Pose2& predicted,
                       FrameOutcome* outcome);
   // Keeps the frame as the keyframe, at the filter's estimate for its time.
@@ -337,6 +341,9 @@ class Localizer {
     double chain_turn_rad = 0.0;  ///< how far the chain of links had turned at it since the last fix
   };
   std::optional<Keyframe> keyframe_;
+  /// The last frame visual odometry registered, kept the same way (no older than the keyframe
+  /// when it counts): what a frame the keyframe does not register is registered against.
+  std::optional<Keyframe> last_registered_;
   std::optional<core::Pose2> last_vo_camera_;  ///< the camera pose of the last frame visual odometry registered
   Mode mode_ = Mode::kTrack;
   std::int64_t mode_switches_ = 0;

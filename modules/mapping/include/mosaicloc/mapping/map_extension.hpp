@@ -46,7 +46,8 @@ struct ExtensionFrame {
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();  ///< of world_from_camera
   bool fixed = false;     ///< an accepted fix on the map
   bool keyframe = false;  ///< the localizer keeps it as its keyframe from now on
-  std::optional<tracking::FrameLink> link;  ///< registered off the map against the keyframe
+  /// Registered off the map against the keyframe (or, where that failed, the frame before).
+  std::optional<tracking::FrameLink> link;
 };
 
 /// What the extension did so far.
@@ -65,7 +66,8 @@ struct ExtensionSummary {
 /// Paints the floor off the map into it, in stretches (design.md section 7d). A stretch starts
 /// at the keyframe a frame off the map was first registered against (a fix on the map, or the
 /// start); the keyframes after it are its nodes, the localizer's frame-to-keyframe
-/// registrations its edges. It ends when the vehicle comes back onto the map (the first fix,
+/// registrations its edges (a keyframe registered to the frame before it brings that frame in as
+/// a node, with its own registration to the keyframe before). It ends when the vehicle comes back onto the map (the first fix,
 /// registered against the last keyframe, holds the far end: a loop closure), when it has
 /// grown to max_segment_m, or when the chain breaks and the frame the localizer starts its
 /// next chain from does not register against the stretch's last keyframe either. Then the stretch's pose graph is solved
@@ -96,6 +98,8 @@ class MapExtender {
     Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
   };
   static Node NodeOf(const ExtensionFrame& frame);
+  // The next node of the stretch, joined to the last by the localizer's registration.
+  void Append(Node node, const tracking::FrameLink& link);
   // Ends the stretch: `end` (a fix on the map) held with `end_edge` from the last node to it,
   // or the start alone; paints and writes. The stretch is empty after.
   void Commit(const std::optional<Node>& end, const std::optional<PoseGraphEdge>& end_edge);
@@ -112,6 +116,13 @@ class MapExtender {
   tracking::Tracker tracker_;
   MapExtensionOptions options_;
   std::optional<Node> keyframe_;  ///< the localizer's keyframe
+  /// The last frame registered against the stretch's last keyframe that did not become one, and
+  /// that registration: the next keyframe may be registered against it instead.
+  struct HeldFrame {
+    Node node;  ///< its image buffer reused frame to frame
+    tracking::FrameLink link;
+    bool held = false;
+  } between_;
   std::vector<Node> segment_;     ///< the start, then the keyframes
   std::vector<PoseGraphEdge> edges_;
   double segment_mm_ = 0.0;
