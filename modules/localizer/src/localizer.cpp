@@ -555,8 +555,8 @@ bool Localizer::VisualOdometry(core::Timestamp time, const cv::Mat& frame, const
   link.world_from_camera =
       core::Pose2(link.world_from_camera.translation_mm(), link.world_from_camera.yaw_rad() - yaw_bias);
   const double chain_turn_rad = base->chain_turn_rad + std::abs(link.world_from_camera.yaw_rad());
-  // world_from_camera = base_camera * motion: the covariance of the frame registered against carried through
-  // the composition, plus the link's turned into the world.
+  // world_from_camera = base_camera * motion: the covariance of the frame registered against
+  // carried through the composition, plus the link's turned into the world.
   Eigen::Matrix3d link_covariance = options_.fix_covariance_scale * link.covariance;
   link_covariance(0, 0) += vo.link_sigma_floor_mm * vo.link_sigma_floor_mm;
   link_covariance(1, 1) += vo.link_sigma_floor_mm * vo.link_sigma_floor_mm;
@@ -582,8 +582,8 @@ bool Localizer::VisualOdometry(core::Timestamp time, const cv::Mat& frame, const
   outcome->link = tracking::FrameLink{base->time, link.world_from_camera, link_covariance};
   // A keyframe once the view has moved or turned far enough from the last, or when the next
   // frame, at this frame's pace, would lie beyond what registers against the last (a frame
-  // just short of keyframe_fraction must not leave the next one beyond max_fraction).
-  // Registered to the frame before, the keyframe no longer registers: this frame replaces it.
+  // just short of keyframe_fraction must not leave the next one beyond max_fraction); and
+  // always when registered to the frame before, since the keyframe no longer registers.
   const double moved = ViewShift(camera_, base_camera, camera_pose);
   const double step = last_vo_camera_ ? ViewShift(camera_, *last_vo_camera_, camera_pose) : 0.0;
   last_vo_camera_ = camera_pose;
