@@ -38,56 +38,19 @@ Action AddLocateCommand(CLI::App& app, const GlobalOptions& global) {
     ProgressBar progress("locate", global.quiet || args->options.dataset.empty());
     const runtime::LocateSummary r = runtime::Locate(args->options, progress.Callback());
     progress.Finish();
-    nlohmann::json frames = nlohmann::json::array();
-    for (const runtime::LocatedFrame& f : r.frames) {
-      nlohmann::json j = {{"frame", f.frame}, {"outcome", f.outcome}, {"candidates", f.candidates},
-                          {"milliseconds", f.milliseconds}};
-      if (f.outcome == "found") {
-        j["x_mm"] = f.world_from_camera.x_mm();
-        j["y_mm"] = f.world_from_camera.y_mm();
-        j["yaw_rad"] = f.world_from_camera.yaw_rad();
-        j["sigma_mm"] = std::sqrt(std::max(f.covariance(0, 0), f.covariance(1, 1)));
-        j["zncc"] = f.mean_zncc;
-        j["templates"] = f.inliers;
-      } else {
-        j["reason"] = f.reason;
-      }
-      if (f.error_mm) j["error_mm"] = *f.error_mm;
-      frames.push_back(std::move(j));
-    }
     const double n = std::max<double>(1.0, static_cast<double>(r.frames.size()));
     if (global.json) {
-      nlohmann::json result = {{"map", args->options.map.string()},
-                               {"frames", r.frames.size()},
-                               {"found", r.found},
-                               {"ambiguous", r.ambiguous},
-                               {"no_match", r.no_match},
-                               {"ms_p50", r.ms_p50},
-                               {"ms_p99", r.ms_p99},
-                               {"ms_max", r.ms_max},
-                               {"index_features", r.index_features},
-                               {"index_memory_bytes", r.index_memory_bytes},
-                               {"index_load_s", r.index_load_s},
-                               {"located", frames}};
-      if (r.checked > 0) {
-        result["checked"] = r.checked;
-        result["within_0_05_mm"] = r.within_0_05_mm;
-        result["wrong"] = r.wrong;
-      }
-      PrintJson(result);
+      PrintJson(r.ToJson(args->options.map));
       return;
     }
-    for (const auto& j : frames) {
-      if (j["outcome"] == "found") {
-        std::printf("%s: x %.3f mm, y %.3f mm, yaw %.4f deg (sigma %.4f mm, ZNCC %.3f)%s\n",
-                    j["frame"].get<std::string>().c_str(), j["x_mm"].get<double>(), j["y_mm"].get<double>(),
-                    j["yaw_rad"].get<double>() * 180.0 / std::numbers::pi, j["sigma_mm"].get<double>(),
-                    j["zncc"].get<double>(),
-                    j.contains("error_mm") ? (" error " + std::to_string(j["error_mm"].get<double>()) + " mm").c_str()
-                                           : "");
+    for (const runtime::LocatedFrame& f : r.frames) {
+      if (f.outcome == "found") {
+        std::printf("%s: x %.3f mm, y %.3f mm, yaw %.4f deg (sigma %.4f mm, ZNCC %.3f)%s\n", f.frame.c_str(),
+                    f.world_from_camera.x_mm(), f.world_from_camera.y_mm(),
+                    f.world_from_camera.yaw_rad() * 180.0 / std::numbers::pi, f.SigmaMm(), f.mean_zncc,
+                    f.error_mm ? (" error " + std::to_string(*f.error_mm) + " mm").c_str() : "");
       } else if (!global.quiet) {
-        std::printf("%s: %s: %s\n", j["frame"].get<std::string>().c_str(), j["outcome"].get<std::string>().c_str(),
-                    j["reason"].get<std::string>().c_str());
+        std::printf("%s: %s: %s\n", f.frame.c_str(), f.outcome.c_str(), f.reason.c_str());
       }
     }
     std::printf("%zu frames: %d found (%.1f %%), %d ambiguous, %d without a place; %.1f ms p50, %.1f ms p99 per frame; "

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -151,6 +152,47 @@ LocateSummary Locate(const LocateOptions& options, const std::function<void(doub
   }
   Tally(options.wrong_mm, &summary);
   return summary;
+}
+
+double LocatedFrame::SigmaMm() const { return std::sqrt(std::max(covariance(0, 0), covariance(1, 1))); }
+
+nlohmann::json LocatedFrame::ToJson() const {
+  nlohmann::json j = {{"frame", frame}, {"outcome", outcome}, {"candidates", candidates}, {"milliseconds", milliseconds}};
+  if (outcome == "found") {
+    j["x_mm"] = world_from_camera.x_mm();
+    j["y_mm"] = world_from_camera.y_mm();
+    j["yaw_rad"] = world_from_camera.yaw_rad();
+    j["sigma_mm"] = SigmaMm();
+    j["zncc"] = mean_zncc;
+    j["templates"] = inliers;
+  } else {
+    j["reason"] = reason;
+  }
+  if (error_mm) j["error_mm"] = *error_mm;
+  return j;
+}
+
+nlohmann::json LocateSummary::ToJson(const std::filesystem::path& map) const {
+  nlohmann::json located = nlohmann::json::array();
+  for (const LocatedFrame& f : frames) located.push_back(f.ToJson());
+  nlohmann::json result = {{"map", map.string()},
+                           {"frames", frames.size()},
+                           {"found", found},
+                           {"ambiguous", ambiguous},
+                           {"no_match", no_match},
+                           {"ms_p50", ms_p50},
+                           {"ms_p99", ms_p99},
+                           {"ms_max", ms_max},
+                           {"index_features", index_features},
+                           {"index_memory_bytes", index_memory_bytes},
+                           {"index_load_s", index_load_s},
+                           {"located", located}};
+  if (checked > 0) {
+    result["checked"] = checked;
+    result["within_0_05_mm"] = within_0_05_mm;
+    result["wrong"] = wrong;
+  }
+  return result;
 }
 
 }  // namespace mosaicloc::runtime

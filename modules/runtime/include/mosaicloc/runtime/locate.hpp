@@ -8,6 +8,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <nlohmann/json.hpp>
 
 #include "mosaicloc/core/pose2.hpp"
 #include "mosaicloc/runtime/settings.hpp"
@@ -40,6 +41,11 @@ struct LocatedFrame {
   int candidates = 0;           ///< places the index proposed
   double milliseconds = 0.0;    ///< frame in, verified answer out
   std::optional<double> error_mm;  ///< against the ground truth's camera pose, when there is one
+
+  double SigmaMm() const;  ///< the found position's larger standard deviation
+  /// frame, outcome, candidates, milliseconds; the pose, sigma_mm, zncc and templates when
+  /// found, else the reason; error_mm with a ground truth.
+  nlohmann::json ToJson() const;
 };
 
 struct LocateSummary {
@@ -51,6 +57,10 @@ struct LocateSummary {
   std::int64_t index_features = 0;
   std::int64_t index_memory_bytes = 0;
   double index_load_s = 0.0;
+
+  /// What `locate --json` prints: the counts, times, index figures, every frame
+  /// (LocatedFrame::ToJson), and with a ground truth checked, within_0_05_mm and wrong.
+  nlohmann::json ToJson(const std::filesystem::path& map) const;
 };
 
 /// Throws core::Error (invalid input) for an unreadable map or image, or a map without a place
