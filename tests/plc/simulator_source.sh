@@ -33,7 +33,7 @@ wait $PLC || fail "plc-sim failed: $(tail -3 "$SCRATCH/plc.err")"
 tail -1 "$SCRATCH/run.jsonl"
 json_check "$SCRATCH/run.jsonl" 'd["fix_rate"] >= 0.95' 'd["lock_losses"] == 0' 'd["answered"] >= 5' \
   'd["answered"] == d["requests"]' 'd["encoder_rejected"] == 0' 'd["encoder_samples"] >= 300' \
-  'abs(d["drive_wheel_scale_percent"]) < 10' 'abs(d["steering_offset_error_deg"]) < 5' '"wheel_scale_left_percent" not in d'
+  'd["encoder_late_updates"] >= 0' 'abs(d["drive_wheel_scale_percent"]) < 10' 'abs(d["steering_offset_error_deg"]) < 5' '"wheel_scale_left_percent" not in d'
 json_check "$SCRATCH/plc.json" 'd["answered"] >= 5' 'd["fixes_received"] >= 20'
 # Every status line says what the process holds: memory, heap (near 0 under the sanitizers, whose
 # allocators do not answer for it) and the map's decoded tiles, within the default budget.

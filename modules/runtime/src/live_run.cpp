@@ -198,6 +198,7 @@ struct RunStats {
   std::atomic<std::int64_t> fixes{0};
   std::atomic<std::int64_t> encoder_samples{0};
   std::atomic<std::int64_t> encoder_rejected{0};
+  std::atomic<std::int64_t> encoder_late{0};  // counter updates the PLC made visible late (EncoderStamper)
   std::atomic<std::int64_t> requests{0};
   std::atomic<std::int64_t> relocalize_requests{0};
   std::atomic<std::int64_t> answered{0};
@@ -399,12 +400,15 @@ class LiveRun::Impl {
   // fix (5 while the pose is unknown and searched for); tracking is degraded while odometry is
   // invalid, and while the lock was last judged on a frame older than plc.lock_age_ms (the
   // tracking thread or the camera has fallen behind: the pose is the encoders' alone since).
-  io::PlcOutputs Outputs(const runtime::OutputPose& output_pose, core::Timestamp now) {
+  // The fix registers' values for a write now.
+  io::PlcOutputs Outputs(const runtime::OutputPose& output_pose) {
     Published state;
     {
       const std::lock_guard lock(published_mutex_);
       state = published_;
     }
+    // The clock read once the state is in hand: the pose is for the instant after any wait.
+    const core::Timestamp now = io::MonotonicNow();
     io::PlcOutputs outputs;
     const core::Pose2 pose = output_pose.At(state.motion, state.wheel_scale, now).world_from_vehicle;
     outputs.x_mm = pose.x_mm();
@@ -502,7 +506,9 @@ class LiveRun::Impl {
       }
       if (valid) {
         // When the counters took these values (runtime::EncoderStamper).
-        if (const std::optional<dataset::EncoderSample> sample = stamper.Take(read.value())) {
+        const std::optional<dataset::EncoderSample> sample = stamper.Take(read.value());
+        stats_.encoder_late = stamper.late_changes();
+        if (sample) {
           output_pose.Add(*sample);
           PushEncoders(Encoder{false, *sample});
           if (recorder_) recorder_->Encoders(*sample);
@@ -539,7 +545,7 @@ class LiveRun::Impl {
       }
       const bool due = config_.fix_period_ms > 0.0 && now >= next_fix;
       if ((answer || due) && request) {
-        io::PlcOutputs outputs = Outputs(output_pose, io::MonotonicNow());
+        io::PlcOutputs outputs = Outputs(output_pose);
         outputs.request_echo = *request;
         outputs.heartbeat = ++own_heartbeat;
         if (link_->Write(outputs).ok()) {
@@ -789,6 +795,7 @@ class LiveRun::Impl {
             {"processing_p99_ms", percentile(processing, 99.0)},
             {"encoder_samples", stats_.encoder_samples.load()},
             {"encoder_rejected", stats_.encoder_rejected.load()},
+            {"encoder_late_updates", stats_.encoder_late.load()},
             {"odometry_outages", stats_.odometry_outages.load()},
             {"fix_writes", stats_.fix_writes.load()},
             {"stale_lock_writes", stats_.stale_lock_writes.load()},

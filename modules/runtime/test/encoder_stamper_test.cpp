@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -119,23 +120,35 @@ namespace mosaicloc::runtime {
 namespace {
 
 // A PLC that updates its counters every `period_us` from `phase_us` on, read by polls whose
-// period varies as the PLC thread varies it: the stamps' error, in microseconds, over the
-// changes after the first `settle` (RMS and largest).
+// period varies as the PLC thread varies it.
+struct PlcModel {
+  int period_us = 10000;
+  int phase_us = 3700;
+  // The share of reads whose answer comes 2 to 9 ms after the request (the PLC thread not
+  // scheduled in time); the others take 0.2 ms. The PLC takes the values it answers with at a
+  // random instant of the round trip.
+  double slow_answers = 0.0;
+  // False: the reads say only the middle of their round trip, as if it took no time.
+  bool round_trips_known = true;
+  // How much each update moves the counters (128: about 1.5 m/s on the simulator's wheels).
+  int ticks_per_update = 1;
+  // The share of updates the PLC makes visible 3 to 8 ms after their instant (a scan that ran
+  // long); the others at once.
+  double late_updates = 0.0;
+};
+// The stamps' error, in microseconds, over the changes after the first `settle` (RMS and
+// largest).
 struct StampErrors {
   double rms_us = 0.0, max_us = 0.0;
   double left_out = 0.0;  // share of the reads that saw a change and gave no sample
+  std::int64_t late = 0;  // changes the stamper found made visible late
 };
 // The PLC thread's poll periods: 0.75 to 1.25 times the cycle, at random.
 double PollSpread(std::minstd_rand& random) {
   return 0.75 + 0.5 * std::uniform_real_distribution<double>(0.0, 1.0)(random);
 }
 
-// `slow_answers`: the share of reads whose answer comes 2 to 9 ms after the request (the PLC
-// thread not scheduled in time); the others take 0.2 ms. The PLC takes the values it answers
-// with at a random instant of the round trip. `round_trips_known` false: the reads say only
-// the middle of their round trip, as if it took no time.
-StampErrors StampErrorUs(bool phase_lock, int period_us, int phase_us, int settle = 200, double slow_answers = 0.0,
-                         bool round_trips_known = true) {
+StampErrors StampErrorUs(bool phase_lock, const PlcModel& plc, int settle = 200) {
   EncoderStamperOptions options;
   options.polling = true;
   options.counter_period = std::chrono::microseconds(10000);
@@ -143,6 +156,20 @@ StampErrors StampErrorUs(bool phase_lock, int period_us, int phase_us, int settl
   options.phase_lock = phase_lock;
   EncoderStamper stamper(options);
   std::minstd_rand random(7);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  // When each update becomes visible, after its instant (in order: a late one is less than a
+  // period late).
+  std::minstd_rand late_random(11);
+  std::vector<std::int64_t> late_us(4000, 0);
+  for (std::int64_t& late : late_us) {
+    if (unit(late_random) < plc.late_updates) late = 3000 + static_cast<std::int64_t>(5000.0 * unit(late_random));
+  }
+  const auto visible_updates = [&](std::int64_t at_us) -> std::int64_t {
+    if (at_us < plc.phase_us) return 0;
+    std::int64_t updates = (at_us - plc.phase_us) / plc.period_us + 1;
+    if (at_us < plc.phase_us + (updates - 1) * plc.period_us + late_us[static_cast<std::size_t>(updates)]) --updates;
+    return updates;
+  };
   StampErrors errors;
   double sum2 = 0.0;
   int changes = 0;
@@ -150,16 +177,16 @@ StampErrors StampErrorUs(bool phase_lock, int period_us, int phase_us, int settl
   int changed_reads = 0, left_out = 0;
   for (int cycle = 1; cycle < 2000; ++cycle) {
     read_us += static_cast<std::int64_t>(5000.0 * PollSpread(random));
-    std::uniform_real_distribution<double> unit(0.0, 1.0);
-    const std::int64_t trip_us = unit(random) < slow_answers ? 2000 + static_cast<std::int64_t>(7000.0 * unit(random)) : 200;
+    const std::int64_t trip_us =
+        unit(random) < plc.slow_answers ? 2000 + static_cast<std::int64_t>(7000.0 * unit(random)) : 200;
     const std::int64_t held_us = read_us + static_cast<std::int64_t>(static_cast<double>(trip_us) * unit(random));
-    // The counters hold the number of updates so far: each update changes them.
-    const std::int64_t updates = held_us < phase_us ? 0 : (held_us - phase_us) / period_us + 1;
+    // The counters hold the updates so far: each update changes them.
+    const std::int64_t updates = visible_updates(held_us);
     io::PlcInputs in;
     in.time = core::Timestamp() + std::chrono::microseconds(read_us + trip_us / 2);
-    if (round_trips_known) in.round_trip = std::chrono::microseconds(trip_us);
+    if (plc.round_trips_known) in.round_trip = std::chrono::microseconds(trip_us);
     read_us += trip_us;
-    in.counts.left_ticks = static_cast<std::int32_t>(updates);
+    in.counts.left_ticks = static_cast<std::int32_t>(updates * plc.ticks_per_update);
     in.fresh = true;
     const auto sample = stamper.Take(in);
     if (updates != seen_updates) {
@@ -167,8 +194,8 @@ StampErrors StampErrorUs(bool phase_lock, int period_us, int phase_us, int settl
       if (!sample) ++left_out;
     }
     seen_updates = updates;
-    if (!sample || updates == 0 || sample->counts.left_ticks != updates) continue;
-    const std::int64_t changed_us = phase_us + (updates - 1) * period_us;
+    if (!sample || updates == 0 || sample->counts.left_ticks != in.counts.left_ticks) continue;
+    const std::int64_t changed_us = plc.phase_us + (updates - 1) * plc.period_us;
     if (++changes > settle) {
       const double error = static_cast<double>((sample->time - core::Timestamp()).count()) / 1e3 -
                            static_cast<double>(changed_us);
@@ -178,14 +205,15 @@ StampErrors StampErrorUs(bool phase_lock, int period_us, int phase_us, int settl
   }
   errors.rms_us = std::sqrt(sum2 / std::max(1, changes - settle));
   errors.left_out = static_cast<double>(left_out) / std::max(1, changed_reads);
+  errors.late = stamper.late_changes();
   return errors;
 }
 
 TEST(EncoderStamper, ReadsAtVaryingPhasesFindWhenInItsCycleThePlcUpdates) {
   for (const int phase_us : {3700, 9100}) {
     // Each change dated at the middle of its poll interval: up to half a poll off.
-    const StampErrors middle = StampErrorUs(false, 10000, phase_us);
-    const StampErrors locked = StampErrorUs(true, 10000, phase_us);
+    const StampErrors middle = StampErrorUs(false, {.phase_us = phase_us});
+    const StampErrors locked = StampErrorUs(true, {.phase_us = phase_us});
     std::printf("phase %d us: middle of the interval rms %.0f max %.0f us; locked rms %.0f max %.0f us, %.1f %% left out\n",
                 phase_us, middle.rms_us, middle.max_us, locked.rms_us, locked.max_us, 100.0 * locked.left_out);
     EXPECT_GT(middle.rms_us, 1000.0);
@@ -200,24 +228,51 @@ TEST(EncoderStamper, APlcOffItsConfiguredPeriodIsNeverDatedOutsideTheReads) {
   // no stamp leaves the interval its reads give (the longest poll, 6.25 ms, and two round
   // trips at most). One
   // 0.5 % off is followed.
-  EXPECT_LT(StampErrorUs(true, 10500, 1200).max_us, 6250.0 + 2 * 200.0 + 1.0);
-  const StampErrors slow = StampErrorUs(true, 10050, 1200);
+  EXPECT_LT(StampErrorUs(true, {.period_us = 10500, .phase_us = 1200}).max_us, 6250.0 + 2 * 200.0 + 1.0);
+  const StampErrors slow = StampErrorUs(true, {.period_us = 10050, .phase_us = 1200});
   std::printf("PLC period 10.05 ms: rms %.0f max %.0f us\n", slow.rms_us, slow.max_us);
-  EXPECT_LT(slow.rms_us, 0.5 * StampErrorUs(false, 10050, 1200).rms_us);
+  EXPECT_LT(slow.rms_us, 0.5 * StampErrorUs(false, {.period_us = 10050, .phase_us = 1200}).rms_us);
 }
 
 TEST(EncoderStamper, ALateAnswerDoesNotPutAChangeAPeriodOff) {
   // One read in ten answered 2 to 9 ms late: dated by the middle of the round trip alone,
   // changes land a whole period off; by the interval from one request to the next answer, and
   // the cycle learnt from the prompt answers, none does.
-  const StampErrors blind = StampErrorUs(true, 10000, 3700, 200, 0.1, false);
-  const StampErrors known = StampErrorUs(true, 10000, 3700, 200, 0.1, true);
+  const StampErrors blind = StampErrorUs(true, {.slow_answers = 0.1, .round_trips_known = false});
+  const StampErrors known = StampErrorUs(true, {.slow_answers = 0.1});
   std::printf("slow answers: round trips ignored rms %.0f max %.0f us; known rms %.0f max %.0f us, %.1f %% left out\n",
               blind.rms_us, blind.max_us, known.rms_us, known.max_us, 100.0 * known.left_out);
   EXPECT_GT(blind.max_us, 5000.0);
   EXPECT_LT(known.max_us, 2500.0);
   EXPECT_LT(known.rms_us, 0.5 * blind.rms_us);
   EXPECT_LT(known.left_out, 0.15);
+}
+
+TEST(EncoderStamper, CountersMadeVisibleLateAreDatedByTheWheelsTravel) {
+  // One update in ten made visible 3 to 8 ms after its instant, at 128 ticks an update: a read
+  // between the instant and the values appearing comes back with the old ones, so the interval
+  // from that request to the next answer holds only the next cycle's instant, and dated by it
+  // the values are a whole period late. The travel of one cycle says they are the cycle's
+  // before.
+  const StampErrors counted = StampErrorUs(true, {.ticks_per_update = 128, .late_updates = 0.1});
+  const StampErrors single = StampErrorUs(true, {.ticks_per_update = 1, .late_updates = 0.1});
+  const StampErrors prompt = StampErrorUs(true, {.ticks_per_update = 128});
+  std::printf("late updates: by the interval rms %.0f max %.0f us; by the travel rms %.0f max %.0f us, %.1f %% left out; "
+              "none late rms %.0f max %.0f us\n",
+              single.rms_us, single.max_us, counted.rms_us, counted.max_us, 100.0 * counted.left_out, prompt.rms_us,
+              prompt.max_us);
+  EXPECT_GT(single.max_us, 8000.0) << "a tick an update: the travel cannot tell one cycle from two";
+  EXPECT_LT(counted.max_us, 2500.0);
+  EXPECT_LT(counted.rms_us, 0.5 * single.rms_us);
+  EXPECT_LT(counted.left_out, 0.02);
+  EXPECT_LT(prompt.max_us, 2500.0);
+  // Counted, for the run's summary: about one update in ten of ~2000 is seen before it was
+  // visible and then found late; none where all come on time.
+  EXPECT_GT(counted.late, 20);
+  EXPECT_LT(counted.late, 250);
+  EXPECT_EQ(prompt.late, 0);
+  // With slow answers besides, still none a period off.
+  EXPECT_LT(StampErrorUs(true, {.slow_answers = 0.1, .ticks_per_update = 128, .late_updates = 0.1}).max_us, 2500.0);
 }
 
 }  // namespace

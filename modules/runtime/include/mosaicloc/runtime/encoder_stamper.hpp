@@ -41,6 +41,11 @@ struct EncoderStamperOptions {
   /// answered with values it held at some instant of the round trip, PlcInputs::round_trip).
   /// A read whose interval may hold two of the cycle's instants (a slow answer, a late poll)
   /// is left out, once in a row at most: the next read carries its travel.
+  /// Moving (a cycle's travel at least kTravelTicks), the wheels' travel since the last dated
+  /// change says how many cycles passed, and so which cycle's values a read holds, also where
+  /// the PLC made them visible late (after a request that went out after the cycle's instant
+  /// and came back with the old values): dated by the interval alone, such values were put a
+  /// whole period late, and the pose written back was a period's travel behind the vehicle.
   /// Off: each change is dated at the middle of its interval.
   bool phase_lock = true;
   double phase_gain = 1.0 / 16.0;
@@ -56,17 +61,29 @@ class EncoderStamper {
   /// The sample a read gives, dated; nothing for a read that is not fresh, or whose
   /// unchanged counters stand still for less than stationary_after.
   std::optional<dataset::EncoderSample> Take(const io::PlcInputs& read);
+  /// Changes the travel dated before the interval their reads give: counter updates the PLC
+  /// made visible late.
+  std::int64_t late_changes() const { return late_changes_; }
   /// The link was invalid: the next read is dated as a first one.
   void Forget() {
     have_ticks_ = false;
     changes_seen_ = 0;
+    cycle_ticks_ = 0.0;
     skipped_ = false;
   }
+
+  /// A cycle's travel (ticks of the fastest wheel) from which the travel dates a change, and
+  /// the most cycles it dates across.
+  static constexpr double kTravelTicks = 8.0;
+  static constexpr double kTravelCycles = 4.0;
 
  private:
   // When counters seen changed at `read` took their values (phase_lock); nothing when the
   // read cannot tell which of two cycles its values are from.
   std::optional<core::Timestamp> ChangedAt(const io::PlcInputs& read);
+  // The cycle instant whose values a change of `moved` ticks since the last dated change
+  // holds, when the travel tells it; within a period before `from`, not after `to`.
+  std::optional<core::Timestamp> CycleByTravel(std::int64_t moved, core::Timestamp from, core::Timestamp to) const;
   static constexpr int kPhaseSettled = 16;  // changes seen before the cycle is trusted
 
   EncoderStamperOptions options_;
@@ -80,8 +97,11 @@ class EncoderStamper {
   // When the last change seen happened, as learnt from the reads and the cycle (phase_lock),
   // and from how many changes.
   core::Timestamp changed_;
+  core::EncoderCounts dated_ticks_;  // the counters of that change
+  double cycle_ticks_ = 0.0;         // the fastest wheel's ticks a cycle, at that change (0: unknown)
   int changes_seen_ = 0;
   bool skipped_ = false;  // the last changed read was left out
+  std::int64_t late_changes_ = 0;
 };
 
 }  // namespace mosaicloc::runtime
