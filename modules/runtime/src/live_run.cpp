@@ -459,7 +459,9 @@ class LiveRun::Impl {
     stamping.stationary_after = core::FromSeconds(config_.stationary_after_ms * 1e-3);
     stamping.latency = latency;
     runtime::EncoderStamper stamper(stamping);
-    runtime::OutputPose output_pose(odometry_);  // the pose written, carried by this thread's samples
+    // The pose written, carried by this thread's samples.
+    runtime::OutputPose output_pose(odometry_, std::chrono::milliseconds(40), std::chrono::seconds(2),
+                                    stamping.counter_period);
     std::minstd_rand spread_random(1);
     std::uniform_real_distribution<double> spread_of(0.75, 1.25);
     while (runtime::SleepUntil(next_cycle, stop_)) {
@@ -508,8 +510,9 @@ class LiveRun::Impl {
         // When the counters took these values (runtime::EncoderStamper).
         const std::optional<dataset::EncoderSample> sample = stamper.Take(read.value());
         stats_.encoder_late = stamper.late_changes();
+        if (sample) output_pose.Add(*sample);
+        output_pose.Read(read.value().time, read.value().counts);
         if (sample) {
-          output_pose.Add(*sample);
           PushEncoders(Encoder{false, *sample});
           if (recorder_) recorder_->Encoders(*sample);
           ++stats_.encoder_samples;

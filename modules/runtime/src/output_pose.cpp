@@ -5,19 +5,39 @@
 namespace mosaicloc::runtime {
 
 OutputPose::OutputPose(const estimation::OdometryOptions& odometry, core::Duration velocity_window,
-                       core::Duration history)
-    : odometry_(odometry), velocity_window_(velocity_window), history_(history) {}
+                       core::Duration history, core::Duration counter_period, double braking_mps2)
+    : odometry_(odometry),
+      velocity_window_(velocity_window),
+      history_(history),
+      counter_period_(counter_period),
+      braking_mm_per_s2_(braking_mps2 * 1e3) {}
 
 void OutputPose::Add(const dataset::EncoderSample& sample) {
   const auto increment = odometry_.Update(sample.time, sample.counts);
   if (!increment.ok() || increment.value().dt <= core::Duration::zero()) return;
   steps_.push_back({sample.time, increment.value().dt, increment.value().travel});
   while (steps_.size() > 1 && steps_.front().end < sample.time - history_) steps_.pop_front();
+  newest_counts_ = sample.counts;
+  stopped_ = false;
+}
+
+void OutputPose::Read(core::Timestamp time, const core::EncoderCounts& counts) {
+  // Two periods: a read just after the next update's instant may not see it yet.
+  if (counter_period_ > core::Duration::zero() && !steps_.empty() && counts == newest_counts_ &&
+      time - steps_.back().end > 2 * counter_period_) {
+    stopped_ = true;
+  }
 }
 
 void OutputPose::Forget() {
   odometry_.ForgetCounters();
   steps_.clear();
+  stopped_ = false;
+}
+
+double OutputPose::StopSeconds(const Eigen::Vector3d& twist) const {
+  // Braking from speed v covers v^2 / 2a: the distance of v / 2a seconds at v.
+  return twist.head<2>().norm() / (2.0 * braking_mm_per_s2_);
 }
 
 Eigen::Vector3d OutputPose::Velocity(const Eigen::Vector2d& wheel_scale) const {
@@ -44,7 +64,9 @@ OutputPose::Prediction OutputPose::At(const estimation::MotionState& state, cons
     // The filter is as new as the counters: on from it at the counters' velocity, the newest
     // this thread has.
     const Eigen::Vector3d twist = steps_.empty() ? state.Twist() : Velocity(wheel_scale);
-    out.world_from_vehicle = state.world_from_vehicle * core::Pose2::Exp(core::ToSeconds(now - state.time) * twist);
+    double seconds = core::ToSeconds(now - state.time);
+    if (stopped_) seconds = std::min(seconds, StopSeconds(twist));
+    out.world_from_vehicle = state.world_from_vehicle * core::Pose2::Exp(seconds * twist);
     out.extrapolated = now - state.time;
     return out;
   }
@@ -67,7 +89,10 @@ OutputPose::Prediction OutputPose::At(const estimation::MotionState& state, cons
   }
   out.carried = at - state.time;
   if (now > at) {
-    pose = pose * core::Pose2::Exp(core::ToSeconds(now - at) * Velocity(wheel_scale));
+    const Eigen::Vector3d twist = Velocity(wheel_scale);
+    double seconds = core::ToSeconds(now - at);
+    if (stopped_) seconds = std::min(seconds, StopSeconds(twist));
+    pose = pose * core::Pose2::Exp(seconds * twist);
     out.extrapolated = now - at;
   }
   out.world_from_vehicle = pose;

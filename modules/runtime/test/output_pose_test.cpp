@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -176,6 +177,53 @@ TEST(OutputPose, WithoutNewerSamplesTheStateMovesAtTheCountersSpeedAndAfterForge
   // After Forget the next sample only seeds the counters again.
   output.Add(vehicle.Drive(10, 1000.0, 0.1));
   EXPECT_EQ(output.At(older, Eigen::Vector2d::Zero(), vehicle.time()).carried, core::Duration::zero());
+}
+
+// A vehicle creeping at 100 mm/s brakes to a stop at 3 m/s^2; its counters then stand still,
+// and the stamper does not pass that on for half a second (they last changed as a moving
+// vehicle's do). Read unchanged, they hold the written pose within the braking distance of
+// the speed the counters last showed; not read, it is extrapolated on at that speed.
+TEST(OutputPose, CountersReadUnchangedAfterAStopHoldTheVehicleWithinItsBrakingDistance) {
+  Vehicle vehicle(Eigen::Vector2d::Zero());
+  OutputPose reading(Differential()), blind(Differential());
+  const auto add = [&](const dataset::EncoderSample& sample) {
+    reading.Add(sample);
+    blind.Add(sample);
+  };
+  for (int i = 0; i < 5; ++i) add(vehicle.Drive(10, 100.0, 0.0));
+  for (const double v : {70.0, 40.0, 10.0}) add(vehicle.Drive(10, v, 0.0));
+  const estimation::MotionState state = vehicle.State(10.0, 0.0);
+  dataset::EncoderSample still;
+  for (int i = 0; i < 10; ++i) {
+    still = vehicle.Drive(10, 0.0, 0.0);
+    reading.Read(still.time, still.counts);
+  }
+  const core::Pose2 stop = vehicle.pose();
+  const double held = core::Distance(reading.At(state, Eigen::Vector2d::Zero(), still.time).world_from_vehicle, stop);
+  const double extrapolated =
+      core::Distance(blind.At(state, Eigen::Vector2d::Zero(), still.time).world_from_vehicle, stop);
+  std::printf("100 ms after the stop: %.2f mm past it with the reads, %.2f mm without\n", held, extrapolated);
+  EXPECT_LT(held, 0.6) << "the last 40 ms averaged 55 mm/s: 0.5 mm to brake from it";
+  EXPECT_GT(extrapolated, 4.0);
+}
+
+// The same reads when the PLC stalls at speed (its counters frozen for 60 ms while the vehicle
+// drives on at 1.5 m/s): the braking distance, 375 mm, does not bind, and the pose goes on.
+TEST(OutputPose, CountersFrozenAtSpeedAreExtrapolatedAsBefore) {
+  Vehicle vehicle(Eigen::Vector2d::Zero());
+  OutputPose output(Differential());
+  dataset::EncoderSample last;
+  for (int i = 0; i < 6; ++i) {
+    last = vehicle.Drive(10, 1500.0, 0.0);
+    output.Add(last);
+  }
+  const estimation::MotionState state = vehicle.State(1500.0, 0.0);
+  for (int i = 0; i < 6; ++i) {
+    vehicle.Drive(10, 1500.0, 0.0);
+    output.Read(vehicle.time(), last.counts);
+  }
+  EXPECT_LT(core::Distance(output.At(state, Eigen::Vector2d::Zero(), vehicle.time()).world_from_vehicle, vehicle.pose()),
+            0.01);
 }
 
 }  // namespace

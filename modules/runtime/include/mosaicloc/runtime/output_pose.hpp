@@ -22,17 +22,27 @@ namespace mosaicloc::runtime {
 /// interval is the difference of two time stamps each a few ms uncertain). Extrapolating the
 /// published state at its own velocity instead puts the vehicle where it would be had it not
 /// braked, turned or sped up since.
+/// Counters read unchanged two counter periods after their last change say the vehicle has
+/// stopped (or its PLC stalled): the extrapolation then goes no further than the vehicle would
+/// have gone braking to a stop at `braking` from the speed it had. Extrapolated on at that
+/// speed, a vehicle that stopped from a creep was written 6 mm past its stop until the
+/// counters were passed on as standing still (half a second after a change seen as moving).
 /// One object per PLC thread: not thread safe.
 class OutputPose {
  public:
   /// Throws core::Error (invalid input) when the odometry options fail Check().
   explicit OutputPose(const estimation::OdometryOptions& odometry,
                       core::Duration velocity_window = std::chrono::milliseconds(40),
-                      core::Duration history = std::chrono::seconds(2));
+                      core::Duration history = std::chrono::seconds(2),
+                      core::Duration counter_period = std::chrono::milliseconds(10), double braking_mps2 = 3.0);
 
   /// An encoder sample as the localizer gets it (the same time stamp). A sample the odometry
   /// refuses (time not increasing, a counter glitch) is left out, as the localizer leaves it.
   void Add(const dataset::EncoderSample& sample);
+  /// A read of the counters at `time` (its middle), whatever the stamper made of it: counters
+  /// equal to the newest sample's, read more than a counter period after it, bound the
+  /// extrapolation.
+  void Read(core::Timestamp time, const core::EncoderCounts& counts);
   /// Odometry became invalid: the counters and the travel seen so far are dropped.
   void Forget();
 
@@ -54,11 +64,16 @@ class OutputPose {
     estimation::WheelTravel travel;
   };
   Eigen::Vector3d Velocity(const Eigen::Vector2d& wheel_scale) const;  // (forward, lateral, yaw) per second
+  double StopSeconds(const Eigen::Vector3d& twist) const;  // how long on at `twist` covers its braking distance
 
   estimation::WheelOdometry odometry_;
   core::Duration velocity_window_;
   core::Duration history_;
+  core::Duration counter_period_;
+  double braking_mm_per_s2_;
   std::deque<Step> steps_;
+  core::EncoderCounts newest_counts_;  // of the newest sample
+  bool stopped_ = false;               // counters read unchanged a counter period after it
 };
 
 }  // namespace mosaicloc::runtime
