@@ -24,7 +24,7 @@ namespace mosaicloc::runtime {
 /// braked, turned or sped up since.
 /// Counters read unchanged two counter periods after their last change say the vehicle has
 /// stopped (or its PLC stalled): the extrapolation then goes no further than the vehicle would
-/// have gone braking to a stop at `braking` from the speed it had. Extrapolated on at that
+/// have gone braking to a stop at `braking_mps2` from the speed it had. Extrapolated on at that
 /// speed, a vehicle that stopped from a creep was written 6 mm past its stop until the
 /// counters were passed on as standing still (half a second after a change seen as moving).
 /// One object per PLC thread: not thread safe.
@@ -40,7 +40,7 @@ class OutputPose {
   /// refuses (time not increasing, a counter glitch) is left out, as the localizer leaves it.
   void Add(const dataset::EncoderSample& sample);
   /// A read of the counters at `time` (its middle), whatever the stamper made of it: counters
-  /// equal to the newest sample's, read more than a counter period after it, bound the
+  /// equal to the newest sample's, read more than two counter periods after it, bound the
   /// extrapolation.
   void Read(core::Timestamp time, const core::EncoderCounts& counts);
   /// Odometry became invalid: the counters and the travel seen so far are dropped.
@@ -73,7 +73,7 @@ class OutputPose {
   double braking_mm_per_s2_;
   std::deque<Step> steps_;
   core::EncoderCounts newest_counts_;  // of the newest sample
-  bool stopped_ = false;               // counters read unchanged a counter period after it
+  bool stopped_ = false;               // counters read unchanged two counter periods after it
 };
 
 }  // namespace mosaicloc::runtime
