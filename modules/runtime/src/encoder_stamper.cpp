@@ -86,6 +86,7 @@ std::optional<core::Timestamp> EncoderStamper::ChangedAt(const io::PlcInputs& re
   // one: what the next change's travel is measured against.
   if (changes_seen_ > 0) {
     const double cycles = std::round(core::ToSeconds(changed_ - previous) / core::ToSeconds(period));
+    previous_cycle_ticks_ = cycle_ticks_;
     cycle_ticks_ = cycles >= 1.0 ? static_cast<double>(moved) / cycles : 0.0;
   }
   dated_ticks_ = read.counts;
@@ -107,6 +108,15 @@ std::optional<core::Timestamp> EncoderStamper::CycleByTravel(std::int64_t moved,
   // Never after the answer that saw it, and made visible at most a period late.
   if (instant > to + period / 10 || instant < from - period) return std::nullopt;
   return instant;
+}
+
+bool EncoderStamper::Stopping() const {
+  // The travel of the last two dated cycles, each counted in whole cycles of the learnt phase
+  // (not over the reads' jittered spacing): slowing at that rate, the vehicle stands within
+  // stationary_after.
+  if (changes_seen_ < kPhaseSettled || !(cycle_ticks_ > 0.0) || !(previous_cycle_ticks_ > cycle_ticks_)) return false;
+  const double cycles_to_stop = cycle_ticks_ / (previous_cycle_ticks_ - cycle_ticks_);
+  return cycles_to_stop * core::ToSeconds(options_.counter_period) <= core::ToSeconds(options_.stationary_after);
 }
 
 std::optional<dataset::EncoderSample> EncoderStamper::Take(const io::PlcInputs& read) {
@@ -134,7 +144,8 @@ std::optional<dataset::EncoderSample> EncoderStamper::Take(const io::PlcInputs& 
     const std::int64_t step = WheelTicksMoved(last_ticks_, ticks);
     const core::Duration period = std::max<core::Duration>(options_.counter_period, std::chrono::milliseconds(1));
     const double periods = std::max(1.0, core::ToSeconds(read.time - last_change_) / core::ToSeconds(period));
-    moving_ = static_cast<double>(step) / periods > static_cast<double>(options_.moving_ticks_per_period);
+    moving_ = static_cast<double>(step) / periods > static_cast<double>(options_.moving_ticks_per_period) &&
+              !Stopping();
     last_change_ = read.time;
   }
   last_ticks_ = ticks;

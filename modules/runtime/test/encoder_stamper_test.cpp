@@ -275,5 +275,55 @@ TEST(EncoderStamper, CountersMadeVisibleLateAreDatedByTheWheelsTravel) {
   EXPECT_LT(StampErrorUs(true, {.slow_answers = 0.1, .ticks_per_update = 128, .late_updates = 0.1}).max_us, 2500.0);
 }
 
+// A PLC updating its counters every 10 ms by `ticks[k]` at update k (the last entry repeated),
+// polled every 7.5 to 12.5 ms: how long after the last change the stamper first passes the
+// counters on unchanged (standing still), in ms; -1 when it does not within a second.
+double StandingStillAfterMs(const std::vector<std::int64_t>& ticks) {
+  EncoderStamper stamper(Polling());
+  std::minstd_rand random(5);
+  std::int64_t read_us = 0;
+  const std::int64_t last_change_us = 3700 + static_cast<std::int64_t>(ticks.size() - 1) * 10000;
+  while (read_us < last_change_us + 1000000) {
+    read_us += static_cast<std::int64_t>(10000.0 * PollSpread(random));
+    const std::int64_t updates = read_us < 3700 ? 0 : std::min<std::int64_t>((read_us - 3700) / 10000 + 1, ticks.size());
+    std::int64_t count = 0;
+    for (std::int64_t k = 0; k < updates; ++k) count += ticks[static_cast<std::size_t>(k)];
+    io::PlcInputs in;
+    in.time = core::Timestamp() + std::chrono::microseconds(read_us + 100);
+    in.round_trip = std::chrono::microseconds(200);
+    in.counts.left_ticks = static_cast<std::int32_t>(count);
+    in.counts.right_ticks = static_cast<std::int32_t>(count);
+    const auto sample = stamper.Take(in);
+    if (sample && read_us > last_change_us + 10000 && sample->counts.left_ticks == count) {
+      return static_cast<double>(read_us - last_change_us) / 1e3;
+    }
+  }
+  return -1.0;
+}
+
+TEST(EncoderStamper, AVehicleBrakingToAStopStandsStillAfterStationaryAfterAStallAfterTenTimesThat) {
+  // 11 ticks a cycle (about 100 mm/s on the simulator's wheels), then braking at 3 m/s^2 (about
+  // 3 ticks a cycle less each cycle) to a stop: the last change, 5 ticks, is above the moving
+  // threshold, but slowing at that rate the vehicle stands within the next cycle.
+  std::vector<std::int64_t> braking(100, 11);
+  braking.insert(braking.end(), {8, 5, 0});
+  const double stop = StandingStillAfterMs(braking);
+  // The same cruise with the counters frozen (a PLC that stopped updating them): held.
+  std::vector<std::int64_t> stalled(100, 11);
+  stalled.push_back(0);
+  const double stall = StandingStillAfterMs(stalled);
+  // Braking from 1.5 m/s at 3 m/s^2 (162 ticks, 3 less a cycle): fifty cycles from a stop,
+  // so counters that freeze on the way are a stall.
+  std::vector<std::int64_t> fast(100, 162);
+  fast.insert(fast.end(), {159, 156, 0});
+  const double fast_stall = StandingStillAfterMs(fast);
+  std::printf("standing still passed on after: a stop from a creep %.1f ms, a stall %.1f ms, a stall while braking "
+              "at speed %.1f ms\n", stop, stall, fast_stall);
+  EXPECT_GT(stop, 50.0);
+  EXPECT_LT(stop, 85.0) << "stationary_after (50 ms) after the last cycle, and a poll";
+  EXPECT_GT(stall, 500.0);
+  EXPECT_GT(fast_stall, 500.0);
+}
+
 }  // namespace
 }  // namespace mosaicloc::runtime

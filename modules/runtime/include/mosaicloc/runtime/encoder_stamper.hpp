@@ -29,6 +29,10 @@ struct EncoderStamperOptions {
   /// (a stalled read, a late cycle), and are passed on only after moving_stop_factor times
   /// stationary_after. Passed on sooner, the filter would hold the vehicle still and then make
   /// it jump, and the frames between would be predicted where it was not.
+  /// A vehicle slowing so that, at the rate the last two cycles' travel fell, it stands within
+  /// stationary_after is braking to a stop, not moving: it is passed on as standing still after
+  /// stationary_after. (Held half a second, every stop from a creep had its frames wait for
+  /// odometry, and its fixes were written as degraded until then.)
   std::int64_t moving_ticks_per_period = 2;
   int moving_stop_factor = 10;
   /// Polling with counter_period known: the PLC updates its counters on a regular cycle, so
@@ -69,6 +73,7 @@ class EncoderStamper {
     have_ticks_ = false;
     changes_seen_ = 0;
     cycle_ticks_ = 0.0;
+    previous_cycle_ticks_ = 0.0;
     skipped_ = false;
   }
 
@@ -84,6 +89,8 @@ class EncoderStamper {
   // The cycle instant whose values a change of `moved` ticks since the last dated change
   // holds, when the travel tells it; within a period before `from`, not after `to`.
   std::optional<core::Timestamp> CycleByTravel(std::int64_t moved, core::Timestamp from, core::Timestamp to) const;
+  // The last dated cycles' travel says the vehicle is braking to a stop within stationary_after.
+  bool Stopping() const;
   static constexpr int kPhaseSettled = 16;  // changes seen before the cycle is trusted
 
   EncoderStamperOptions options_;
@@ -99,6 +106,7 @@ class EncoderStamper {
   core::Timestamp changed_;
   core::EncoderCounts dated_ticks_;  // the counters of that change
   double cycle_ticks_ = 0.0;         // the fastest wheel's ticks a cycle, at that change (0: unknown)
+  double previous_cycle_ticks_ = 0.0;  // the same at the dated change before
   int changes_seen_ = 0;
   bool skipped_ = false;  // the last changed read was left out
   std::int64_t late_changes_ = 0;
