@@ -86,6 +86,7 @@ std::optional<core::Timestamp> EncoderStamper::ChangedAt(const io::PlcInputs& re
   // one: what the next change's travel is measured against.
   if (changes_seen_ > 0) {
     const double cycles = std::round(core::ToSeconds(changed_ - previous) / core::ToSeconds(period));
+    earlier_cycle_ticks_ = previous_cycle_ticks_;
     previous_cycle_ticks_ = cycle_ticks_;
     cycle_ticks_ = cycles >= 1.0 ? static_cast<double>(moved) / cycles : 0.0;
   }
@@ -111,10 +112,14 @@ std::optional<core::Timestamp> EncoderStamper::CycleByTravel(std::int64_t moved,
 }
 
 bool EncoderStamper::Stopping() const {
-  // The travel of the last two dated cycles, each counted in whole cycles of the learnt phase
-  // (not over the reads' jittered spacing): slowing at that rate, the vehicle stands within
-  // stationary_after.
-  if (changes_seen_ < kPhaseSettled || !(cycle_ticks_ > 0.0) || !(previous_cycle_ticks_ > cycle_ticks_)) return false;
+  // The travel of the last dated cycles, each counted in whole cycles of the learnt phase (not
+  // over the reads' jittered spacing), fell twice in a row (once may be a PLC cycle's jitter on
+  // a coarse encoder: 11 ticks, then 9, at a steady 10), and slowing as it last did, the
+  // vehicle stands within stationary_after.
+  if (changes_seen_ < kPhaseSettled || !(cycle_ticks_ > 0.0) || !(previous_cycle_ticks_ > cycle_ticks_) ||
+      !(earlier_cycle_ticks_ > previous_cycle_ticks_)) {
+    return false;
+  }
   const double cycles_to_stop = cycle_ticks_ / (previous_cycle_ticks_ - cycle_ticks_);
   return cycles_to_stop * core::ToSeconds(options_.counter_period) <= core::ToSeconds(options_.stationary_after);
 }

@@ -317,8 +317,15 @@ TEST(EncoderStamper, AVehicleBrakingToAStopStandsStillAfterStationaryAfterAStall
   std::vector<std::int64_t> fast(100, 162);
   fast.insert(fast.end(), {159, 156, 0});
   const double fast_stall = StandingStillAfterMs(fast);
+  // A coarse encoder at a steady 10 ticks a cycle on a PLC whose cycle jitters (11, 9, 11, ...),
+  // frozen after a 9: one fall is no braking.
+  std::vector<std::int64_t> jittery;
+  for (int i = 0; i < 50; ++i) jittery.insert(jittery.end(), {11, 9});
+  jittery.push_back(0);
+  const double jittery_stall = StandingStillAfterMs(jittery);
   std::printf("standing still passed on after: a stop from a creep %.1f ms, a stall %.1f ms, a stall while braking "
-              "at speed %.1f ms\n", stop, stall, fast_stall);
+              "at speed %.1f ms, a stall of a jittery cycle %.1f ms\n", stop, stall, fast_stall, jittery_stall);
+  EXPECT_GT(jittery_stall, 500.0);
   EXPECT_GT(stop, 50.0);
   EXPECT_LT(stop, 85.0) << "stationary_after (50 ms) after the last cycle, and a poll";
   EXPECT_GT(stall, 500.0);

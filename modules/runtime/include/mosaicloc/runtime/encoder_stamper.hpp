@@ -29,8 +29,8 @@ struct EncoderStamperOptions {
   /// (a stalled read, a late cycle), and are passed on only after moving_stop_factor times
   /// stationary_after. Passed on sooner, the filter would hold the vehicle still and then make
   /// it jump, and the frames between would be predicted where it was not.
-  /// A vehicle slowing so that, at the rate the last two cycles' travel fell, it stands within
-  /// stationary_after is braking to a stop, not moving: it is passed on as standing still after
+  /// A vehicle whose cycles' travel fell twice in a row, so that slowing as it last did it
+  /// stands within stationary_after, is braking to a stop, not moving: it is passed on as standing still after
   /// stationary_after. (Held half a second, every stop from a creep had its frames wait for
   /// odometry, and its fixes were written as degraded until then.)
   std::int64_t moving_ticks_per_period = 2;
@@ -74,6 +74,7 @@ class EncoderStamper {
     changes_seen_ = 0;
     cycle_ticks_ = 0.0;
     previous_cycle_ticks_ = 0.0;
+    earlier_cycle_ticks_ = 0.0;
     skipped_ = false;
   }
 
@@ -107,6 +108,7 @@ class EncoderStamper {
   core::EncoderCounts dated_ticks_;  // the counters of that change
   double cycle_ticks_ = 0.0;         // the fastest wheel's ticks a cycle, at that change (0: unknown)
   double previous_cycle_ticks_ = 0.0;  // the same at the dated change before
+  double earlier_cycle_ticks_ = 0.0;   // and at the one before that
   int changes_seen_ = 0;
   bool skipped_ = false;  // the last changed read was left out
   std::int64_t late_changes_ = 0;
