@@ -1,11 +1,10 @@
 // mosaicloc calibrate: the installation steps that make a vehicle's camera ideal
 // (tutorials/calibration): print a board, calibrate the intrinsics, the ground plane and the
 // camera's place on the vehicle, rectify, verify.
-#include <algorithm>
-#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <map>
+#include <numbers>
 #include <optional>
 #include <string>
 
@@ -16,8 +15,8 @@
 #include "mosaicloc/calibration/ground.hpp"
 #include "mosaicloc/calibration/intrinsics.hpp"
 #include "mosaicloc/calibration/vehicle_drive.hpp"
-#include "mosaicloc/runtime/calibration_jobs.hpp"
 #include "mosaicloc/camera/board.hpp"
+#include "mosaicloc/runtime/calibration_jobs.hpp"
 #include "mosaicloc/sim/calibration_drive.hpp"
 #include "mosaicloc/sim/raw_recordings.hpp"
 #include "progress.hpp"
@@ -26,11 +25,7 @@
 namespace mosaicloc::app {
 namespace {
 
-nlohmann::json IntrinsicsJson(const calibration::IntrinsicsEstimate& e) {
-  const calibration::Intrinsics& k = e.intrinsics;
-  return {{"fx_px", k.fx_px}, {"fy_px", k.fy_px}, {"cx_px", k.cx_px}, {"cy_px", k.cy_px},
-          {"kud", k.kud},     {"kdu", k.kdu},     {"rms_px", e.rms_px}};
-}
+constexpr double kDegPerRad = 180.0 / std::numbers::pi;
 
 // ---- calibrate board -------------------------------------------------------------------
 
@@ -70,18 +65,7 @@ void RunIntrinsics(const IntrinsicsArgs& args, const GlobalOptions& global) {
   const int width = calibrated.width_px, height = calibrated.height_px;
   const std::size_t images_found = result.views.size();
   if (global.json) {
-    nlohmann::json images = nlohmann::json::array();
-    for (const calibration::ViewReport& view : result.views) {
-      images.push_back(view.used ? nlohmann::json{{"image", view.name}, {"used", true}, {"visp_rms_px", view.visp_rms_px},
-                                                  {"opencv_rms_px", view.opencv_rms_px}}
-                                 : nlohmann::json{{"image", view.name}, {"used", false},
-                                                  {"rejected_because", view.rejected_because}});
-    }
-    const nlohmann::json out = {{"camera_xml", args.out.string()}, {"width_px", width},
-                                {"height_px", height},             {"board", board.ToString()},
-                                {"visp", IntrinsicsJson(result.visp)}, {"opencv", IntrinsicsJson(result.opencv)},
-                                {"images", images}};
-    PrintJson(out);
+    PrintJson(runtime::IntrinsicsJson(calibrated, board, args.out));
     return;
   }
   std::printf("%zu of %zu images used (board %s, %dx%d px)\n", result.used.size(), images_found,
@@ -125,28 +109,11 @@ void RunGround(const GroundArgs& args, const GlobalOptions& global) {
   const std::size_t image_count = result.views.size();
   const calibration::GroundCalibration& c = result.calibration;
   if (global.json) {
-    nlohmann::json images = nlohmann::json::array();
-    for (const auto& view : result.views) {
-      images.push_back({{"image", view.name},
-                        {"residual_rms_mm", view.residual_rms_mm},
-                        {"residual_max_mm", view.residual_max_mm},
-                        {"scale_error_percent", 100.0 * view.scale_error}});
-    }
-    const nlohmann::json out = {{"ground", args.out.string()},
-                                {"height_mm", c.height_mm()},
-                                {"tilt_deg", c.tilt_rad() * 180.0 / M_PI},
-                                {"mm_per_px", c.ideal.mm_per_px},
-                                {"width_px", c.ideal.width_px},
-                                {"height_px", c.ideal.height_px},
-                                {"flatness_rms_mm", result.flatness_rms_mm},
-                                {"flatness_max_mm", result.flatness_max_mm},
-                                {"coverage", result.coverage},
-                                {"images", images}};
-    PrintJson(out);
+    PrintJson(runtime::GroundJson(result, args.out));
     return;
   }
   std::printf("floor %.3f mm below the camera, optical axis %.3f deg from vertical (%zu images)\n", c.height_mm(),
-              c.tilt_rad() * 180.0 / M_PI, image_count);
+              c.tilt_rad() * kDegPerRad, image_count);
   std::printf("  %-28s %14s %14s %14s\n", "image", "residual mm", "max mm", "scale error %");
   for (const auto& view : result.views) {
     std::printf("  %-28s %14.4f %14.4f %14.4f\n", view.name.c_str(), view.residual_rms_mm, view.residual_max_mm,
@@ -183,24 +150,17 @@ void RunRectify(const RectifyArgs& args, const GlobalOptions& global) {
 void RunVerify(const RectifyArgs& args, const GlobalOptions& global) {
   const calibration::RectificationCheck check =
       calibration::VerifyRectification(args.images, args.ground, camera::ParseBoardSpec(args.board));
-  const double worst_scale = check.worst_scale_error;
-  nlohmann::json images = nlohmann::json::array();
-  if (!global.json) std::printf("  %-28s %14s %14s %14s\n", "image", "scale error %", "residual mm", "max mm");
-  for (const auto& [file, m] : check.images) {
-    images.push_back({{"image", file.filename().string()},
-                      {"scale_error_percent", 100.0 * m.scale_error},
-                      {"residual_rms_mm", m.residual_rms_mm},
-                      {"residual_max_mm", m.residual_max_mm}});
-    if (!global.json) {
-      std::printf("  %-28s %14.4f %14.4f %14.4f\n", file.filename().string().c_str(), 100.0 * m.scale_error,
-                  m.residual_rms_mm, m.residual_max_mm);
-    }
-  }
   if (global.json) {
-    PrintJson(nlohmann::json{{"images", images}, {"worst_scale_error_percent", 100.0 * worst_scale}});
-  } else {
-    std::printf("rectified images measure the board to within %.4f %% of its printed size\n", 100.0 * worst_scale);
+    PrintJson(runtime::RectificationCheckJson(check));
+    return;
   }
+  std::printf("  %-28s %14s %14s %14s\n", "image", "scale error %", "residual mm", "max mm");
+  for (const auto& [file, m] : check.images) {
+    std::printf("  %-28s %14.4f %14.4f %14.4f\n", file.filename().string().c_str(), 100.0 * m.scale_error,
+                m.residual_rms_mm, m.residual_max_mm);
+  }
+  std::printf("rectified images measure the board to within %.4f %% of its printed size\n",
+              100.0 * check.worst_scale_error);
 }
 
 // ---- calibrate simulate ----------------------------------------------------------------
@@ -242,6 +202,10 @@ void RunVehicle(const VehicleArgs& args, const GlobalOptions& global) {
   ProgressBar progress("calibrate vehicle", global.quiet);
   const calibration::VehicleDriveResult drive = runtime::CalibrateVehicle(args.dataset, args.out, progress.Callback());
   progress.Finish();
+  if (global.json) {
+    PrintJson(runtime::VehicleCalibrationJson(drive, args.out));
+    return;
+  }
   const calibration::VehicleCalibrationResult& result = drive.calibration;
   const calibration::VehicleParameters& value = drive.value;
   const calibration::VehicleParameters& sigma = drive.sigma;
@@ -249,28 +213,9 @@ void RunVehicle(const VehicleArgs& args, const GlobalOptions& global) {
   const calibration::VehicleParameterNames& shown = calibration::ParameterNamesOf(drive.kind);
   const auto& names = shown.labels;
   const auto& unit = shown.shown_per_value;
-  if (global.json) {
-    nlohmann::json out = {{"frames", drive.frames}, {"steps", drive.steps}, {"consecutive_steps", drive.consecutive_steps},
-                          {"not_registered", drive.not_registered},
-                          {"iterations", result.iterations},
-                          {"rms_translation_mm", result.rms_translation_mm},
-                          {"rms_rotation_deg", result.rms_rotation_rad * 180.0 / M_PI}};
-    out["kind"] = core::ToString(drive.kind);
-    const auto& keys = shown.keys;
-    for (std::size_t i = 0; i < 6; ++i) {
-      out[keys[i]] = {{"value", value[i] * unit[i]}, {"sigma", sigma[i] * unit[i]}};
-      if (truth) {
-        out[keys[i]]["truth"] = (*truth)[i] * unit[i];
-        out[keys[i]]["error"] = (value[i] - (*truth)[i]) * unit[i];
-      }
-    }
-    if (!args.out.empty()) out["out"] = args.out.string();
-    PrintJson(out);
-    return;
-  }
   std::printf("%d of %d consecutive frame pairs registered, %d pairs in all; residuals %.4f mm, %.5f deg per pair\n",
               drive.consecutive_steps, drive.frames - 1, drive.steps, result.rms_translation_mm,
-              result.rms_rotation_rad * 180.0 / M_PI);
+              result.rms_rotation_rad * kDegPerRad);
   std::printf("  %-20s %14s %12s", "", "calibrated", "sigma");
   if (truth) std::printf(" %14s %12s", "truth", "error");
   std::printf("\n");
@@ -291,7 +236,7 @@ void RunSimulateDrive(const runtime::CalibrationDriveJob& args, const GlobalOpti
   } else {
     std::printf("calibration drive %s (%s): %d frames, a %.0f mm straight run then a %.0f deg turn in place%s\n",
                 args.out.string().c_str(), core::ToString(args.kind), summary.frames, options.straight_mm,
-                options.turn_rad * 180.0 / M_PI,
+                options.turn_rad * kDegPerRad,
                 args.kind == core::DriveKind::kTricycle ? ", the steered wheel across" : "");
   }
 }

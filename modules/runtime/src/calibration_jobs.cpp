@@ -1,5 +1,6 @@
 #include "mosaicloc/runtime/calibration_jobs.hpp"
 
+#include <cstddef>
 #include <numbers>
 #include <optional>
 
@@ -10,6 +11,65 @@
 #include "mosaicloc/sim/raw_recordings.hpp"
 
 namespace mosaicloc::runtime {
+namespace {
+
+constexpr double kDegPerRad = 180.0 / std::numbers::pi;
+
+nlohmann::json EstimateJson(const calibration::IntrinsicsEstimate& e) {
+  const calibration::Intrinsics& k = e.intrinsics;
+  return {{"fx_px", k.fx_px}, {"fy_px", k.fy_px}, {"cx_px", k.cx_px}, {"cy_px", k.cy_px},
+          {"kud", k.kud},     {"kdu", k.kdu},     {"rms_px", e.rms_px}};
+}
+
+}  // namespace
+
+nlohmann::json IntrinsicsJson(const calibration::ImagesIntrinsics& calibrated, const camera::BoardSpec& board,
+                              const std::filesystem::path& camera_xml) {
+  const calibration::IntrinsicsResult& result = calibrated.result;
+  nlohmann::json images = nlohmann::json::array();
+  for (const calibration::ViewReport& view : result.views) {
+    images.push_back(view.used ? nlohmann::json{{"image", view.name}, {"used", true}, {"visp_rms_px", view.visp_rms_px},
+                                                {"opencv_rms_px", view.opencv_rms_px}}
+                               : nlohmann::json{{"image", view.name}, {"used", false},
+                                                {"rejected_because", view.rejected_because}});
+  }
+  return {{"camera_xml", camera_xml.string()},   {"width_px", calibrated.width_px},
+          {"height_px", calibrated.height_px},   {"board", board.ToString()},
+          {"visp", EstimateJson(result.visp)},   {"opencv", EstimateJson(result.opencv)},
+          {"images", images}};
+}
+
+nlohmann::json GroundJson(const calibration::GroundResult& result, const std::filesystem::path& out) {
+  const calibration::GroundCalibration& c = result.calibration;
+  nlohmann::json images = nlohmann::json::array();
+  for (const calibration::GroundViewReport& view : result.views) {
+    images.push_back({{"image", view.name},
+                      {"residual_rms_mm", view.residual_rms_mm},
+                      {"residual_max_mm", view.residual_max_mm},
+                      {"scale_error_percent", 100.0 * view.scale_error}});
+  }
+  return {{"ground", out.string()},
+          {"height_mm", c.height_mm()},
+          {"tilt_deg", c.tilt_rad() * kDegPerRad},
+          {"mm_per_px", c.ideal.mm_per_px},
+          {"width_px", c.ideal.width_px},
+          {"height_px", c.ideal.height_px},
+          {"flatness_rms_mm", result.flatness_rms_mm},
+          {"flatness_max_mm", result.flatness_max_mm},
+          {"coverage", result.coverage},
+          {"images", images}};
+}
+
+nlohmann::json RectificationCheckJson(const calibration::RectificationCheck& check) {
+  nlohmann::json images = nlohmann::json::array();
+  for (const auto& [file, m] : check.images) {
+    images.push_back({{"image", file.filename().string()},
+                      {"scale_error_percent", 100.0 * m.scale_error},
+                      {"residual_rms_mm", m.residual_rms_mm},
+                      {"residual_max_mm", m.residual_max_mm}});
+  }
+  return {{"images", images}, {"worst_scale_error_percent", 100.0 * check.worst_scale_error}};
+}
 
 BoardPrint WriteBoardImage(const std::string& spec, double px_per_mm, const std::filesystem::path& out) {
   BoardPrint print;
@@ -26,6 +86,30 @@ calibration::VehicleDriveResult CalibrateVehicle(const std::filesystem::path& da
   calibration::VehicleDriveResult drive = calibration::CalibrateVehicleFromDrive(dataset, {}, progress);
   if (!out.empty()) calibration::WriteVehicleCalibration(out, drive, dataset);
   return drive;
+}
+
+nlohmann::json VehicleCalibrationJson(const calibration::VehicleDriveResult& drive, const std::filesystem::path& out) {
+  const calibration::VehicleCalibrationResult& result = drive.calibration;
+  nlohmann::json json = {{"frames", drive.frames},
+                         {"steps", drive.steps},
+                         {"consecutive_steps", drive.consecutive_steps},
+                         {"not_registered", drive.not_registered},
+                         {"iterations", result.iterations},
+                         {"rms_translation_mm", result.rms_translation_mm},
+                         {"rms_rotation_deg", result.rms_rotation_rad * kDegPerRad},
+                         {"kind", core::ToString(drive.kind)}};
+  const calibration::VehicleParameterNames& shown = calibration::ParameterNamesOf(drive.kind);
+  for (std::size_t i = 0; i < drive.value.size(); ++i) {
+    const double unit = shown.shown_per_value[i];
+    nlohmann::json& value = json[shown.keys[i]];
+    value = {{"value", drive.value[i] * unit}, {"sigma", drive.sigma[i] * unit}};
+    if (drive.truth) {
+      value["truth"] = (*drive.truth)[i] * unit;
+      value["error"] = (drive.value[i] - (*drive.truth)[i]) * unit;
+    }
+  }
+  if (!out.empty()) json["out"] = out.string();
+  return json;
 }
 
 std::size_t RectifyImageFiles(const std::filesystem::path& ground, const std::string& pattern,

@@ -6,6 +6,10 @@
 #include <numbers>
 #include <string>
 
+#include <nlohmann/json.hpp>
+
+#include "mosaicloc/calibration/board_images.hpp"
+#include "mosaicloc/calibration/ground.hpp"
 #include "mosaicloc/calibration/vehicle_drive.hpp"
 #include "mosaicloc/camera/board.hpp"
 #include "mosaicloc/camera/ideal_camera.hpp"
@@ -23,11 +27,28 @@ struct BoardPrint {
 /// `px_per_mm` and written to `out` as PNG (atomically). Throws core::Error for a bad spec.
 BoardPrint WriteBoardImage(const std::string& spec, double px_per_mm, const std::filesystem::path& out);
 
+/// `calibrate intrinsics --json`: the camera XML written, the images' size, the board, the ViSP
+/// and the OpenCV estimates, and every image, used (with its residual in each) or why not.
+nlohmann::json IntrinsicsJson(const calibration::ImagesIntrinsics& calibrated, const camera::BoardSpec& board,
+                              const std::filesystem::path& camera_xml);
+
+/// `calibrate ground --json`: the file written, the floor's distance and the optical axis's tilt,
+/// the ideal image, the floor's flatness over all boards, the ideal image's coverage of the raw
+/// one, and every image's residuals and scale error.
+nlohmann::json GroundJson(const calibration::GroundResult& result, const std::filesystem::path& out);
+
+/// `calibrate verify --json`: every rectified image's measure of the board, and the worst.
+nlohmann::json RectificationCheckJson(const calibration::RectificationCheck& check);
+
 /// `mosaicloc calibrate vehicle`: the camera's place on the vehicle and the wheel geometry
 /// from a calibration drive (calibration::CalibrateVehicleFromDrive), written to `out` (YAML,
 /// atomically) unless it is empty.
 calibration::VehicleDriveResult CalibrateVehicle(const std::filesystem::path& dataset, const std::filesystem::path& out,
                                                  const std::function<void(double)>& progress = {});
+/// `calibrate vehicle --json`: the drive's counts, the fit's residuals, each of the six values
+/// in its shown unit (calibration::ParameterNamesOf) with its sigma, and with a known truth
+/// the truth and the error; the file written when `out` is not empty.
+nlohmann::json VehicleCalibrationJson(const calibration::VehicleDriveResult& drive, const std::filesystem::path& out);
 
 /// `mosaicloc calibrate rectify`: every raw image matching `pattern` made ideal with the
 /// ground calibration in `ground`, written into `out_dir` under its own name. Returns the
