@@ -41,6 +41,10 @@ void PrintMapping(const runtime::MapPosesSummary& s) {
               static_cast<long long>(s.mapping.frames), s.mapping.path_length_m, s.seconds,
               static_cast<long long>(s.mapping.loops_accepted), static_cast<long long>(s.mapping.loops_tried),
               j["seam_rms_px"].get<double>(), j["seam_max_px"].get<double>());
+  if (s.flat_field.flat_frames > 0) {
+    std::printf("  the camera's flat field, from %d frames along the drive: gain %.3f to %.3f, divided out before "
+                "registering\n", s.flat_field.flat_frames, s.flat_field.min_gain, s.flat_field.max_gain);
+  }
   if (s.error && s.chained_error) {
     std::printf("  against the ground truth (best rigid alignment): %.4f mm RMS, %.4f mm max "
                 "(chained, before loop closure: %.3f mm RMS, %.3f mm max)\n",

@@ -13,6 +13,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "mosaicloc/calibration/flat_field.hpp"
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/file.hpp"
 #include "mosaicloc/core/log.hpp"
@@ -92,6 +93,11 @@ SeamFigures FiguresOf(const std::vector<mapping::Seam>& seams, std::optional<map
 nlohmann::json JsonOf(const SeamFigures& f) {
   return {{"count", f.count},           {"before_rms_px", f.before_rms}, {"before_max_px", f.before_max},
           {"after_rms_px", f.after_rms}, {"after_max_px", f.after_max},   {"after_p99_px", f.after_p99}};
+}
+
+// The flat field the frames were registered through: from how many frames, the gain's range.
+nlohmann::json JsonOf(const MappingFlatField& field) {
+  return {{"frames", field.flat_frames}, {"min_gain", field.min_gain}, {"max_gain", field.max_gain}};
 }
 
 nlohmann::json JsonOf(const std::optional<AlignedError>& e) {
@@ -191,6 +197,7 @@ nlohmann::json MapPosesSummary::ToJson() const {
           {"seam_rms_px", seams.after_rms},
           {"seam_max_px", seams.after_max},
           {"seconds", seconds},
+          {"flat_field", JsonOf(flat_field)},
           {"vs_groundtruth", JsonOf(error)},
           {"chained_vs_groundtruth", JsonOf(chained_error)},
           {"warnings", m.warnings}};
@@ -207,6 +214,43 @@ fs::path DrivePath(const fs::path& out, int k) {
   if (k <= 1) return out;
   fs::path path = out;
   return path.replace_extension("." + std::to_string(k) + out.extension().string());
+}
+
+MappingFlatField EstimateMappingFlatField(const std::function<cv::Mat(std::size_t)>& load_frame,
+                                          const std::vector<core::Pose2>& wheels,
+                                          const std::vector<std::size_t>& first_of_drive, double spacing_mm,
+                                          int max_frames, int min_frames) {
+  // The wheels' travel along every drive, each from its start (drives' wheels share no origin).
+  std::vector<char> starts(wheels.size(), 0);
+  for (const std::size_t first : first_of_drive) {
+    if (first < starts.size()) starts[first] = 1;
+  }
+  if (!starts.empty()) starts[0] = 1;
+  std::vector<double> travel(wheels.size(), 0.0);
+  for (std::size_t i = 1; i < wheels.size(); ++i) {
+    travel[i] = travel[i - 1] + (starts[i] ? 0.0 : core::Distance(wheels[i - 1], wheels[i]));
+  }
+  const int spread = std::max(max_frames - static_cast<int>(first_of_drive.size()), 1);
+  const double spacing = std::max(spacing_mm, (travel.empty() ? 0.0 : travel.back()) / spread);
+  std::vector<std::size_t> chosen;
+  double last = 0.0;
+  for (std::size_t i = 0; i < wheels.size(); ++i) {
+    if (!starts[i] && travel[i] - last < spacing) continue;
+    chosen.push_back(i);
+    last = travel[i];
+  }
+  MappingFlatField field;
+  if (chosen.size() < static_cast<std::size_t>(min_frames)) return field;
+  calibration::FlatFieldEstimator estimator;
+  for (const std::size_t i : chosen) {
+    const cv::Mat image = load_frame(i);
+    if (!image.empty()) estimator.Add(image);
+  }
+  if (estimator.frames() < min_frames) return field;
+  field.gain = estimator.Gain();
+  field.flat_frames = estimator.frames();
+  cv::minMaxLoc(field.gain, &field.min_gain, &field.max_gain);
+  return field;
 }
 
 MapPosesSummary EstimateMapPoses(const MapPosesOptions& options, const std::function<void(double)>& progress) {
@@ -292,6 +336,20 @@ MapPosesSummary EstimateMapPoses(const MapPosesOptions& options, const std::vect
     }
     return image;
   };
+  if (options.flat_field && options.graph_in.empty()) {
+    // Frames at least a view's width apart show other floor: their median is the camera's own.
+    const double view_mm = input.camera.width_px() * input.camera.mm_per_px();
+    std::vector<std::size_t> starts(firsts.begin(), firsts.end() - 1);
+    summary.flat_field = EstimateMappingFlatField(input.load_frame, input.wheels, starts, view_mm);
+    if (summary.flat_field.gain.empty()) {
+      core::Log().warn("{}: the drive shows too little floor for the camera's flat field: frames are registered "
+                       "as they are", options.dataset.string());
+    } else {
+      input.load_frame = [read = input.load_frame, gain = summary.flat_field.gain](std::size_t i) {
+        return calibration::DivideByGain(read(i), gain);
+      };
+    }
+  }
   if (options.graph_in.empty()) {
     summary.mapping = mapping::MapPoses(input, options.mapper, progress);
   } else {
@@ -363,6 +421,7 @@ void WriteMappingReport(const fs::path& directory, const MapPosesSummary& summar
       {"register_fps", m.register_seconds > 0 ? frames / m.register_seconds : 0.0},
       {"loop_fps", m.loop_seconds > 0 ? frames / m.loop_seconds : 0.0},
       {"total_seconds", summary.seconds},
+      {"flat_field", JsonOf(summary.flat_field)},
       {"vs_groundtruth", JsonOf(summary.error)},
       {"chained_vs_groundtruth", JsonOf(summary.chained_error)}};
   core::WriteFileAtomically(directory / "consistency.json", report.dump(2) + "\n");
