@@ -164,9 +164,14 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
   const double loop_radius_mm = options.loop_radius_fraction * view_short_mm;
   // A template at the view's corner moves this far per radian of yaw.
   const double half_diagonal_px = 0.5 * std::hypot(camera.width_px(), camera.height_px());
-  auto edge_information = [&](const Eigen::Matrix3d& covariance) {
+  // The yaw's floor grows as the two views' overlap shrinks (MapperOptions::edge_min_sigma_deg):
+  // the templates that match lie in the overlap, so their spread, the yaw's lever, shrinks with it.
+  auto edge_information = [&](const Eigen::Matrix3d& covariance, const core::Pose2& from_T_to) {
+    const Eigen::Vector2d t = from_T_to.translation_mm();
+    const double overlap =
+        std::max((1.0 - std::abs(t.x()) / camera.width_mm()) * (1.0 - std::abs(t.y()) / camera.height_mm()), 0.1);
     return Eigen::Matrix3d(
-        (covariance + Diagonal(options.edge_min_sigma_mm, Rad(options.edge_min_sigma_deg))).inverse());
+        (covariance + Diagonal(options.edge_min_sigma_mm, Rad(options.edge_min_sigma_deg) / overlap)).inverse());
   };
 
   MappingResult result;
@@ -253,7 +258,7 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
       if (r.ok()) {
         motion = r.world_from_camera;
         ++result.registered;
-        add_edge(i - 1, i, motion, edge_information(r.covariance), EdgeKind::kSequential, -1);
+        add_edge(i - 1, i, motion, edge_information(r.covariance, motion), EdgeKind::kSequential, -1);
       } else {
         add_edge(i - 1, i, motion, wheel_covariance.inverse(), EdgeKind::kSequential, -1, false);
       }
@@ -275,7 +280,8 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
         if (k.ok() && d.dot((prior + k.covariance).inverse() * d) <= options.loop_gate_chi2) {
           ++result.keyframe_edges;
           keyed = true;
-          add_edge(keyframe, i, k.world_from_camera, edge_information(k.covariance), EdgeKind::kSequential, -1);
+          add_edge(keyframe, i, k.world_from_camera, edge_information(k.covariance, k.world_from_camera),
+                   EdgeKind::kSequential, -1);
         }
       }
       if (r.ok() || keyed) {
@@ -386,7 +392,7 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
         }
         loop.accepted = true;
         result.loops.push_back(loop);
-        add_edge(j, i, r.world_from_camera, edge_information(r.covariance), EdgeKind::kLoop,
+        add_edge(j, i, r.world_from_camera, edge_information(r.covariance, r.world_from_camera), EdgeKind::kLoop,
                  static_cast<int>(result.loops.size()) - 1);
         last_loop = {j, i, r.world_from_camera};
       }

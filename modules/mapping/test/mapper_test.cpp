@@ -4,6 +4,7 @@
 #include <numbers>
 #include <random>
 
+#include <Eigen/LU>
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -123,6 +124,19 @@ TEST_F(MappingDrive, ALoopedDriveIsMappedOntoTheTruth) {
   for (const Seam& s : r.seams) worst_seam = std::max(worst_seam, s.after_px);
   EXPECT_LT(worst_seam, 0.1);
   EXPECT_EQ(r.graph.nodes.size(), 160U);
+  // Every registration's yaw is held no surer than the floor over the share of the view its two
+  // frames have in common: a keyframe link that rests on half the view counts half as sure.
+  const MapperOptions defaults;
+  const camera::IdealCamera camera(camera::IdealCameraOptions{});
+  int shared_little = 0;
+  for (const PoseGraphEdge& e : r.graph.edges) {
+    const Eigen::Vector2d t = e.from_T_to.translation_mm();
+    const double overlap = (1.0 - std::abs(t.x()) / camera.width_mm()) * (1.0 - std::abs(t.y()) / camera.height_mm());
+    const double floor_rad = defaults.edge_min_sigma_deg * std::numbers::pi / 180.0 / std::max(overlap, 0.1);
+    EXPECT_GE(e.information.inverse()(2, 2), 0.999 * floor_rad * floor_rad) << e.from << " -> " << e.to;
+    if (overlap < 0.7) ++shared_little;
+  }
+  EXPECT_GT(shared_little, 10) << "keyframe links that share less than 0.7 of the view";
 }
 
 // A frame that cannot be read: the next one is not registered against the one before it (a

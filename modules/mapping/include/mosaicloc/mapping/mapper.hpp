@@ -51,6 +51,9 @@ struct MapperOptions {
   /// tracker's estimate ignores biases that do not average out. Low enough that the links'
   /// own covariances, not the floor, tell a precise link from a loose one (design.md
   /// section 8: the keyframe links' yaw is four times looser than the consecutive ones').
+  /// The yaw's floor is divided by the fraction of the view the two frames share (at least
+  /// 0.1): a link's yaw error grows as its overlap shrinks, which the tracker's covariance,
+  /// mostly under the floor, does not tell.
   double edge_min_sigma_mm = 0.002;
   double edge_min_sigma_deg = 0.0005;
   /// The wheels' motion between two frames, where their images do not register: uncertain by
