@@ -7,7 +7,9 @@
 #include <fstream>
 #include <memory>
 #include <numbers>
+#include <optional>
 #include <sstream>
+#include <string>
 
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -336,14 +338,16 @@ MapPosesSummary EstimateMapPoses(const MapPosesOptions& options, const std::vect
     }
     return image;
   };
+  std::optional<std::string> flat_field_warning;
   if (options.flat_field && options.graph_in.empty()) {
     // Frames at least a view's width apart show other floor: their median is the camera's own.
     const double view_mm = input.camera.width_px() * input.camera.mm_per_px();
     std::vector<std::size_t> starts(firsts.begin(), firsts.end() - 1);
     summary.flat_field = EstimateMappingFlatField(input.load_frame, input.wheels, starts, view_mm);
     if (summary.flat_field.gain.empty()) {
-      core::Log().warn("{}: the drive shows too little floor for the camera's flat field: frames are registered "
-                       "as they are", options.dataset.string());
+      flat_field_warning = "the drive shows too little floor for the camera's flat field (fewer than 24 frames a "
+                           "view's width apart): its frames were registered as they are, so a vignetting camera's "
+                           "chain is bent by it";
     } else {
       input.load_frame = [read = input.load_frame, gain = summary.flat_field.gain](std::size_t i) {
         return calibration::DivideByGain(read(i), gain);
@@ -355,6 +359,7 @@ MapPosesSummary EstimateMapPoses(const MapPosesOptions& options, const std::vect
   } else {
     summary.mapping = OptimizeImported(options.graph_in, input, options.mapper);
   }
+  if (flat_field_warning) summary.mapping.warnings.insert(summary.mapping.warnings.begin(), *flat_field_warning);
   const mapping::MappingResult& m = summary.mapping;
   std::vector<core::Pose2> estimate, chained, truth;
   for (std::size_t d = 0; d + 1 < firsts.size(); ++d) {
