@@ -1,13 +1,10 @@
 // mosaicloc bench registration: our registration against its peers on the same pairs, in one
 // run, on one core. mosaicloc bench soak: a long simulated drive localized in one process.
-#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "commands.hpp"
 #include "report.hpp"
@@ -102,29 +99,9 @@ Action AddBenchCommand(CLI::App& app, const GlobalOptions& global) {
         runtime::RunRegistrationBench(*args, progress.Callback());
     progress.Finish();
     if (global.json) {
-      nlohmann::json out = nlohmann::json::array();
-      const auto number = [](double value) { return std::isnan(value) ? nlohmann::json() : nlohmann::json(value); };
-      for (const runtime::RegistrationBenchRow& r : rows) {
-        out.push_back({{"method", r.method}, {"pairs", r.pairs}, {"failure_rate", number(r.failure_rate)},
-                       {"rms_px", number(r.rms_px)}, {"max_px", number(r.max_px)}, {"rms_deg", number(r.rms_deg)},
-                       {"max_deg", number(r.max_deg)}, {"mean_ms", number(r.mean_ms)}, {"p50_ms", number(r.p50_ms)},
-                       {"time_vs_ecc", number(r.time_vs_ecc)}});
-      }
-      PrintJson(out);
-      return;
-    }
-    std::printf("%zu texture(s) x %d pairs, 640x480, offsets up to +-%.1f px and +-%.1f deg, height +-%.1f %%, "
-                "tilt +-%.2f deg, noise %.1f DN, gain +-%.0f %%, offset +-%.0f DN; failure = error > %.2f px or %.2f "
-                "deg; one core\n\n",
-                args->textures.size(), args->pairs, args->max_shift_px, args->max_rotation_deg,
-                100.0 * args->max_scale_change, args->max_tilt_deg, args->noise_dn, 100.0 * args->max_gain_change,
-                args->max_offset_dn, args->failure_px, args->failure_deg);
-    std::printf("%-48s %8s %9s %9s %9s %9s %9s %9s %9s\n", "method", "failures", "rms px", "max px", "rms deg",
-                "max deg", "mean ms", "p50 ms", "vs ECC");
-    for (const runtime::RegistrationBenchRow& r : rows) {
-      std::printf("%-48s %7.1f%% %9.4f %9.4f %9.4f %9.4f %9.2f %9.2f %8.2f%%\n", r.method.c_str(),
-                  100.0 * r.failure_rate, r.rms_px, r.max_px, r.rms_deg, r.max_deg, r.mean_ms, r.p50_ms,
-                  100.0 * r.time_vs_ecc);
+      PrintJson(runtime::RegistrationBenchJson(rows));
+    } else {
+      std::fputs(runtime::RegistrationBenchText(*args, rows).c_str(), stdout);
     }
   };
 }

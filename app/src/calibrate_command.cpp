@@ -5,7 +5,6 @@
 #include <filesystem>
 #include <map>
 #include <numbers>
-#include <optional>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -13,8 +12,6 @@
 #include "commands.hpp"
 #include "mosaicloc/calibration/board_images.hpp"
 #include "mosaicloc/calibration/ground.hpp"
-#include "mosaicloc/calibration/intrinsics.hpp"
-#include "mosaicloc/calibration/vehicle_drive.hpp"
 #include "mosaicloc/camera/board.hpp"
 #include "mosaicloc/runtime/calibration_jobs.hpp"
 #include "mosaicloc/sim/calibration_drive.hpp"
@@ -61,34 +58,11 @@ void RunIntrinsics(const IntrinsicsArgs& args, const GlobalOptions& global) {
   const camera::BoardSpec board = camera::ParseBoardSpec(args.board);
   const calibration::ImagesIntrinsics calibrated =
       calibration::CalibrateIntrinsicsFromImages(args.images, board, args.out, args.camera_name);
-  const calibration::IntrinsicsResult& result = calibrated.result;
-  const int width = calibrated.width_px, height = calibrated.height_px;
-  const std::size_t images_found = result.views.size();
   if (global.json) {
     PrintJson(runtime::IntrinsicsJson(calibrated, board, args.out));
-    return;
+  } else {
+    std::fputs(runtime::IntrinsicsText(calibrated, board, args.out, args.camera_name).c_str(), stdout);
   }
-  std::printf("%zu of %zu images used (board %s, %dx%d px)\n", result.used.size(), images_found,
-              board.ToString().c_str(), width, height);
-  std::printf("  %-28s %12s %12s\n", "image", "ViSP rms px", "OpenCV rms px");
-  for (const calibration::ViewReport& view : result.views) {
-    if (view.used) {
-      std::printf("  %-28s %12.4f %12.4f\n", view.name.c_str(), view.visp_rms_px, view.opencv_rms_px);
-    } else {
-      std::printf("  %-28s rejected: %s\n", view.name.c_str(), view.rejected_because.c_str());
-    }
-  }
-  const calibration::Intrinsics& v = result.visp.intrinsics;
-  const calibration::Intrinsics& o = result.opencv.intrinsics;
-  std::printf("  %-10s %14s %14s\n", "", "ViSP", "OpenCV");
-  std::printf("  %-10s %14.3f %14.3f\n", "fx px", v.fx_px, o.fx_px);
-  std::printf("  %-10s %14.3f %14.3f\n", "fy px", v.fy_px, o.fy_px);
-  std::printf("  %-10s %14.3f %14.3f\n", "cx px", v.cx_px, o.cx_px);
-  std::printf("  %-10s %14.3f %14.3f\n", "cy px", v.cy_px, o.cy_px);
-  std::printf("  %-10s %14.6f %14.6f\n", "kud (k1)", v.kud, o.kud);
-  std::printf("  %-10s %14.6f %14s\n", "kdu", v.kdu, "-");
-  std::printf("  %-10s %14.4f %14.4f\n", "rms px", result.visp.rms_px, result.opencv.rms_px);
-  std::printf("camera XML (ViSP): %s, camera '%s'\n", args.out.string().c_str(), args.camera_name.c_str());
 }
 
 // ---- calibrate ground ------------------------------------------------------------------
@@ -106,23 +80,11 @@ void RunGround(const GroundArgs& args, const GlobalOptions& global) {
   const camera::BoardSpec board = camera::ParseBoardSpec(args.board);
   const calibration::GroundResult result =
       calibration::CalibrateGroundFromImages(args.images, board, args.intrinsics, args.camera_name, args.options, args.out);
-  const std::size_t image_count = result.views.size();
-  const calibration::GroundCalibration& c = result.calibration;
   if (global.json) {
     PrintJson(runtime::GroundJson(result, args.out));
     return;
   }
-  std::printf("floor %.3f mm below the camera, optical axis %.3f deg from vertical (%zu images)\n", c.height_mm(),
-              c.tilt_rad() * kDegPerRad, image_count);
-  std::printf("  %-28s %14s %14s %14s\n", "image", "residual mm", "max mm", "scale error %");
-  for (const auto& view : result.views) {
-    std::printf("  %-28s %14.4f %14.4f %14.4f\n", view.name.c_str(), view.residual_rms_mm, view.residual_max_mm,
-                100.0 * view.scale_error);
-  }
-  std::printf("  floor flatness over all boards: rms %.4f mm, max %.4f mm\n", result.flatness_rms_mm,
-              result.flatness_max_mm);
-  std::printf("ideal image %dx%d px at %.4f mm/px, %.1f %% of it inside the raw image: %s\n", c.ideal.width_px,
-              c.ideal.height_px, c.ideal.mm_per_px, 100.0 * result.coverage, args.out.string().c_str());
+  std::fputs(runtime::GroundText(result, args.out).c_str(), stdout);
   if (result.coverage < 1.0) {
     std::fprintf(stderr, "mosaicloc: warning: %.1f %% of the ideal image lies outside the raw image (black); "
                  "choose a smaller --width/--height or --mm-per-px\n", 100.0 * (1.0 - result.coverage));
@@ -152,15 +114,9 @@ void RunVerify(const RectifyArgs& args, const GlobalOptions& global) {
       calibration::VerifyRectification(args.images, args.ground, camera::ParseBoardSpec(args.board));
   if (global.json) {
     PrintJson(runtime::RectificationCheckJson(check));
-    return;
+  } else {
+    std::fputs(runtime::RectificationCheckText(check).c_str(), stdout);
   }
-  std::printf("  %-28s %14s %14s %14s\n", "image", "scale error %", "residual mm", "max mm");
-  for (const auto& [file, m] : check.images) {
-    std::printf("  %-28s %14.4f %14.4f %14.4f\n", file.filename().string().c_str(), 100.0 * m.scale_error,
-                m.residual_rms_mm, m.residual_max_mm);
-  }
-  std::printf("rectified images measure the board to within %.4f %% of its printed size\n",
-              100.0 * check.worst_scale_error);
 }
 
 // ---- calibrate simulate ----------------------------------------------------------------
@@ -204,27 +160,9 @@ void RunVehicle(const VehicleArgs& args, const GlobalOptions& global) {
   progress.Finish();
   if (global.json) {
     PrintJson(runtime::VehicleCalibrationJson(drive, args.out));
-    return;
+  } else {
+    std::fputs(runtime::VehicleCalibrationText(drive, args.out).c_str(), stdout);
   }
-  const calibration::VehicleCalibrationResult& result = drive.calibration;
-  const calibration::VehicleParameters& value = drive.value;
-  const calibration::VehicleParameters& sigma = drive.sigma;
-  const std::optional<calibration::VehicleParameters>& truth = drive.truth;
-  const calibration::VehicleParameterNames& shown = calibration::ParameterNamesOf(drive.kind);
-  const auto& names = shown.labels;
-  const auto& unit = shown.shown_per_value;
-  std::printf("%d of %d consecutive frame pairs registered, %d pairs in all; residuals %.4f mm, %.5f deg per pair\n",
-              drive.consecutive_steps, drive.frames - 1, drive.steps, result.rms_translation_mm,
-              result.rms_rotation_rad * kDegPerRad);
-  std::printf("  %-20s %14s %12s", "", "calibrated", "sigma");
-  if (truth) std::printf(" %14s %12s", "truth", "error");
-  std::printf("\n");
-  for (std::size_t i = 0; i < 6; ++i) {
-    std::printf("  %-20s %14.4f %12.4f", names[i], value[i] * unit[i], sigma[i] * unit[i]);
-    if (truth) std::printf(" %14.4f %12.4f", (*truth)[i] * unit[i], (value[i] - (*truth)[i]) * unit[i]);
-    std::printf("\n");
-  }
-  if (!args.out.empty()) std::printf("vehicle calibration: %s\n", args.out.string().c_str());
 }
 
 void RunSimulateDrive(const runtime::CalibrationDriveJob& args, const GlobalOptions& global) {

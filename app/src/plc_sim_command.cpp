@@ -7,7 +7,6 @@
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
-#include <nlohmann/json.hpp>
 
 #include "commands.hpp"
 #include "mosaicloc/core/stop_signals.hpp"
@@ -23,8 +22,6 @@ struct PlcSimArgs {
   runtime::PlcSimulatorOptions options;
   std::filesystem::path config;
 };
-
-nlohmann::json Optional(const std::optional<double>& value) { return value ? nlohmann::json(*value) : nlohmann::json(); }
 
 void RunPlcSim(PlcSimArgs args, const GlobalOptions& global) {
   if (!args.config.empty()) {
@@ -51,25 +48,10 @@ void RunPlcSim(PlcSimArgs args, const GlobalOptions& global) {
   callbacks.stop = [] { return core::StopSignals::Reason().has_value(); };
   const core::StopSignals signals;
   const runtime::PlcSimulatorSummary r = runtime::RunPlcSimulator(o, callbacks);
-  const nlohmann::json summary = {{"fixes_received", r.fixes_received},
-                                  {"status_counts", r.status_counts},
-                                  {"mode_counts", r.mode_counts},
-                                  {"requests", r.requests},
-                                  {"answered", r.answered},
-                                  {"answer_p50_ms", Optional(r.answer_p50_ms)},
-                                  {"answer_p99_ms", Optional(r.answer_p99_ms)},
-                                  {"answer_max_ms", Optional(r.answer_max_ms)},
-                                  {"position_rms_mm", Optional(r.position_rms_mm)},
-                                  {"position_p50_mm", Optional(r.position_p50_mm)},
-                                  {"position_max_mm", Optional(r.position_max_mm)},
-                                  {"heading_max_deg", Optional(r.heading_max_deg)}};
   if (global.json) {
-    PrintJson(summary);
+    PrintJson(r.ToJson());
   } else {
-    std::printf("fixes received %lld, requests %lld, answered %lld (p50 %s ms), position error rms %s mm, max %s mm\n",
-                static_cast<long long>(r.fixes_received), static_cast<long long>(r.requests),
-                static_cast<long long>(r.answered), summary["answer_p50_ms"].dump().c_str(),
-                summary["position_rms_mm"].dump().c_str(), summary["position_max_mm"].dump().c_str());
+    std::fputs(r.Text().c_str(), stdout);
   }
 }
 

@@ -3,6 +3,9 @@
 #include <cstddef>
 #include <numbers>
 #include <optional>
+#include <string>
+
+#include <fmt/printf.h>
 
 #include "mosaicloc/calibration/board_images.hpp"
 #include "mosaicloc/calibration/ground.hpp"
@@ -71,6 +74,66 @@ nlohmann::json RectificationCheckJson(const calibration::RectificationCheck& che
   return {{"images", images}, {"worst_scale_error_percent", 100.0 * check.worst_scale_error}};
 }
 
+std::string IntrinsicsText(const calibration::ImagesIntrinsics& calibrated, const camera::BoardSpec& board,
+                           const std::filesystem::path& camera_xml, const std::string& camera_name) {
+  const calibration::IntrinsicsResult& result = calibrated.result;
+  const int width = calibrated.width_px, height = calibrated.height_px;
+  const std::size_t images_found = result.views.size();
+  std::string out;
+  out += fmt::sprintf("%zu of %zu images used (board %s, %dx%d px)\n", result.used.size(), images_found,
+                      board.ToString().c_str(), width, height);
+  out += fmt::sprintf("  %-28s %12s %12s\n", "image", "ViSP rms px", "OpenCV rms px");
+  for (const calibration::ViewReport& view : result.views) {
+    if (view.used) {
+      out += fmt::sprintf("  %-28s %12.4f %12.4f\n", view.name.c_str(), view.visp_rms_px, view.opencv_rms_px);
+    } else {
+      out += fmt::sprintf("  %-28s rejected: %s\n", view.name.c_str(), view.rejected_because.c_str());
+    }
+  }
+  const calibration::Intrinsics& v = result.visp.intrinsics;
+  const calibration::Intrinsics& o = result.opencv.intrinsics;
+  out += fmt::sprintf("  %-10s %14s %14s\n", "", "ViSP", "OpenCV");
+  out += fmt::sprintf("  %-10s %14.3f %14.3f\n", "fx px", v.fx_px, o.fx_px);
+  out += fmt::sprintf("  %-10s %14.3f %14.3f\n", "fy px", v.fy_px, o.fy_px);
+  out += fmt::sprintf("  %-10s %14.3f %14.3f\n", "cx px", v.cx_px, o.cx_px);
+  out += fmt::sprintf("  %-10s %14.3f %14.3f\n", "cy px", v.cy_px, o.cy_px);
+  out += fmt::sprintf("  %-10s %14.6f %14.6f\n", "kud (k1)", v.kud, o.kud);
+  out += fmt::sprintf("  %-10s %14.6f %14s\n", "kdu", v.kdu, "-");
+  out += fmt::sprintf("  %-10s %14.4f %14.4f\n", "rms px", result.visp.rms_px, result.opencv.rms_px);
+  out += fmt::sprintf("camera XML (ViSP): %s, camera '%s'\n", camera_xml.string().c_str(), camera_name.c_str());
+  return out;
+}
+
+std::string GroundText(const calibration::GroundResult& result, const std::filesystem::path& out_file) {
+  const calibration::GroundCalibration& c = result.calibration;
+  const std::size_t image_count = result.views.size();
+  std::string out;
+  out += fmt::sprintf("floor %.3f mm below the camera, optical axis %.3f deg from vertical (%zu images)\n", c.height_mm(),
+                      c.tilt_rad() * kDegPerRad, image_count);
+  out += fmt::sprintf("  %-28s %14s %14s %14s\n", "image", "residual mm", "max mm", "scale error %");
+  for (const auto& view : result.views) {
+    out += fmt::sprintf("  %-28s %14.4f %14.4f %14.4f\n", view.name.c_str(), view.residual_rms_mm, view.residual_max_mm,
+                        100.0 * view.scale_error);
+  }
+  out += fmt::sprintf("  floor flatness over all boards: rms %.4f mm, max %.4f mm\n", result.flatness_rms_mm,
+                      result.flatness_max_mm);
+  out += fmt::sprintf("ideal image %dx%d px at %.4f mm/px, %.1f %% of it inside the raw image: %s\n", c.ideal.width_px,
+                      c.ideal.height_px, c.ideal.mm_per_px, 100.0 * result.coverage, out_file.string().c_str());
+  return out;
+}
+
+std::string RectificationCheckText(const calibration::RectificationCheck& check) {
+  std::string out;
+  out += fmt::sprintf("  %-28s %14s %14s %14s\n", "image", "scale error %", "residual mm", "max mm");
+  for (const auto& [file, m] : check.images) {
+    out += fmt::sprintf("  %-28s %14.4f %14.4f %14.4f\n", file.filename().string().c_str(), 100.0 * m.scale_error,
+                        m.residual_rms_mm, m.residual_max_mm);
+  }
+  out += fmt::sprintf("rectified images measure the board to within %.4f %% of its printed size\n",
+                      100.0 * check.worst_scale_error);
+  return out;
+}
+
 BoardPrint WriteBoardImage(const std::string& spec, double px_per_mm, const std::filesystem::path& out) {
   BoardPrint print;
   print.board = camera::ParseBoardSpec(spec);
@@ -110,6 +173,30 @@ nlohmann::json VehicleCalibrationJson(const calibration::VehicleDriveResult& dri
   }
   if (!out.empty()) json["out"] = out.string();
   return json;
+}
+
+std::string VehicleCalibrationText(const calibration::VehicleDriveResult& drive, const std::filesystem::path& out_file) {
+  std::string out;
+  const calibration::VehicleCalibrationResult& result = drive.calibration;
+  const calibration::VehicleParameters& value = drive.value;
+  const calibration::VehicleParameters& sigma = drive.sigma;
+  const std::optional<calibration::VehicleParameters>& truth = drive.truth;
+  const calibration::VehicleParameterNames& shown = calibration::ParameterNamesOf(drive.kind);
+  const auto& names = shown.labels;
+  const auto& unit = shown.shown_per_value;
+  out += fmt::sprintf("%d of %d consecutive frame pairs registered, %d pairs in all; residuals %.4f mm, %.5f deg per pair\n",
+                      drive.consecutive_steps, drive.frames - 1, drive.steps, result.rms_translation_mm,
+                      result.rms_rotation_rad * kDegPerRad);
+  out += fmt::sprintf("  %-20s %14s %12s", "", "calibrated", "sigma");
+  if (truth) out += fmt::sprintf(" %14s %12s", "truth", "error");
+  out += fmt::sprintf("\n");
+  for (std::size_t i = 0; i < 6; ++i) {
+    out += fmt::sprintf("  %-20s %14.4f %12.4f", names[i], value[i] * unit[i], sigma[i] * unit[i]);
+    if (truth) out += fmt::sprintf(" %14.4f %12.4f", (*truth)[i] * unit[i], (value[i] - (*truth)[i]) * unit[i]);
+    out += fmt::sprintf("\n");
+  }
+  if (!out_file.empty()) out += fmt::sprintf("vehicle calibration: %s\n", out_file.string().c_str());
+  return out;
 }
 
 std::size_t RectifyImageFiles(const std::filesystem::path& ground, const std::string& pattern,

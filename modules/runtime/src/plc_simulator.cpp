@@ -14,6 +14,7 @@
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
+#include <nlohmann/json.hpp>
 
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/file.hpp"
@@ -259,6 +260,29 @@ PlcSimulatorSummary RunPlcSimulator(const PlcSimulatorOptions& args, const PlcSi
     summary.heading_max_deg = *std::max_element(heading_errors_deg.begin(), heading_errors_deg.end());
   }
   return summary;
+}
+
+nlohmann::json PlcSimulatorSummary::ToJson() const {
+  const auto figure = [](const std::optional<double>& value) { return value ? nlohmann::json(*value) : nlohmann::json(); };
+  return {{"fixes_received", fixes_received},
+          {"status_counts", status_counts},
+          {"mode_counts", mode_counts},
+          {"requests", requests},
+          {"answered", answered},
+          {"answer_p50_ms", figure(answer_p50_ms)},
+          {"answer_p99_ms", figure(answer_p99_ms)},
+          {"answer_max_ms", figure(answer_max_ms)},
+          {"position_rms_mm", figure(position_rms_mm)},
+          {"position_p50_mm", figure(position_p50_mm)},
+          {"position_max_mm", figure(position_max_mm)},
+          {"heading_max_deg", figure(heading_max_deg)}};
+}
+
+std::string PlcSimulatorSummary::Text() const {
+  const nlohmann::json json = ToJson();
+  return fmt::format("fixes received {}, requests {}, answered {} (p50 {} ms), position error rms {} mm, max {} mm\n",
+                     fixes_received, requests, answered, json["answer_p50_ms"].dump(), json["position_rms_mm"].dump(),
+                     json["position_max_mm"].dump());
 }
 
 }  // namespace mosaicloc::runtime

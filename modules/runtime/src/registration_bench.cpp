@@ -13,6 +13,7 @@
 
 #include <Eigen/Geometry>
 #include <Eigen/LU>
+#include <fmt/printf.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -407,6 +408,33 @@ std::vector<RegistrationBenchRow> RunRegistrationBench(const RegistrationBenchOp
                     Max(m.error_deg), Mean(m.time_ms), P50(m.time_ms), Mean(m.time_ms) / ecc_ms});
   }
   return rows;
+}
+
+nlohmann::json RegistrationBenchJson(const std::vector<RegistrationBenchRow>& rows) {
+  nlohmann::json out = nlohmann::json::array();
+  const auto number = [](double value) { return std::isnan(value) ? nlohmann::json() : nlohmann::json(value); };
+  for (const RegistrationBenchRow& r : rows) {
+    out.push_back({{"method", r.method}, {"pairs", r.pairs}, {"failure_rate", number(r.failure_rate)},
+                   {"rms_px", number(r.rms_px)}, {"max_px", number(r.max_px)}, {"rms_deg", number(r.rms_deg)},
+                   {"max_deg", number(r.max_deg)}, {"mean_ms", number(r.mean_ms)}, {"p50_ms", number(r.p50_ms)},
+                   {"time_vs_ecc", number(r.time_vs_ecc)}});
+  }
+  return out;
+}
+
+std::string RegistrationBenchText(const RegistrationBenchOptions& o, const std::vector<RegistrationBenchRow>& rows) {
+  std::string out = fmt::sprintf(
+      "%d texture(s) x %d pairs, 640x480, offsets up to +-%.1f px and +-%.1f deg, height +-%.1f %%, tilt +-%.2f deg, "
+      "noise %.1f DN, gain +-%.0f %%, offset +-%.0f DN; failure = error > %.2f px or %.2f deg; one core\n\n",
+      static_cast<int>(o.textures.size()), o.pairs, o.max_shift_px, o.max_rotation_deg, 100.0 * o.max_scale_change,
+      o.max_tilt_deg, o.noise_dn, 100.0 * o.max_gain_change, o.max_offset_dn, o.failure_px, o.failure_deg);
+  out += fmt::sprintf("%-48s %8s %9s %9s %9s %9s %9s %9s %9s\n", "method", "failures", "rms px", "max px", "rms deg",
+                      "max deg", "mean ms", "p50 ms", "vs ECC");
+  for (const RegistrationBenchRow& r : rows) {
+    out += fmt::sprintf("%-48s %7.1f%% %9.4f %9.4f %9.4f %9.4f %9.2f %9.2f %8.2f%%\n", r.method, 100.0 * r.failure_rate,
+                        r.rms_px, r.max_px, r.rms_deg, r.max_deg, r.mean_ms, r.p50_ms, 100.0 * r.time_vs_ecc);
+  }
+  return out;
 }
 
 }  // namespace mosaicloc::runtime

@@ -40,6 +40,13 @@ nlohmann::json GroundJson(const calibration::GroundResult& result, const std::fi
 /// `calibrate verify --json`: every rectified image's measure of the board, and the worst.
 nlohmann::json RectificationCheckJson(const calibration::RectificationCheck& check);
 
+/// What `calibrate intrinsics`, `ground` and `verify` print: the same figures as their JSON
+/// forms, as tables (the images, then ViSP beside OpenCV; the floor and the ideal image).
+std::string IntrinsicsText(const calibration::ImagesIntrinsics& calibrated, const camera::BoardSpec& board,
+                           const std::filesystem::path& camera_xml, const std::string& camera_name);
+std::string GroundText(const calibration::GroundResult& result, const std::filesystem::path& out);
+std::string RectificationCheckText(const calibration::RectificationCheck& check);
+
 /// `mosaicloc calibrate vehicle`: the camera's place on the vehicle and the wheel geometry
 /// from a calibration drive (calibration::CalibrateVehicleFromDrive), written to `out` (YAML,
 /// atomically) unless it is empty.
@@ -49,6 +56,9 @@ calibration::VehicleDriveResult CalibrateVehicle(const std::filesystem::path& da
 /// in its shown unit (calibration::ParameterNamesOf) with its sigma, and with a known truth
 /// the truth and the error; the file written when `out` is not empty.
 nlohmann::json VehicleCalibrationJson(const calibration::VehicleDriveResult& drive, const std::filesystem::path& out);
+/// What `calibrate vehicle` prints: the pairs registered, the fit's residuals, and each value
+/// with its sigma (and the truth and the error where known).
+std::string VehicleCalibrationText(const calibration::VehicleDriveResult& drive, const std::filesystem::path& out);
 
 /// `mosaicloc calibrate rectify`: every raw image matching `pattern` made ideal with the
 /// ground calibration in `ground`, written into `out_dir` under its own name. Returns the

@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "mosaicloc/io/registers.hpp"
 
 namespace mosaicloc::runtime {
@@ -54,6 +56,11 @@ struct PlcSimulatorSummary {
   std::optional<double> answer_p50_ms, answer_p99_ms, answer_max_ms;
   /// Against the ground truth, over fixes with a status other than none (when the drive has one).
   std::optional<double> position_rms_mm, position_p50_mm, position_max_mm, heading_max_deg;
+
+  /// `plc-sim --json`: the counts, and each figure (null where there was none).
+  nlohmann::json ToJson() const;
+  /// The line `plc-sim` prints at its end.
+  std::string Text() const;
 };
 
 /// Serves until the drive has been played and `linger_s` has passed, or `stop` says so.

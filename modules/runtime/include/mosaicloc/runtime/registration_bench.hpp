@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 namespace mosaicloc::runtime {
 
 /// `mosaicloc bench registration`: mosaicloc's registration against its peers (OpenCV's ECC
@@ -51,5 +53,10 @@ struct RegistrationBenchRow {
 /// read or is too small. `progress` (may be empty) gets the fraction of pairs done.
 std::vector<RegistrationBenchRow> RunRegistrationBench(const RegistrationBenchOptions& options,
                                                        const std::function<void(double)>& progress = {});
+
+/// `bench registration --json`: one object per method, null where nothing was measured.
+nlohmann::json RegistrationBenchJson(const std::vector<RegistrationBenchRow>& rows);
+/// The table `bench registration` prints: the pairs' settings, then a line per method.
+std::string RegistrationBenchText(const RegistrationBenchOptions& options, const std::vector<RegistrationBenchRow>& rows);
 
 }  // namespace mosaicloc::runtime
