@@ -46,6 +46,8 @@ add_library(mosaicloc::cholmod ALIAS mosaicloc_cholmod)
 mosaicloc_require_pkgconfig(sqlite3 libsqlite3-dev MOSAICLOC_SQLITE3)
 mosaicloc_require_package(ZLIB zlib1g-dev)
 mosaicloc_require_package(PNG libpng-dev)
+# Recorded frames' PNGs are inflated with libdeflate (dataset/frame_png.hpp).
+mosaicloc_require_pkgconfig(libdeflate libdeflate-dev MOSAICLOC_DEFLATE)
 mosaicloc_require_pkgconfig(libmodbus libmodbus-dev MOSAICLOC_MODBUS)
 mosaicloc_require_pkgconfig(libv4l2 libv4l-dev MOSAICLOC_V4L2)
 mosaicloc_require_pkgconfig(cpp-httplib libcpp-httplib-dev MOSAICLOC_HTTPLIB)

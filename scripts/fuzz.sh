@@ -29,8 +29,8 @@ CXX=clang++ cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Debug "-DCMAKE_CX
 cmake --build "$BUILD" -j "$(nproc)" --target mosaicloc_fuzzers
 
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(fixes_csv tum dataset_yaml dataset_csv tile_png config g2o map_metadata modbus console_http)
-declare -A MAX_LEN=([tile_png]=70000)
+[ ${#targets[@]} -gt 0 ] || targets=(fixes_csv tum dataset_yaml dataset_csv frame_png tile_png config g2o map_metadata modbus console_http)
+declare -A MAX_LEN=([tile_png]=70000 [frame_png]=70000)
 printf '%-14s %12s %10s %10s %9s\n' target executions "exec/s" coverage findings
 status=0
 for target in "${targets[@]}"; do

@@ -8,7 +8,7 @@ PACKAGES=(
   cmake ninja-build g++ pkg-config
   # libraries (design.md section 2)
   libvisp-dev libopencv-dev libeigen3-dev libceres-dev libsuitesparse-dev libmodbus-dev libv4l-dev
-  libsqlite3-dev zlib1g-dev libpng-dev libyaml-cpp-dev libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev
+  libsqlite3-dev zlib1g-dev libpng-dev libdeflate-dev libyaml-cpp-dev libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev python3
   # ViSP's own test images: the calibration tests' circle grid, the renderer's reference warps

@@ -18,6 +18,7 @@
 #include "mosaicloc/core/file.hpp"
 #include "mosaicloc/core/log.hpp"
 #include "mosaicloc/core/yaml.hpp"
+#include "mosaicloc/dataset/frame_png.hpp"
 #include "text_fields.hpp"
 
 namespace mosaicloc::dataset {
@@ -240,7 +241,7 @@ std::optional<Frame> DatasetReader::FrameStream::Next(const std::function<bool(c
   std::error_code ec;
   if (!fs::is_regular_file(frame.path, ec)) LineError(csv_, line_number_, "image " + frame.path.string() + " is missing");
   if (decode_if(frame.time)) {
-    frame.image = cv::imread(frame.path.string(), cv::IMREAD_UNCHANGED);
+    frame.image = ReadImageFile(frame.path);
     if (frame.image.empty()) LineError(csv_, line_number_, "image " + frame.path.string() + " cannot be decoded");
     if (frame.image.type() != CV_8UC1) {
       LineError(csv_, line_number_, "image " + frame.path.string() + " is not 8-bit grey (" +

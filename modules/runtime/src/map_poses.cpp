@@ -21,6 +21,7 @@
 #include "mosaicloc/core/log.hpp"
 #include "mosaicloc/dataset/dataset.hpp"
 #include "mosaicloc/dataset/evaluation.hpp"
+#include "mosaicloc/dataset/frame_png.hpp"
 #include "mosaicloc/localizer/localizer.hpp"
 #include "mosaicloc/runtime/drive.hpp"
 
@@ -330,7 +331,7 @@ MapPosesSummary EstimateMapPoses(const MapPosesOptions& options, const std::vect
   // damaged recording is repaired, not mapped around.
   const int width = input.camera.width_px(), height = input.camera.height_px();
   input.load_frame = [&files, width, height](std::size_t i) {
-    cv::Mat image = cv::imread(files[i].string(), cv::IMREAD_UNCHANGED);
+    cv::Mat image = dataset::ReadImageFile(files[i]);
     if (image.empty()) core::ThrowInvalidInput("image " + files[i].string() + " cannot be decoded");
     if (image.type() != CV_8UC1 || image.cols != width || image.rows != height) {
       core::ThrowInvalidInput("image " + files[i].string() + " is not a " + std::to_string(width) + "x" +
