@@ -115,6 +115,11 @@ void MapBuilder::AddFrame(const cv::Mat& image, const core::Pose2& world_from_ca
   }
 }
 
+std::size_t MapBuilder::unsaved_bytes() const {
+  const auto side = static_cast<std::size_t>(grid_.tile_size_px);
+  return changed_.size() * side * side * 2 * sizeof(float);
+}
+
 std::vector<TileKey> MapBuilder::TileKeys() const {
   std::vector<TileKey> keys;
   keys.reserve(accumulators_.size());

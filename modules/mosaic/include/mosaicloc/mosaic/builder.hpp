@@ -40,6 +40,8 @@ class MapBuilder {
   std::size_t tiles() const { return accumulators_.size(); }
   /// The level-0 tiles painted so far.
   std::vector<TileKey> TileKeys() const;
+  /// Bytes of accumulators painted since the last BuildCheckpoint::Save: what the next one writes.
+  std::size_t unsaved_bytes() const;
 
   /// Level 0 tile values as they will be stored (for tests).
   cv::Mat FinishTile(const TileKey& key) const;

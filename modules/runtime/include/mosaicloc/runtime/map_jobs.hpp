@@ -32,7 +32,9 @@ struct MapBuildOptions {
   int levels = 6;
   bool overwrite = false;  ///< replace an existing map
   bool resume = false;     ///< continue from OUT.checkpoint when there is one
-  double checkpoint_s = 10.0;  ///< how often progress is saved
+  /// Painting's progress is saved at most this often, and so that saving costs at most a tenth
+  /// of the painting; 0: after every frame.
+  double checkpoint_s = 10.0;
 };
 
 struct MapBuildSummary {
