@@ -55,6 +55,10 @@ float CellTexture(const mosaic::RasterPatch& floor, int template_px) {
 // from its place, at places whose window is all mapped): coarse to fine, since the search
 // covers a wide area. The whole area is correlated at half resolution; the best few places
 // found there are correlated again at full resolution around themselves.
+// x^2 + y^2: distances are compared squared (std::hypot, exact and slow, took an eighth of
+// the assessment's time).
+double Squared(double x, double y) { return x * x + y * y; }
+
 // Whether the w x h window at (x, y) holds no unmapped pixel, from the integral image of the
 // unmapped pixels (1 each).
 bool AllMapped(const cv::Mat& integral, int x, int y, int w, int h) {
@@ -82,6 +86,7 @@ float BestElsewhere(const mosaic::RasterPatch& floor, const cv::Mat& fine_integr
   constexpr int kCandidates = 3;
   std::vector<cv::Point> places;
   const double coarse_exclusion = exclusion_px / kCoarse;
+  const double half_width = own_coarse.width / 2.0;
   for (int k = 0; k < kCandidates; ++k) {
     float best = -2.0f;
     cv::Point at(-1, -1);
@@ -89,9 +94,9 @@ float BestElsewhere(const mosaic::RasterPatch& floor, const cv::Mat& fine_integr
       const float* row = score.ptr<float>(y);
       for (int x = 0; x < score.cols; ++x) {
         if (!(row[x] > best) || !std::isfinite(row[x])) continue;
-        if (std::hypot(x - own_coarse.x, y - own_coarse.y) <= coarse_exclusion) continue;
+        if (Squared(x - own_coarse.x, y - own_coarse.y) <= coarse_exclusion * coarse_exclusion) continue;
         bool near = false;
-        for (const cv::Point& p : places) near = near || std::hypot(x - p.x, y - p.y) < own_coarse.width / 2.0;
+        for (const cv::Point& p : places) near = near || Squared(x - p.x, y - p.y) < half_width * half_width;
         if (near || !all_mapped(fine_integral, kCoarse * x, kCoarse * y, own.width, own.height)) continue;
         best = row[x];
         at = {x, y};
@@ -115,7 +120,7 @@ float BestElsewhere(const mosaic::RasterPatch& floor, const cv::Mat& fine_integr
         const int fx = window.x + x, fy = window.y + y;
         const float value = fine.at<float>(y, x);
         if (!(value > best) || !std::isfinite(value)) continue;
-        if (std::hypot(fx - own.x, fy - own.y) <= exclusion_px) continue;
+        if (Squared(fx - own.x, fy - own.y) <= exclusion_px * exclusion_px) continue;
         if (!all_mapped(fine_integral, fx, fy, own.width, own.height)) continue;
         best = value;
       }
@@ -181,7 +186,7 @@ std::vector<mosaic::QualityCell> AssessMapQuality(const mosaic::TileStore& store
     const int half = template_search_px / 2;
     for (int y = 0; y < cell_search_px; ++y) {
       for (int x = 0; x < cell_search_px; ++x) {
-        const double off = std::hypot(x - 0.5 * cell_search_px, y - 0.5 * cell_search_px);
+        const double off = Squared(x - 0.5 * cell_search_px, y - 0.5 * cell_search_px);
         if (corner && off >= nearest) continue;
         const cv::Point at(radius_px + x - half, radius_px + y - half);
         if (!AllMapped(scratch.integral, at.x, at.y, template_search_px, template_search_px)) continue;
