@@ -124,6 +124,7 @@ bool MapperOptions::Check(std::string* why) const {
   if (!(wheel_sigma_mm > 0.0 && wheel_sigma_fraction >= 0.0 && wheel_sigma_deg > 0.0)) {
     return fail("the wheel sigmas must be positive");
   }
+  if (!(keyframe_sigma_mm > 0.0 && keyframe_sigma_deg > 0.0)) return fail("the keyframe sigmas must be positive");
   if (loop_max_search_px < tracker.min_search_px) return fail("loop_max_search_px must be at least the tracker's min_search_px");
   if (!(optimize.loop_huber_sigmas > 0.0)) return fail("optimize.loop_huber_sigmas must be positive");
   if (optimize.max_iterations < 1 || optimize.threads < 1) return fail("optimize: iterations and threads must be 1 or more");
@@ -274,7 +275,9 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
         // The chain predicts the keyframe's pose well; a match far off it (a copy of a
         // repeating floor) is refused as a loop closure would be.
         const core::Pose2 predicted = chain[keyframe].Inverse() * chain[i];
-        const Eigen::Matrix3d prior = Diagonal(1.0 + 0.02 * (path[i] - path[keyframe]), Rad(0.2));
+        const auto [drift_key_mm, drift_key_rad] = drift_between(keyframe, i);
+        const Eigen::Matrix3d prior =
+            Diagonal(options.keyframe_sigma_mm + drift_key_mm, Rad(options.keyframe_sigma_deg) + drift_key_rad);
         const tracking::TrackResult k = tracking::RegisterFrames(tracker, key, image, predicted, prior);
         const Eigen::Vector3d d = Difference(k.world_from_camera, predicted);
         if (k.ok() && d.dot((prior + k.covariance).inverse() * d) <= options.loop_gate_chi2) {

@@ -266,6 +266,10 @@ TEST(Mapper, BadInputIsRejected) {
   options = MapperOptions{};
   options.loop_max_search_px = 1;
   EXPECT_FALSE(options.Check(&why));
+  options = MapperOptions{};
+  options.keyframe_sigma_deg = 0.0;
+  EXPECT_FALSE(options.Check(&why));
+  EXPECT_NE(why.find("keyframe sigmas"), std::string::npos);
 }
 
 }  // namespace

@@ -61,6 +61,14 @@ struct MapperOptions {
   double wheel_sigma_mm = 2.0;
   double wheel_sigma_fraction = 0.05;
   double wheel_sigma_deg = 0.5;
+  /// The keyframe link is searched for within keyframe_sigma_mm and keyframe_sigma_deg (one
+  /// sigma) of where the chain of links since the keyframe puts it, widened by the chain's
+  /// drift (drift_mm_per_m, drift_deg_per_m, and the wheels' uncertainty where frames did not
+  /// register): the chain predicts it to micrometres, and a window a quarter the size of the
+  /// wheels' makes the keyframe link a third as costly; a copy of a repeating floor has less
+  /// room too.
+  double keyframe_sigma_mm = 0.25;
+  double keyframe_sigma_deg = 0.05;
   OptimizeOptions optimize;
   /// Rounds of (optimize, drop the loops whose residual fails loop_gate_chi2).
   int outlier_rounds = 3;
