@@ -1,5 +1,6 @@
 #include "mosaicloc/dataset/frame_png.hpp"
 
+#include <algorithm>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
@@ -92,26 +93,37 @@ bool DecodeGreyPng(const unsigned char* bytes, std::size_t size, cv::Mat& pixels
   const std::uint64_t row_bytes = std::uint64_t{width} + 1;
   const std::uint64_t raw_bytes = row_bytes * height;
   if (raw_bytes > kMaxRawBytes) return false;
-  // The chunks up to IEND, each checked against its CRC: the IDATs' data gathered, ancillary
-  // chunks (a lower-case first letter) passed over, any other critical one refused.
+  // The chunks up to IEND, each checked against its CRC and its type made of letters: the
+  // IDATs' data gathered (they must follow one another), ancillary chunks (a lower-case first
+  // letter) passed over, any other critical one refused.
   thread_local std::vector<unsigned char> stream;
   stream.clear();
+  enum { kBefore, kInside, kAfter } idat = kBefore;
   bool ended = false;
   for (std::size_t at = 8 + 25; !ended;) {
     if (size - at < 12) return false;
     const std::uint32_t length = BigEndian32(bytes + at);
     if (length > size - at - 12) return false;
     const unsigned char* type = bytes + at + 4;
+    if (!std::all_of(type, type + 4, [](unsigned char c) { return (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z'); })) {
+      return false;
+    }
     if (libdeflate_crc32(0, type, 4 + std::size_t{length}) != BigEndian32(type + 4 + length)) return false;
     if (std::memcmp(type, "IDAT", 4) == 0) {
+      if (idat == kAfter) return false;
+      idat = kInside;
       stream.insert(stream.end(), type + 4, type + 4 + length);
-    } else if (std::memcmp(type, "IEND", 4) == 0) {
-      ended = true;
-    } else if ((type[0] & 0x20) == 0) {
-      return false;
+    } else {
+      if (idat == kInside) idat = kAfter;
+      if (std::memcmp(type, "IEND", 4) == 0) {
+        ended = true;
+      } else if ((type[0] & 0x20) == 0) {
+        return false;
+      }
     }
     at += 12 + std::size_t{length};
   }
+  if (idat == kBefore) return false;
   // The rows, each a filter byte and its pixels, inflated in one call (the Adler-32 checked).
   thread_local std::vector<unsigned char> raw;
   raw.resize(raw_bytes);

@@ -1,8 +1,11 @@
 #include "mosaicloc/dataset/frame_png.hpp"
 
 #include <png.h>
+#include <zlib.h>
 
+#include <algorithm>
 #include <fstream>
+#include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -62,6 +65,34 @@ std::vector<unsigned char> Encode(const cv::Mat& image, int filters, std::size_t
   return out;
 }
 
+// `png` with a chunk of `type` and `data` (its CRC right) inserted at byte `at`, a chunk boundary.
+std::vector<unsigned char> WithChunk(const std::vector<unsigned char>& png, std::size_t at, const std::string& type,
+                                     const std::string& data) {
+  std::string chunk;
+  const auto put32 = [&chunk](std::uint32_t v) {
+    for (int shift = 24; shift >= 0; shift -= 8) chunk += static_cast<char>(v >> shift);
+  };
+  put32(static_cast<std::uint32_t>(data.size()));
+  chunk += type + data;
+  put32(static_cast<std::uint32_t>(
+      crc32(0, reinterpret_cast<const Bytef*>(chunk.data()) + 4, static_cast<uInt>(chunk.size() - 4))));
+  std::string out(png.begin(), png.end());
+  out.insert(at, chunk);
+  return std::vector<unsigned char>(out.begin(), out.end());
+}
+
+// The byte offsets of the chunks of `type`.
+std::vector<std::size_t> ChunksOf(const std::vector<unsigned char>& png, const std::string& type) {
+  std::vector<std::size_t> found;
+  for (std::size_t at = 8; at + 12 <= png.size();) {
+    const std::size_t length = std::size_t{png[at]} << 24 | std::size_t{png[at + 1]} << 16 |
+                               std::size_t{png[at + 2]} << 8 | png[at + 3];
+    if (std::equal(type.begin(), type.end(), png.begin() + static_cast<std::ptrdiff_t>(at + 4))) found.push_back(at);
+    at += 12 + length;
+  }
+  return found;
+}
+
 bool Same(const cv::Mat& a, const cv::Mat& b) {
   return a.size() == b.size() && a.type() == b.type() && cv::norm(a, b, cv::NORM_INF) == 0.0;
 }
@@ -96,6 +127,30 @@ TEST(FramePng, ManyIdatChunksAndTheRecordersOwnPngs) {
     ASSERT_TRUE(DecodeGreyPng(encoded.data(), encoded.size(), decoded));
     EXPECT_TRUE(Same(decoded, image));
   }
+}
+
+// What libpng refuses, this decoder refuses too: a chunk type that is not four letters (whose
+// CRC may still hold: four 0xFF bytes have the CRC 0xFFFFFFFF), image data split by another
+// chunk, and no image data at all.
+TEST(FramePng, MalformedChunksAreRefused) {
+  const cv::Mat image = Texture(40, 50, 4);
+  const std::vector<unsigned char> good = Encode(image, PNG_ALL_FILTERS, 100);
+  const std::vector<std::size_t> idats = ChunksOf(good, "IDAT");
+  const std::vector<std::size_t> iend = ChunksOf(good, "IEND");
+  ASSERT_GE(idats.size(), 2U);
+  ASSERT_EQ(iend.size(), 1U);
+  cv::Mat decoded;
+  ASSERT_TRUE(DecodeGreyPng(good.data(), good.size(), decoded));
+  const std::vector<unsigned char> ancillary = WithChunk(good, iend[0], "tEXt", std::string("Comment\0fine", 12));
+  EXPECT_TRUE(DecodeGreyPng(ancillary.data(), ancillary.size(), decoded)) << "an ancillary chunk is passed over";
+  const std::vector<unsigned char> not_letters = WithChunk(good, iend[0], "\xff\xff\xff\xff", "");
+  EXPECT_FALSE(DecodeGreyPng(not_letters.data(), not_letters.size(), decoded));
+  const std::vector<unsigned char> split = WithChunk(good, idats[1], "tEXt", std::string("Comment\0between", 15));
+  EXPECT_FALSE(DecodeGreyPng(split.data(), split.size(), decoded));
+  std::string bytes(good.begin(), good.end());
+  bytes.erase(idats[0], iend[0] - idats[0]);
+  const std::vector<unsigned char> no_data(bytes.begin(), bytes.end());
+  EXPECT_FALSE(DecodeGreyPng(no_data.data(), no_data.size(), decoded));
 }
 
 TEST(FramePng, DamagedOrOtherPngsAreRefusedAndReadAsOpenCvReadsThem) {
