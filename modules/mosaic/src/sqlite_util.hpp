@@ -20,10 +20,16 @@ namespace mosaicloc::mosaic::internal {
 /// operating system's reason where a read or write failed (a full disk, a file not allowed to
 /// grow, no permission) and another process's write lock where the file was busy.
 inline std::string Why(sqlite3* db) {
+  // Some failed writes (a WAL checkpoint's into the database file) leave SQLite without the
+  // system's error number; the C library's, read before anything else, still says why.
+  const int c_errno = errno;
   if (db == nullptr) return "out of memory";
   std::string why = sqlite3_errmsg(db);
   const int code = sqlite3_errcode(db) & 0xff;
-  const int system = sqlite3_system_errno(db);
+  int system = sqlite3_system_errno(db);
+  if (system == 0 && code == SQLITE_IOERR && (c_errno == ENOSPC || c_errno == EFBIG || c_errno == EDQUOT)) {
+    system = c_errno;
+  }
   if (code == SQLITE_FULL || ((code == SQLITE_IOERR || code == SQLITE_CANTOPEN) &&
                               (system == ENOSPC || system == EFBIG || system == EDQUOT))) {
     why += " (" + core::WriteErrorText(system != 0 ? system : ENOSPC) + ")";
