@@ -6,7 +6,8 @@
 # map built from one slow mapping lap (frames and encoders only), so every other lap leaves the
 # map on lanes the mapping lap did not take. Every 10 s the run's resident memory, threads and
 # open file descriptors are sampled from /proc, the memory split into anonymous, file-backed
-# and shared. Prints the run's summary, the PLC's view of the fixes (against the truth after
+# and shared (and, whenever the number of descriptors changes, what they are: descriptors.txt).
+# Prints the run's summary, the PLC's view of the fixes (against the truth after
 # the best rigid alignment of the map's frame) and the
 # resources: first and last, and the memory's least-squares slope after the first tenth, also
 # of the heap in use and the map's decoded tiles (from the run's status lines).
@@ -80,6 +81,12 @@ while kill -0 "$run" 2>/dev/null; do
     sample=$(awk '/^VmRSS/{r=$2} /^Threads/{t=$2} /^RssAnon/{a=$2} /^RssFile/{f=$2} /^RssShmem/{s=$2}
                   END {if (r != "") print r / 1024, t, a / 1024, f / 1024, s / 1024}' "/proc/$run/status" 2>/dev/null || true)
     fds=$(ls "/proc/$run/fd" 2>/dev/null | wc -l)
+    # What the descriptors are, whenever their number changes (descriptors.txt).
+    if [ "$fds" != "${last_fds:-}" ]; then
+      { echo "== $(( $(date +%s) - t0 )) s: $fds"; ls -l "/proc/$run/fd" 2>/dev/null | awk 'NR > 1 {print $9, $11}'; } \
+        >> "$WORK/descriptors.txt"
+      last_fds=$fds
+    fi
     if [ -n "$sample" ]; then
       set -- $sample
       echo "$(( $(date +%s) - t0 )) $1 $2 $fds $3 $4 $5" >> "$WORK/resources.txt"
