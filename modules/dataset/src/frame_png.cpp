@@ -123,7 +123,9 @@ bool DecodeGreyPng(const unsigned char* bytes, std::size_t size, cv::Mat& pixels
     }
     at += 12 + std::size_t{length};
   }
-  if (idat == kBefore) return false;
+  // Deflate packs at most 1032 bytes into one, so a header that claims more image than its
+  // data can hold is refused before anything that size is allocated.
+  if (idat == kBefore || raw_bytes > 1032 * std::uint64_t{stream.size()} + 1024) return false;
   // The rows, each a filter byte and its pixels, inflated in one call (the Adler-32 checked).
   thread_local std::vector<unsigned char> raw;
   raw.resize(raw_bytes);

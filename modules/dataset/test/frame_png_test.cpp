@@ -1,5 +1,6 @@
 #include "mosaicloc/dataset/frame_png.hpp"
 
+#include <malloc.h>
 #include <png.h>
 #include <zlib.h>
 
@@ -131,7 +132,7 @@ TEST(FramePng, ManyIdatChunksAndTheRecordersOwnPngs) {
 
 // What libpng refuses, this decoder refuses too: a chunk type that is not four letters (whose
 // CRC may still hold: four 0xFF bytes have the CRC 0xFFFFFFFF), image data split by another
-// chunk, and no image data at all.
+// chunk, a header that claims more image than its data can hold, and no image data at all.
 TEST(FramePng, MalformedChunksAreRefused) {
   const cv::Mat image = Texture(40, 50, 4);
   const std::vector<unsigned char> good = Encode(image, PNG_ALL_FILTERS, 100);
@@ -147,6 +148,17 @@ TEST(FramePng, MalformedChunksAreRefused) {
   EXPECT_FALSE(DecodeGreyPng(not_letters.data(), not_letters.size(), decoded));
   const std::vector<unsigned char> split = WithChunk(good, idats[1], "tEXt", std::string("Comment\0between", 15));
   EXPECT_FALSE(DecodeGreyPng(split.data(), split.size(), decoded));
+  // A header that claims far more image (20000 x 20000) than its data could hold.
+  std::string huge(good.begin(), good.end());
+  huge.replace(16, 8, std::string("\x00\x00\x4e\x20\x00\x00\x4e\x20", 8));
+  const uLong header_crc = crc32(0, reinterpret_cast<const Bytef*>(huge.data()) + 12, 17);
+  for (int k = 0; k < 4; ++k) huge[29 + k] = static_cast<char>(header_crc >> (24 - 8 * k));
+  const std::vector<unsigned char> claims_more(huge.begin(), huge.end());
+  const std::size_t mapped_before = mallinfo2().hblkhd;
+  EXPECT_FALSE(DecodeGreyPng(claims_more.data(), claims_more.size(), decoded));
+  // Refused before its 400 MB were allocated (and kept for the next frame). The allocator's
+  // figures are zero under AddressSanitizer, where this holds trivially.
+  EXPECT_LT(mallinfo2().hblkhd, mapped_before + (std::size_t{64} << 20));
   std::string bytes(good.begin(), good.end());
   bytes.erase(idats[0], iend[0] - idats[0]);
   const std::vector<unsigned char> no_data(bytes.begin(), bytes.end());
