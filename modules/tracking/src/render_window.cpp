@@ -33,15 +33,34 @@ MOSAICLOC_ALWAYS_INLINE std::uint8_t KnownSample(const std::uint8_t* pixels, std
   return static_cast<std::uint8_t>(v + 0.5);
 }
 
-// The inside of RenderWindow: every sample's four pixels in the block and known. Pixel (x, y)
-// of `out` shows block point a (origin + (x, y)) + b, bilinear in double precision.
+// Which samples of a block are known, for RenderRows: `known` has the block's stride, and its
+// byte at a pixel is nonzero when that pixel and its right, lower and lower-right neighbours
+// are all mapped (what Sample demands). Null when every pixel of the block is known.
+struct KnownQuads {
+  const std::uint8_t* known = nullptr;
+  cv::Mat* mask = nullptr;  ///< RenderWindow's mask, written when not null
+};
+
+// Pixel x of a RenderRows row whose sample at block offset `at` is unknown: unmapped in the
+// window and 0 in its mask.
+MOSAICLOC_ALWAYS_INLINE bool Unknown(const KnownQuads& quads, std::size_t at) {
+  return quads.known != nullptr && quads.known[at] == 0;
+}
+
+// Every sample's four pixels lie in the block; where `quads` says they are not all known the
+// window is unmapped. Pixel (x, y) of `out` shows block point a (origin + (x, y)) + b, bilinear
+// in double precision.
 void RenderRows(const std::uint8_t* pixels, std::size_t stride, const Eigen::Matrix2d& a, const Eigen::Vector2d& b,
-                const cv::Point& origin, const cv::Size& size, cv::Mat* out) {
+                const cv::Point& origin, const cv::Size& size, const KnownQuads& quads, cv::Mat* out) {
   for (int y = 0; y < size.height; ++y) {
     auto* o = out->ptr<std::uint8_t>(y);
+    std::uint8_t* m = quads.mask != nullptr ? quads.mask->ptr<std::uint8_t>(y) : nullptr;
     const Eigen::Vector2d row_start = a * Eigen::Vector2d(origin.x, origin.y + y) + b;
     for (int x = 0; x < size.width; ++x) {
-      o[x] = KnownSample(pixels, stride, a, row_start, x);
+      const double rx = row_start.x() + a(0, 0) * x, ry = row_start.y() + a(1, 0) * x;
+      const bool unknown = Unknown(quads, static_cast<std::size_t>(ry) * stride + static_cast<std::size_t>(rx));
+      o[x] = unknown ? mosaic::kUnmapped : KnownSample(pixels, stride, a, row_start, x);
+      if (m != nullptr) m[x] = unknown ? 0 : 255;
     }
   }
 }
@@ -50,13 +69,14 @@ void RenderRows(const std::uint8_t* pixels, std::size_t stride, const Eigen::Mat
 // RenderRows four pixels at a time, the same operations on each.
 MOSAICLOC_TARGET_AVX2 void RenderRowsAvx2(const std::uint8_t* pixels, std::size_t stride, const Eigen::Matrix2d& a,
                                           const Eigen::Vector2d& b, const cv::Point& origin, const cv::Size& size,
-                                          cv::Mat* out) {
+                                          const KnownQuads& quads, cv::Mat* out) {
   const __m256d ax = _mm256_set1_pd(a(0, 0)), ay = _mm256_set1_pd(a(1, 0));
   const __m256d one = _mm256_set1_pd(1.0), half = _mm256_set1_pd(0.5);
   const __m128i vstride = _mm_set1_epi32(static_cast<int>(stride));
   const __m128i low_byte = _mm_set1_epi32(0xFF);
   for (int y = 0; y < size.height; ++y) {
     auto* o = out->ptr<std::uint8_t>(y);
+    std::uint8_t* m = quads.mask != nullptr ? quads.mask->ptr<std::uint8_t>(y) : nullptr;
     const Eigen::Vector2d row_start = a * Eigen::Vector2d(origin.x, origin.y + y) + b;
     const __m256d sx = _mm256_set1_pd(row_start.x()), sy = _mm256_set1_pd(row_start.y());
     int x = 0;
@@ -88,9 +108,19 @@ MOSAICLOC_TARGET_AVX2 void RenderRowsAvx2(const std::uint8_t* pixels, std::size_
       const __m128i bytes = _mm_packus_epi16(_mm_packs_epi32(value, value), _mm_setzero_si128());
       const int four = _mm_cvtsi128_si32(bytes);
       std::memcpy(o + x, &four, 4);
+      if (quads.known != nullptr) {
+        for (int i = 0; i < 4; ++i) {
+          const bool unknown = quads.known[at[i]] == 0;
+          if (unknown) o[x + i] = mosaic::kUnmapped;
+          if (m != nullptr) m[x + i] = unknown ? 0 : 255;
+        }
+      }
     }
     for (; x < size.width; ++x) {
-      o[x] = KnownSample(pixels, stride, a, row_start, x);
+      const double rx = row_start.x() + a(0, 0) * x, ry = row_start.y() + a(1, 0) * x;
+      const bool unknown = Unknown(quads, static_cast<std::size_t>(ry) * stride + static_cast<std::size_t>(rx));
+      o[x] = unknown ? mosaic::kUnmapped : KnownSample(pixels, stride, a, row_start, x);
+      if (m != nullptr) m[x] = unknown ? 0 : 255;
     }
   }
 }
@@ -149,10 +179,10 @@ cv::Mat detail::RenderWindowKnown(const ReferenceRaster& reference, const Affine
   const Eigen::Vector2d b = frame_to_raster.col(2) - Eigen::Vector2d(static_cast<double>(region.col0),
                                                                       static_cast<double>(region.row0));
   cv::Mat out(size, CV_8UC1);
-  // Every sample inside the block and every block pixel known (the usual case, away from the
-  // map's edge): the same arithmetic as Sample without its per-pixel checks. The sample
-  // positions are an affine image of the window, so they lie within the hull of its corners.
-  bool inside = region.all_mapped;
+  // Every sample's four pixels inside the block (the usual case): the same arithmetic as Sample
+  // without its per-pixel bounds checks. The sample positions are an affine image of the
+  // window, so they lie within the hull of its corners.
+  bool inside = true;
   for (const int x : {0, size.width - 1}) {
     for (const int y : {0, size.height - 1}) {
       const Eigen::Vector2d r = a * Eigen::Vector2d(origin.x + x, origin.y + y) + b;
@@ -167,8 +197,24 @@ cv::Mat detail::RenderWindowKnown(const ReferenceRaster& reference, const Affine
 #ifdef MOSAICLOC_TRACKING_AVX2
     if (detail::UseAvx2()) render_rows = &RenderRowsAvx2;
 #endif
-    render_rows(pixels, stride, a, b, origin, size, &out);
-    *all_known = true;
+    KnownQuads quads;
+    if (!region.all_mapped) {
+      // Part of the block unmapped (a window across the map's or a frame's edge): which pixels
+      // have all four of their bilinear sources, laid out with the block's stride.
+      thread_local cv::Mat known;
+      const int rows = region.image.rows, cols = region.image.cols;
+      known.create(rows, static_cast<int>(stride), CV_8UC1);
+      const cv::Mat& m = region.mask;
+      cv::Mat quad = known(cv::Rect(0, 0, cols - 1, rows - 1));
+      cv::bitwise_and(m(cv::Rect(0, 0, cols - 1, rows - 1)), m(cv::Rect(1, 0, cols - 1, rows - 1)), quad);
+      cv::bitwise_and(quad, m(cv::Rect(0, 1, cols - 1, rows - 1)), quad);
+      cv::bitwise_and(quad, m(cv::Rect(1, 1, cols - 1, rows - 1)), quad);
+      quads.known = known.ptr<std::uint8_t>(0);
+      if (mask != nullptr) mask->create(size, CV_8UC1);
+      quads.mask = mask;
+    }
+    render_rows(pixels, stride, a, b, origin, size, quads, &out);
+    *all_known = region.all_mapped;
     return out;
   }
   if (mask != nullptr) mask->create(size, CV_8UC1);

@@ -1,9 +1,12 @@
 #include <cmath>
+#include <memory>
+#include <utility>
 
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
 #include "../src/simd.hpp"
+#include "mosaicloc/mosaic/tile_store.hpp"
 #include "mosaicloc/tracking/render_window.hpp"
 #include "tracking_test_support.hpp"
 
@@ -92,6 +95,83 @@ TEST(Reference, RenderWindowIsBilinearInsideAndAcrossTheEdge) {
   EXPECT_GT(edge_known, 0);
   EXPECT_LT(edge_known, 90 * 90);
   EXPECT_EQ(edge_wrong, 0);
+}
+
+// An image whose known pixels are given by a mask (a map's holes and edges), for windows
+// that cross unmapped floor inside their block.
+class MaskedReference : public ReferenceRaster {
+ public:
+  MaskedReference(cv::Mat image, cv::Mat mask) : image_(std::move(image)), mask_(std::move(mask)) {}
+  Eigen::Matrix<double, 2, 3> RasterToWorld() const override {
+    Eigen::Matrix<double, 2, 3> a;
+    a << 1, 0, 0, 0, 1, 0;
+    return a;
+  }
+  void Region(std::int64_t col0, std::int64_t row0, int cols, int rows, cv::Mat& store,
+              mosaic::RasterPatch* patch) const override {
+    // The tests' windows stay inside the image.
+    const cv::Rect rect(static_cast<int>(col0), static_cast<int>(row0), cols, rows);
+    store = image_(rect).clone();
+    patch->image = store;
+    patch->mask = mask_(rect).clone();
+    patch->col0 = col0;
+    patch->row0 = row0;
+    patch->all_mapped = cv::countNonZero(patch->mask) == cols * rows;
+    if (patch->all_mapped) patch->mask.release();
+  }
+  std::unique_ptr<const ReferenceRaster> Coarser() const override { return nullptr; }
+
+ private:
+  cv::Mat image_, mask_;
+};
+
+// A window over a block that is partly unmapped (holes, an edge) knows exactly the pixels whose
+// four bilinear sources are all mapped, shows the bilinear value there and unmapped elsewhere,
+// in both builds of the loop.
+TEST(Reference, RenderWindowOverHolesKnowsExactlyTheSamplesWithFourMappedSources) {
+  cv::Mat image(200, 220, CV_8UC1);
+  cv::RNG(17).fill(image, cv::RNG::UNIFORM, 1, 256);
+  cv::Mat known(image.size(), CV_8UC1, cv::Scalar(255));
+  cv::circle(known, cv::Point(100, 90), 17, cv::Scalar(0), cv::FILLED);
+  known(cv::Rect(0, 150, 220, 50)).setTo(cv::Scalar(0));
+  known.at<std::uint8_t>(60, 70) = 0;
+  const MaskedReference reference(image, known);
+  Affine frame_to_raster;
+  const double c = std::cos(0.4), s = std::sin(0.4);
+  frame_to_raster << 0.8 * c, -0.8 * s, 70.3, 0.8 * s, 0.8 * c, 20.6;
+  const cv::Point origin(5, 7);
+  for (const cv::Size size : {cv::Size(120, 130), cv::Size(117, 129)}) {
+    cv::Mat mask;
+    const cv::Mat window = RenderWindow(reference, frame_to_raster, origin, size, &mask);
+    int mapped = 0, wrong = 0;
+    for (int y = 0; y < size.height; ++y) {
+      for (int x = 0; x < size.width; ++x) {
+        const Eigen::Vector2d r = ApplyAffine(frame_to_raster, Eigen::Vector2d(origin.x + x, origin.y + y));
+        const int ix = static_cast<int>(std::floor(r.x())), iy = static_cast<int>(std::floor(r.y()));
+        const bool four = known.at<std::uint8_t>(iy, ix) != 0 && known.at<std::uint8_t>(iy, ix + 1) != 0 &&
+                          known.at<std::uint8_t>(iy + 1, ix) != 0 && known.at<std::uint8_t>(iy + 1, ix + 1) != 0;
+        wrong += mask.at<std::uint8_t>(y, x) != (four ? 255 : 0) ? 1 : 0;
+        if (!four) {
+          wrong += window.at<std::uint8_t>(y, x) != mosaic::kUnmapped ? 1 : 0;
+          continue;
+        }
+        ++mapped;
+        const double fx = r.x() - ix, fy = r.y() - iy;
+        const double v = (1 - fy) * ((1 - fx) * image.at<std::uint8_t>(iy, ix) + fx * image.at<std::uint8_t>(iy, ix + 1)) +
+                         fy * ((1 - fx) * image.at<std::uint8_t>(iy + 1, ix) + fx * image.at<std::uint8_t>(iy + 1, ix + 1));
+        wrong += std::abs(window.at<std::uint8_t>(y, x) - v) > 0.5 + 1e-9 ? 1 : 0;
+      }
+    }
+    EXPECT_GT(mapped, size.area() / 2);
+    EXPECT_LT(mapped, size.area() - 500);
+    EXPECT_EQ(wrong, 0);
+    detail::SetAvx2Allowed(false);
+    cv::Mat plain_mask;
+    const cv::Mat plain = RenderWindow(reference, frame_to_raster, origin, size, &plain_mask);
+    detail::SetAvx2Allowed(true);
+    EXPECT_EQ(cv::norm(window, plain, cv::NORM_INF), 0.0);
+    EXPECT_EQ(cv::norm(mask, plain_mask, cv::NORM_INF), 0.0);
+  }
 }
 
 }  // namespace
