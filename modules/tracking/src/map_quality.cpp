@@ -60,17 +60,17 @@ float CellTexture(const mosaic::RasterPatch& floor, int template_px) {
 double Squared(double x, double y) { return x * x + y * y; }
 
 // Whether the w x h window at (x, y) holds no unmapped pixel, from the integral image of the
-// unmapped pixels (1 each).
+// mapped pixels (1 each).
 bool AllMapped(const cv::Mat& integral, int x, int y, int w, int h) {
   return integral.at<int>(y + h, x + w) - integral.at<int>(y, x + w) - integral.at<int>(y + h, x) +
              integral.at<int>(y, x) ==
-         0;
+         w * h;
 }
 
 // The working images of one cell, kept per thread: allocating them for every cell cost more
 // in page faults than the correlation itself.
 struct Scratch {
-  cv::Mat region, unmapped, integral, coarse, score, fine;
+  cv::Mat region, mapped, integral, coarse, score, fine;
 };
 
 float BestElsewhere(const mosaic::RasterPatch& floor, const cv::Mat& fine_integral, const cv::Rect& own,
@@ -176,9 +176,8 @@ std::vector<mosaic::QualityCell> AssessMapQuality(const mosaic::TileStore& store
                     cell_search_px + 2 * radius_px, scratch.region, &around);
     if (!around.problems.empty()) return around.problems.front();
     if (around.mask.empty()) around.mask = cv::Mat(around.image.size(), CV_8UC1, cv::Scalar(255));
-    cv::compare(around.mask, 0, scratch.unmapped, cv::CMP_EQ);
-    scratch.unmapped /= 255;
-    cv::integral(scratch.unmapped, scratch.integral, CV_32S);
+    cv::min(around.mask, 1, scratch.mapped);  // the mask is 255 where mapped
+    cv::integral(scratch.mapped, scratch.integral, CV_32S);
     // The template: a square of template_mm all on the floor, centred as near the cell's
     // centre as the floor allows (lanes are often narrower than a cell), if one fits.
     std::optional<cv::Point> corner;
