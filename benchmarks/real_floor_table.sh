@@ -21,8 +21,10 @@
 #  MAP_POSES=estimated paints the geometry and fast tables' maps at the poses `map build`
 #    estimates from the mapping drive's frames and encoders instead of at the true poses (a
 #    self-built map, checked in its own frame: on an uneven floor its own shape's error, about
-#    1 mm for the uneven cases, then shows in every fix).
-# Usage: [CASES="flat susp ..."] [MAP_POSES=groundtruth|estimated] benchmarks/real_floor_table.sh [MOSAICLOC] [WORK_DIR] [TABLES] [FLOORS]
+#    0.2 mm for the uneven cases, then shows in every fix); MAP_POSES=estimated-flat the same
+#    with `map build --flat-floor` (each frame taken at the calibrated height, straight down:
+#    about 1 mm off on the uneven cases).
+# Usage: [CASES="flat susp ..."] [MAP_POSES=groundtruth|estimated|estimated-flat] benchmarks/real_floor_table.sh [MOSAICLOC] [WORK_DIR] [TABLES] [FLOORS]
 #        TABLES: any of "geometry fast changes share" (default all); FLOORS: any of
 #        "procedural asphalt brick" (default all three; the textures need ../shared/data)
 set -euo pipefail
@@ -35,7 +37,8 @@ source "$HERE/benchmarks/table_lib.sh"
 case ${MAP_POSES:=groundtruth} in
   groundtruth) MAP_POSES_ARGS=(--poses groundtruth) ;;
   estimated) MAP_POSES_ARGS=() ;;
-  *) echo "MAP_POSES must be groundtruth or estimated, got '$MAP_POSES'" >&2; exit 2 ;;
+  estimated-flat) MAP_POSES_ARGS=(--flat-floor) ;;
+  *) echo "MAP_POSES must be groundtruth, estimated or estimated-flat, got '$MAP_POSES'" >&2; exit 2 ;;
 esac
 WHEELS='encoders: {left_radius_error: 0.02, right_radius_error: 0.025}'
 mkdir -p "$WORK"
@@ -89,14 +92,14 @@ geometry_table() {
     [ -d "$d/map" ] || "$MOSAICLOC" -q simulate --out "$d/map" --overwrite --floor "$floor" --route "$route" \
         --laps 1 --speed-mps 0.5 --seed 21 --config "$d/map.yaml" >/dev/null
     local reporting=()
-    [ "$MAP_POSES" = estimated ] && reporting=(--report "$d/map-report")
+    [ "$MAP_POSES" != groundtruth ] && reporting=(--report "$d/map-report-$MAP_POSES")
     [ -f "$map" ] || "$MOSAICLOC" -q map build --dataset "$d/map" --out "$map" --overwrite "${MAP_POSES_ARGS[@]}" \
       "${reporting[@]}" >/dev/null
     # A self-built map has a frame of its own: the truth is checked in it (the mapping report's
     # best rigid alignment), so the fixes' errors are the localization's and the map's shape's.
     local placement=()
-    if [ "$MAP_POSES" = estimated ]; then
-      placement=("--truth-from-map=$("$PYTHON" -c 'import json,sys; t=json.load(open(sys.argv[1]))["vs_groundtruth"]["truth_from_map"]; print("%.9f,%.9f,%.12f" % (t["x_mm"], t["y_mm"], t["yaw_deg"]))' "$d/map-report/consistency.json")")
+    if [ "$MAP_POSES" != groundtruth ]; then
+      placement=("--truth-from-map=$("$PYTHON" -c 'import json,sys; t=json.load(open(sys.argv[1]))["vs_groundtruth"]["truth_from_map"]; print("%.9f,%.9f,%.12f" % (t["x_mm"], t["y_mm"], t["yaw_deg"]))' "$d/map-report-$MAP_POSES/consistency.json")")
     fi
     [ -d "$d/drive" ] || "$MOSAICLOC" -q simulate --out "$d/drive" --floor "$floor" --route "$route" --laps 1 \
       --speed-mps "$speed" --seed 22 --config "$d/drive.yaml" >/dev/null

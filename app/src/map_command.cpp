@@ -250,6 +250,10 @@ Action AddMapCommand(CLI::App& app, const GlobalOptions& global) {
   build->add_option("--join-sigma-mm", args->build.join_start_sigma_mm,
                     "How well a joined drive's start is known, mm (default 20): it sizes the search that joins it")
       ->check(CLI::PositiveNumber);
+  build->add_flag("--flat-floor", args->build.flat_floor,
+                  "With --poses estimate: take every frame to be at the calibrated height and straight down, without "
+                  "estimating each frame's camera height and tilt from the registrations (on by default, and applied "
+                  "only where the floor shows them)");
   build->add_option("--blend", args->build.blend, "feather (default) or best-view")
       ->check(CLI::IsMember({"feather", "best-view"}));
   build->add_option("--tile-size", args->build.tile_size_px, "Tile size in px, a power of two (default 256)")
@@ -272,6 +276,10 @@ Action AddMapCommand(CLI::App& app, const GlobalOptions& global) {
   poses->add_option("--join-sigma-mm", args->poses.join_start_sigma_mm,
                     "How well a joined drive's start is known, mm (default 20): it sizes the search that joins it")
       ->check(CLI::PositiveNumber);
+  poses->add_flag_callback("--flat-floor", [args] { args->poses.mapper.view_geometry = false; },
+                  "Take every frame to be at the calibrated height and straight down, without estimating each "
+                  "frame's camera height and tilt from the registrations (on by default, and applied only where the "
+                  "floor shows them; view.csv in the report)");
   poses->add_option("--graph-out", args->poses.graph_out, "Write the pose graph in g2o's format (metres)");
   poses->add_option("--graph-in", args->poses.graph_in,
                     "Optimize this g2o pose graph of the drive's frames instead of registering them");

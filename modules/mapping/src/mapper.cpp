@@ -130,7 +130,7 @@ bool MapperOptions::Check(std::string* why) const {
   if (optimize.max_iterations < 1 || optimize.threads < 1) return fail("optimize: iterations and threads must be 1 or more");
   if (outlier_rounds < 1) return fail("outlier_rounds must be 1 or more");
   if (frame_cache < 2) return fail("frame_cache must be 2 or more");
-  return true;
+  return geometry.Check(why);
 }
 
 MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
@@ -210,6 +210,12 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
     loop_of_edge.push_back(loop);
     registered_edge.push_back(registered ? 1 : 0);
   };
+  // What each registration in the graph says of its earlier frame's view: (edge, observation).
+  std::vector<std::pair<std::size_t, ViewObservation>> views;
+  auto observe = [&](const tracking::TrackResult& registration, int earlier, int later) {
+    if (!options.view_geometry) return;
+    if (auto o = ObserveView(registration, camera, earlier, later)) views.emplace_back(graph.edges.size() - 1, *o);
+  };
 
   FrameCache frames(input.load_frame, static_cast<std::size_t>(options.frame_cache));
   SpatialIndex index(loop_radius_mm);
@@ -260,6 +266,7 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
         motion = r.world_from_camera;
         ++result.registered;
         add_edge(i - 1, i, motion, edge_information(r.covariance, motion), EdgeKind::kSequential, -1);
+        observe(r, i - 1, i);
       } else {
         add_edge(i - 1, i, motion, wheel_covariance.inverse(), EdgeKind::kSequential, -1, false);
       }
@@ -285,6 +292,7 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
           keyed = true;
           add_edge(keyframe, i, k.world_from_camera, edge_information(k.covariance, k.world_from_camera),
                    EdgeKind::kSequential, -1);
+          observe(k, keyframe, i);
         }
       }
       if (r.ok() || keyed) {
@@ -397,6 +405,7 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
         result.loops.push_back(loop);
         add_edge(j, i, r.world_from_camera, edge_information(r.covariance, r.world_from_camera), EdgeKind::kLoop,
                  static_cast<int>(result.loops.size()) - 1);
+        observe(r, j, i);
         last_loop = {j, i, r.world_from_camera};
       }
     }
@@ -409,6 +418,17 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
   // The pose graph: the chain as the start, the first frame held; loops that the rest of the
   // map contradicts are dropped and the graph solved again.
   const auto optimize_started = Clock::now();
+  if (options.view_geometry) {
+    std::vector<ViewObservation> observations;
+    observations.reserve(views.size());
+    for (const auto& [edge, o] : views) observations.push_back(o);
+    const double height_mm = options.tracker.solver.camera_height_mm;
+    result.view = SolveViewGeometry(observations, n, camera, height_mm, options.geometry);
+    for (const auto& [edge, o] : views) {
+      PoseGraphEdge& e = graph.edges[edge];
+      e.from_T_to = CorrectRegistration(e.from_T_to, o, result.view, camera, height_mm);
+    }
+  }
   graph.nodes = chain;
   graph.fixed = {0};
   for (int round = 0; round < options.outlier_rounds; ++round) {

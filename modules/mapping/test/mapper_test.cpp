@@ -139,6 +139,30 @@ TEST_F(MappingDrive, ALoopedDriveIsMappedOntoTheTruth) {
   EXPECT_GT(shared_little, 10) << "keyframe links that share less than 0.7 of the view";
 }
 
+// The camera's height and tilt estimated from the registrations (the default): ideal views
+// straight down at the calibrated height do not show either, so every registration is left as
+// it was and the map is the one made without the estimation.
+TEST_F(MappingDrive, AFlatFloorsViewsAreLeftAtTheCalibratedHeightAndStraightDown) {
+  MakeFloor();
+  if (IsSkipped()) return;
+  const std::vector<core::Pose2> truth = Circle(160);
+  cv::theRNG().state = 29;  // the frames' noise, the same in both runs
+  const MappingResult r = MapPoses(Input(truth), MapperOptions{});
+  ASSERT_EQ(r.view.scale.size(), 160U);
+  ASSERT_EQ(r.view.tilt.size(), 160U);
+  EXPECT_FALSE(r.view.height_applied) << r.view.height_agreement;
+  EXPECT_FALSE(r.view.tilt_applied) << r.view.tilt_agreement.transpose();
+  MapperOptions flat;
+  flat.view_geometry = false;
+  cv::theRNG().state = 29;
+  const MappingResult without = MapPoses(Input(truth), flat);
+  EXPECT_TRUE(without.view.scale.empty());
+  ASSERT_EQ(without.world_from_vehicle.size(), r.world_from_vehicle.size());
+  for (std::size_t i = 0; i < r.world_from_vehicle.size(); ++i) {
+    EXPECT_EQ(core::Distance(r.world_from_vehicle[i], without.world_from_vehicle[i]), 0.0) << i;
+  }
+}
+
 // A frame that cannot be read: the next one is not registered against the one before it (a
 // whole step further back than the wheels say); the keyframe carries the chain over it.
 TEST_F(MappingDrive, AnUnreadableFrameIsStepped) {

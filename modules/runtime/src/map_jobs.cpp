@@ -92,6 +92,7 @@ MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(d
     pose_options.dataset = args.dataset;
     pose_options.joined = args.joined;
     pose_options.join_start_sigma_mm = args.join_start_sigma_mm;
+    pose_options.mapper.view_geometry = !args.flat_floor;
     pose_options.out = estimated_file;
     pose_options.report = args.report;
     std::vector<const dataset::DatasetReader*> open;
@@ -118,6 +119,7 @@ MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(d
   std::int64_t total = 0;
   std::map<std::string, std::string> identity = {
       {"poses", groundtruth || estimate ? args.poses : fs::absolute(args.poses).lexically_normal().string()},
+      {"flat_floor", args.flat_floor ? "1" : "0"},
       {"blend", args.blend},
       {"tile_size_px", std::to_string(args.tile_size_px)},
       {"levels", std::to_string(args.levels)}};

@@ -413,6 +413,13 @@ void WriteMappingReport(const fs::path& directory, const MapPosesSummary& summar
       {"loops_rejected", loops_rejected},
       {"gaps", gaps},
       {"pieces", m.pieces},
+      {"view_geometry",
+       m.view.scale.empty()
+           ? nlohmann::json(nullptr)
+           : nlohmann::json{{"height_agreement", m.view.height_agreement},
+                            {"tilt_agreement", {m.view.tilt_agreement.x(), m.view.tilt_agreement.y()}},
+                            {"height_applied", m.view.height_applied},
+                            {"tilt_applied", m.view.tilt_applied}}},
       {"warnings", m.warnings},
       {"seams", JsonOf(FiguresOf(m.seams, std::nullopt))},
       {"sequential_seams", JsonOf(FiguresOf(m.seams, mapping::EdgeKind::kSequential))},
@@ -466,6 +473,19 @@ void WriteMappingReport(const fs::path& directory, const MapPosesSummary& summar
     path << i << ',' << p.x_mm() << ',' << p.y_mm() << ',' << p.yaw_rad() << ',' << worst_seam[i] << '\n';
   }
   core::WriteFileAtomically(directory / "path.csv", path.str());
+  // Each frame's camera over the floor under it, as the registrations measured it.
+  if (!m.view.scale.empty()) {
+    std::ostringstream view;
+    view.precision(10);
+    view << "#frame,height_scale,tilt_x_rad,tilt_y_rad\n";
+    for (std::size_t i = 0; i < m.view.scale.size(); ++i) {
+      if (i < m.has_pose.size() && !m.has_pose[i]) continue;
+      view << i << ',' << m.view.scale[i] << ',' << m.view.tilt[i].x() << ',' << m.view.tilt[i].y() << '\n';
+    }
+    core::WriteFileAtomically(directory / "view.csv", view.str());
+  } else {
+    fs::remove(directory / "view.csv", ec);  // one from an earlier report in this folder would mislead
+  }
   std::vector<uchar> png;
   if (!cv::imencode(".png", ResidualMap(summary), png)) core::ThrowRuntime("residuals.png: cannot be encoded");
   core::WriteFileAtomically(directory / "residuals.png",

@@ -11,6 +11,7 @@
 #include "mosaicloc/core/pose2.hpp"
 #include "mosaicloc/core/timestamp.hpp"
 #include "mosaicloc/mapping/pose_graph.hpp"
+#include "mosaicloc/mapping/view_geometry.hpp"
 #include "mosaicloc/tracking/tracker.hpp"
 
 namespace mosaicloc::mapping {
@@ -69,6 +70,14 @@ struct MapperOptions {
   /// room too.
   double keyframe_sigma_mm = 0.25;
   double keyframe_sigma_deg = 0.05;
+  /// Each frame's camera height and tilt over the floor under it estimated from the
+  /// registrations themselves, and every registration corrected for its earlier frame's before
+  /// the graph is solved: the step scaled by the height, the yaw rid of the tilt's bias
+  /// (design.md section 7a). Over an uneven floor, or under a body that pitches and rolls,
+  /// these are most of a self-built map's error. Each is applied only where the floor shows
+  /// it (ViewGeometry's agreements): a flat floor's registrations are left as they are.
+  bool view_geometry = true;
+  ViewGeometryOptions geometry;
   OptimizeOptions optimize;
   /// Rounds of (optimize, drop the loops whose residual fails loop_gate_chi2).
   int outlier_rounds = 3;
@@ -162,6 +171,9 @@ struct MappingResult {
   double register_seconds = 0.0;
   double loop_seconds = 0.0;
   double optimize_seconds = 0.0;
+  /// Per frame, where MapperOptions::view_geometry: the camera's height over the floor under it
+  /// relative to the calibrated one, and its tilt against the floor (image axes, rad).
+  ViewGeometry view;
   /// Said to the user: e.g. a drive that never revisited its floor, whose drift nothing bounds.
   std::vector<std::string> warnings;
 };

@@ -27,6 +27,9 @@ struct MapBuildOptions {
   /// the first (MapPosesOptions::joined), with "groundtruth" at their own ground truth.
   std::vector<std::filesystem::path> joined;
   double join_start_sigma_mm = 20.0;  ///< MapPosesOptions::join_start_sigma_mm
+  /// With "estimate": every frame taken to be at the calibrated height and straight down,
+  /// without estimating it (mapping::MapperOptions::view_geometry off).
+  bool flat_floor = false;
   std::string blend = "feather";      ///< mosaic::ParseBlend
   int tile_size_px = 256;
   int levels = 6;
