@@ -17,7 +17,7 @@ bool ViewGeometryOptions::Check(std::string* why) const {
     return false;
   };
   if (!(tilt_step_sigma_rad > 0.0 && height_step_sigma > 0.0 && tilt_prior_sigma_rad > 0.0 &&
-        height_prior_sigma > 0.0 && min_template_sigma_px > 0.0)) {
+        height_prior_sigma > 0.0 && min_observation_sigma > 0.0)) {
     return fail("view geometry: the sigmas must be positive");
   }
   if (!(min_agreement >= -1.0 && min_agreement <= 1.0)) return fail("view geometry: min_agreement must be in [-1, 1]");
@@ -115,7 +115,7 @@ std::optional<Eigen::VectorXd> Solve(const std::vector<const ViewObservation*>& 
     const ViewObservation& o = *p;
     if (o.earlier < 0 || o.later < 0 || o.earlier >= frames || o.later >= frames) continue;
     const double dx = o.step_px.x(), dy = o.step_px.y();
-    const double sigma = std::max(o.sigma, options.min_template_sigma_px / h);
+    const double sigma = std::max(o.sigma, options.min_observation_sigma);
     const int ax = tilt_at(o.earlier, 0), ay = tilt_at(o.earlier, 1);
     // log k_later - log k_earlier - 1.5 n.step / h = log scale
     equations.push_back({{{height_at(o.later), 1.0}, {height_at(o.earlier), -1.0}, {ax, -1.5 * dx / h}, {ay, -1.5 * dy / h}},

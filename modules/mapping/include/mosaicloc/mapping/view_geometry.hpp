@@ -44,8 +44,10 @@ struct ViewGeometryOptions {
   /// reaches): tilt 0, height the calibrated one.
   double tilt_prior_sigma_rad = 0.02;
   double height_prior_sigma = 0.02;
-  /// A fit's sigma is floored here (template centres are not better than this, px).
-  double min_template_sigma_px = 0.002;
+  /// An observation's sigma (of its log-scale and trace-free part) is at least this: a few
+  /// templates that happen to fit well do not make it surer than 0.002 px over the 800 px of
+  /// the calibrated height.
+  double min_observation_sigma = 2.5e-6;
   /// The heights (the tilt) are used only where the two independent solutions agree at least
   /// this well (ViewGeometry::height_agreement), and better than chance (the correlation's t
   /// statistic 3 or more); else the calibrated height (no tilt) is kept.
