@@ -16,6 +16,7 @@
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/mosaic/renderer.hpp"
 #include "mosaicloc/mosaic/tile_cache.hpp"
+#include "binary_erode.hpp"
 
 namespace mosaicloc::tracking {
 namespace {
@@ -231,7 +232,7 @@ std::vector<mosaic::PlaceCell> BuildPlaceCells(const mosaic::TileStore& store, c
     // Corners only where the whole patch their descriptor reads is mapped floor: a lane's
     // edge is not floor texture.
     cv::Mat usable;
-    cv::erode(patch.mask, usable, within);
+    detail::ErodeBinary(patch.mask, within, &usable);
     std::vector<cv::KeyPoint> corners;
     orb->detect(patch.image, corners, usable);
     corners = Spread(corners, cv::Rect(margin, margin, t, t), options.features_per_tile);
