@@ -219,7 +219,8 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
 
   FrameCache frames(input.load_frame, static_cast<std::size_t>(options.frame_cache));
   SpatialIndex index(loop_radius_mm);
-  cv::Mat previous, key;
+  // The predecessor and the keyframe, prepared once for the registrations they are in.
+  tracking::PreparedFrame previous, key;
   int keyframe = -1;
   int unregistered_from = -1;  // first frame of a run that did not register, or -1
   double last_tried_path = -1e300;
@@ -232,6 +233,7 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
     const auto started = Clock::now();
     const cv::Mat image = frames.Get(i);
     if (image.empty()) result.has_pose[i] = 0;
+    const tracking::PreparedFrame current = tracker.Prepare(image);
     const bool drive_starts =
         next_drive < input.later_drives.size() && input.later_drives[next_drive].first == i;
     if (i == 0) {
@@ -242,8 +244,8 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
       drive_of[i] = static_cast<int>(next_drive);
       chain[i] = later.start * vehicle_from_camera;
       path[i] = path[i - 1] + options.loop_min_separation_mm;
-      previous.release();
-      key.release();
+      previous = {};
+      key = {};
       keyframe = -1;
       if (unregistered_from >= 0) {
         result.gaps.push_back({unregistered_from - 1, i - 1, path[i - 1] - path[unregistered_from - 1]});
@@ -256,8 +258,8 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
       const double wheel_mm = options.wheel_sigma_mm + options.wheel_sigma_fraction * camera_motion.translation_mm().norm();
       const Eigen::Matrix3d wheel_covariance = Diagonal(wheel_mm, Rad(options.wheel_sigma_deg));
       tracking::TrackResult r;
-      if (!image.empty() && !previous.empty()) {
-        r = tracking::RegisterFrames(tracker, previous, image, camera_motion, wheel_covariance);
+      if (!image.empty() && !previous.image.empty()) {
+        r = tracking::RegisterFrames(tracker, previous, current, camera_motion, wheel_covariance);
       } else {
         r.failure = tracking::TrackFailure::kNoTexture;
       }
@@ -285,7 +287,7 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
         const auto [drift_key_mm, drift_key_rad] = drift_between(keyframe, i);
         const Eigen::Matrix3d prior =
             Diagonal(options.keyframe_sigma_mm + drift_key_mm, Rad(options.keyframe_sigma_deg) + drift_key_rad);
-        const tracking::TrackResult k = tracking::RegisterFrames(tracker, key, image, predicted, prior);
+        const tracking::TrackResult k = tracking::RegisterFrames(tracker, key, current, predicted, prior);
         const Eigen::Vector3d d = Difference(k.world_from_camera, predicted);
         if (k.ok() && d.dot((prior + k.covariance).inverse() * d) <= options.loop_gate_chi2) {
           ++result.keyframe_edges;
@@ -312,12 +314,12 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
       }
     }
     if (image.empty()) {
-      previous.release();  // the next frame has no predecessor to register against
+      previous = {};  // the next frame has no predecessor to register against
     } else {
-      previous = image;
+      previous = current;
       if (keyframe < 0 || (chain[i].translation_mm() - chain[keyframe].translation_mm()).norm() > keyframe_mm) {
         keyframe = i;
-        key = image;
+        key = current;
       }
     }
     result.register_seconds += Seconds(started);

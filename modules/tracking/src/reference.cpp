@@ -90,6 +90,15 @@ ImageReference::ImageReference(cv::Mat image, const core::Pose2& world_from_came
   raster_to_world_.col(2) = world_from_camera.translation_mm() - linear * Eigen::Vector2d(cx, cy);
 }
 
+ImageReference::ImageReference(cv::Mat image, const core::Pose2& world_from_camera, double mm_per_px, cv::Mat half)
+    : ImageReference(std::move(image), world_from_camera, mm_per_px) {
+  if (half.empty()) return;  // made when asked for, as by the other constructor
+  if (half.type() != CV_8UC1 || half.cols != image_.cols / 2 || half.rows != image_.rows / 2) {
+    core::ThrowInvalidInput("reference image: the half image must be the image's 2x2 area average");
+  }
+  half_ = std::move(half);
+}
+
 ImageReference::ImageReference(cv::Mat image, const Eigen::Matrix<double, 2, 3>& raster_to_world)
     : image_(std::move(image)), raster_to_world_(raster_to_world) {}
 
@@ -97,8 +106,8 @@ Eigen::Matrix<double, 2, 3> ImageReference::RasterToWorld() const { return raste
 
 std::unique_ptr<const ReferenceRaster> ImageReference::Coarser() const {
   if (image_.cols < 4 || image_.rows < 4) return nullptr;
-  cv::Mat half;
-  cv::resize(image_, half, cv::Size(image_.cols / 2, image_.rows / 2), 0, 0, cv::INTER_AREA);
+  cv::Mat half = half_;
+  if (half.empty()) cv::resize(image_, half, cv::Size(image_.cols / 2, image_.rows / 2), 0, 0, cv::INTER_AREA);
   // Pixel i of the half image is centred on pixel 2i + 0.5 of this one.
   Eigen::Matrix<double, 2, 3> coarser;
   coarser.leftCols<2>() = 2.0 * raster_to_world_.leftCols<2>();

@@ -30,8 +30,9 @@ class FrameRegistration {
  public:
   FrameRegistration(const camera::IdealCamera& camera, const TrackerOptions& options, const cv::Mat& frame,
                     const core::Pose2& prior, const Eigen::Matrix3d& prior_covariance,
-                    const ReferenceRaster& reference, double prior_scale)
-      : calibrated_(camera),
+                    const ReferenceRaster& reference, double prior_scale, const PreparedFrame* prepared = nullptr)
+      : prepared_(prepared),
+        calibrated_(camera),
         camera_(camera.Scaled(prior_scale)),
         view_scale_(prior_scale),
         options_(options),
@@ -72,10 +73,15 @@ class FrameRegistration {
 
   // The frame's templates, and its 2x2 average for the coarse search.
   bool SelectSpots() {
-    thread_local cv::Mat half;  // reused frame to frame: no page faults for a fresh buffer
-    detail::HalveImage(frame_, half);
-    half_ = &half;
-    spots_ = SelectTemplates(frame_, half, options_.templates);
+    if (prepared_ != nullptr) {
+      half_ = &prepared_->half;
+      spots_ = prepared_->spots;
+    } else {
+      thread_local cv::Mat half;  // reused frame to frame: no page faults for a fresh buffer
+      detail::HalveImage(frame_, half);
+      half_ = &half;
+      spots_ = SelectTemplates(frame_, half, options_.templates);
+    }
     if (spots_.empty()) return Fail(TrackFailure::kNoTexture, "no template of the frame has enough texture");
     wanted_ = spots_.size();
     spares_added_ = options_.templates.mode != TemplateMode::kSpread || options_.spare_templates == 0;
@@ -359,6 +365,7 @@ class FrameRegistration {
     result_.mean_zncc = zncc_count > 0 ? zncc_sum / zncc_count : 0.0;
   }
 
+  const PreparedFrame* prepared_;  // the frame's half image and templates, made before; or null
   const camera::IdealCamera& calibrated_;
   camera::IdealCamera camera_;  // at view_scale_
   double view_scale_ = 1.0;
@@ -442,9 +449,32 @@ TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const
   return FrameRegistration(camera_, options_, frame, prior, prior_covariance, reference, prior_scale).Run();
 }
 
+TrackResult Tracker::Track(const PreparedFrame& frame, const core::Pose2& prior, const Eigen::Matrix3d& prior_covariance,
+                           const ReferenceRaster& reference, double prior_scale) const {
+  return FrameRegistration(camera_, options_, frame.image, prior, prior_covariance, reference, prior_scale, &frame).Run();
+}
+
+PreparedFrame Tracker::Prepare(const cv::Mat& frame) const {
+  PreparedFrame prepared;
+  prepared.image = frame;
+  // A frame Track would refuse keeps no half image or templates: Track says why.
+  if (frame.empty() || frame.type() != CV_8UC1 || frame.cols != camera_.width_px() || frame.rows != camera_.height_px()) {
+    return prepared;
+  }
+  detail::HalveImage(frame, prepared.half);
+  prepared.spots = SelectTemplates(frame, prepared.half, options_.templates);
+  return prepared;
+}
+
 TrackResult RegisterFrames(const Tracker& tracker, const cv::Mat& previous, const cv::Mat& current,
                            const core::Pose2& prior_previous_from_current, const Eigen::Matrix3d& prior_covariance) {
   const ImageReference reference(previous, core::Pose2::Identity(), tracker.camera().mm_per_px());
+  return tracker.Track(current, prior_previous_from_current, prior_covariance, reference);
+}
+
+TrackResult RegisterFrames(const Tracker& tracker, const PreparedFrame& previous, const PreparedFrame& current,
+                           const core::Pose2& prior_previous_from_current, const Eigen::Matrix3d& prior_covariance) {
+  const ImageReference reference(previous.image, core::Pose2::Identity(), tracker.camera().mm_per_px(), previous.half);
   return tracker.Track(current, prior_previous_from_current, prior_covariance, reference);
 }
 

@@ -187,5 +187,31 @@ TEST(VisualOdometry, RegistersConsecutiveFrames) {
   EXPECT_LT(std::abs(YawDifference(r.world_from_camera, truth)), 2e-5);
 }
 
+// Frames prepared once (their half images and templates) register exactly as the frames do.
+TEST(VisualOdometry, PreparedFramesRegisterAsTheFramesDo) {
+  REQUIRE_ASPHALT(texture);
+  const Scene scene(*texture);
+  TrackerOptions options;
+  options.templates.count = 9;
+  const Tracker tracker(scene.camera(), options);
+  const Pose2 first(-10.0, 5.0, 0.02);
+  const Pose2 second = first * Pose2(30.0, 2.0, 0.01);
+  const cv::Mat a = scene.Frame(first, 2.0, 1.0, 0.0, 1), b = scene.Frame(second, 2.0, 1.0, 0.0, 2);
+  const TrackResult plain = RegisterFrames(tracker, a, b, Pose2(29.0, 2.5, 0.0), PriorCovariance(4.0, 0.5));
+  const TrackResult prepared =
+      RegisterFrames(tracker, tracker.Prepare(a), tracker.Prepare(b), Pose2(29.0, 2.5, 0.0), PriorCovariance(4.0, 0.5));
+  ASSERT_TRUE(plain.ok() && prepared.ok()) << plain.reason << prepared.reason;
+  EXPECT_EQ(prepared.world_from_camera.x_mm(), plain.world_from_camera.x_mm());
+  EXPECT_EQ(prepared.world_from_camera.y_mm(), plain.world_from_camera.y_mm());
+  EXPECT_EQ(prepared.world_from_camera.yaw_rad(), plain.world_from_camera.yaw_rad());
+  EXPECT_EQ(prepared.covariance, plain.covariance);
+  EXPECT_EQ(prepared.templates.size(), plain.templates.size());
+  // A frame the tracker cannot take is prepared as nothing, and refused as before.
+  const PreparedFrame wrong = tracker.Prepare(cv::Mat(10, 10, CV_8UC1, cv::Scalar(0)));
+  EXPECT_TRUE(wrong.spots.empty());
+  const TrackResult refused = RegisterFrames(tracker, tracker.Prepare(a), wrong, Pose2(), PriorCovariance(4.0, 0.5));
+  EXPECT_EQ(refused.failure, TrackFailure::kNoTexture);
+}
+
 }  // namespace
 }  // namespace mosaicloc::tracking

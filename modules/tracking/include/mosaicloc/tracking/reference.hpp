@@ -80,16 +80,21 @@ class ImageReference final : public ReferenceRaster {
  public:
   /// Throws core::Error (invalid input) unless `image` is a non-empty CV_8UC1 and mm_per_px > 0.
   ImageReference(cv::Mat image, const core::Pose2& world_from_camera, double mm_per_px);
+  /// The same with the image's 2x2 area average already made (cv::resize with INTER_AREA to
+  /// half the size, as detail::HalveImage makes it): Coarser() then takes it instead. An empty
+  /// `half` is the other constructor; one of another size or type throws core::Error.
+  ImageReference(cv::Mat image, const core::Pose2& world_from_camera, double mm_per_px, cv::Mat half);
   Eigen::Matrix<double, 2, 3> RasterToWorld() const override;
   using ReferenceRaster::Region;
   void Region(std::int64_t col0, std::int64_t row0, int cols, int rows, cv::Mat& store,
               mosaic::RasterPatch* patch) const override;
-  /// Built on each call (a 2x2 area average of the image).
+  /// The half image given, or built on each call (a 2x2 area average of the image).
   std::unique_ptr<const ReferenceRaster> Coarser() const override;
 
  private:
   ImageReference(cv::Mat image, const Eigen::Matrix<double, 2, 3>& raster_to_world);
   cv::Mat image_;
+  cv::Mat half_;  ///< empty unless given
   Eigen::Matrix<double, 2, 3> raster_to_world_;
 };
 

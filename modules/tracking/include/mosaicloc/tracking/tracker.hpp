@@ -90,6 +90,15 @@ struct TrackResult {
   std::vector<TemplateReport> templates;
 };
 
+/// A frame made ready to be registered more than once (against its predecessor, its keyframe)
+/// and to be the reference of later frames: its 2x2 average and its templates, made once
+/// (Tracker::Prepare).
+struct PreparedFrame {
+  cv::Mat image;
+  cv::Mat half;
+  std::vector<TemplateSpot> spots;
+};
+
 /// Registers a live ideal frame against a reference raster (the map, or a previous frame):
 /// templates where the frame is textured, a ZNCC search for each around its predicted place,
 /// sub-pixel refinement, and a robust planar pose solve. Const: one Tracker may serve several
@@ -105,6 +114,12 @@ class Tracker {
   /// says why.
   TrackResult Track(const cv::Mat& frame, const core::Pose2& prior, const Eigen::Matrix3d& prior_covariance,
                     const ReferenceRaster& reference, double prior_scale = 1.0) const;
+  /// The same for a frame this tracker prepared (or one with the same template options).
+  TrackResult Track(const PreparedFrame& frame, const core::Pose2& prior, const Eigen::Matrix3d& prior_covariance,
+                    const ReferenceRaster& reference, double prior_scale = 1.0) const;
+  /// The frame's half image and templates, as Track makes them; none for a frame Track would
+  /// refuse (empty, or not this camera's 8-bit size), which Track then refuses as before.
+  PreparedFrame Prepare(const cv::Mat& frame) const;
 
   const camera::IdealCamera& camera() const { return camera_; }
   const TrackerOptions& options() const { return options_; }
@@ -126,6 +141,10 @@ struct FrameLink {
 /// Frame-to-frame visual odometry with the same matcher: the previous frame is the reference.
 /// Returns previous_from_current as the result's world_from_camera.
 TrackResult RegisterFrames(const Tracker& tracker, const cv::Mat& previous, const cv::Mat& current,
+                           const core::Pose2& prior_previous_from_current, const Eigen::Matrix3d& prior_covariance);
+/// The same for frames the tracker prepared: the same result, without making either frame's
+/// half image or the current frame's templates again.
+TrackResult RegisterFrames(const Tracker& tracker, const PreparedFrame& previous, const PreparedFrame& current,
                            const core::Pose2& prior_previous_from_current, const Eigen::Matrix3d& prior_covariance);
 
 }  // namespace mosaicloc::tracking
