@@ -425,7 +425,9 @@ MappingResult MapPoses(const MappingInput& input, const MapperOptions& options,
     observations.reserve(views.size());
     for (const auto& [edge, o] : views) observations.push_back(o);
     const double height_mm = options.tracker.solver.camera_height_mm;
-    result.view = SolveViewGeometry(observations, n, camera, height_mm, options.geometry);
+    std::vector<int> drive_starts;
+    for (const LaterDrive& later : input.later_drives) drive_starts.push_back(later.first);
+    result.view = SolveViewGeometry(observations, n, camera, height_mm, options.geometry, drive_starts);
     for (const auto& [edge, o] : views) {
       PoseGraphEdge& e = graph.edges[edge];
       e.from_T_to = CorrectRegistration(e.from_T_to, o, result.view, camera, height_mm);

@@ -99,7 +99,7 @@ constexpr int kHeightLag = 20;
 // The least-squares solution from `observations` (see SolveViewGeometry); none when the solve
 // fails (it cannot with the priors).
 std::optional<Eigen::VectorXd> Solve(const std::vector<const ViewObservation*>& observations, int frames, double h,
-                                     const ViewGeometryOptions& options) {
+                                     const ViewGeometryOptions& options, const std::vector<char>& starts_drive) {
   const auto height_at = HeightAt;
   const auto tilt_at = [frames](int i, int axis) { return TiltAt(frames, i, axis); };
   const int unknowns = 3 * frames;
@@ -140,7 +140,7 @@ std::optional<Eigen::VectorXd> Solve(const std::vector<const ViewObservation*>& 
       add({{height_at(i), 1.0}}, 0.0, options.height_prior_sigma);
       add({{tilt_at(i, 0), 1.0}}, 0.0, options.tilt_prior_sigma_rad);
       add({{tilt_at(i, 1), 1.0}}, 0.0, options.tilt_prior_sigma_rad);
-      if (i == 0) continue;
+      if (i == 0 || starts_drive[static_cast<std::size_t>(i)]) continue;
       add({{height_at(i), 1.0}, {height_at(i - 1), -1.0}}, 0.0, options.height_step_sigma);
       add({{tilt_at(i, 0), 1.0}, {tilt_at(i - 1, 0), -1.0}}, 0.0, options.tilt_step_sigma_rad);
       add({{tilt_at(i, 1), 1.0}, {tilt_at(i - 1, 1), -1.0}}, 0.0, options.tilt_step_sigma_rad);
@@ -202,7 +202,7 @@ double Agreement(const Eigen::VectorXd& a, const Eigen::VectorXd& b, int first, 
 
 ViewGeometry SolveViewGeometry(const std::vector<ViewObservation>& observations, int frames,
                                const camera::IdealCamera& camera, double camera_height_mm,
-                               const ViewGeometryOptions& options) {
+                               const ViewGeometryOptions& options, const std::vector<int>& drive_starts) {
   std::string why;
   if (!options.Check(&why)) core::ThrowInvalidInput(why);
   if (!(camera_height_mm > 0.0)) core::ThrowInvalidInput("view geometry: the camera height must be positive");
@@ -211,19 +211,23 @@ ViewGeometry SolveViewGeometry(const std::vector<ViewObservation>& observations,
   geometry.tilt.assign(static_cast<std::size_t>(std::max(frames, 0)), Eigen::Vector2d::Zero());
   if (frames <= 0) return geometry;
   const double h = camera_height_mm / camera.mm_per_px();
+  std::vector<char> starts_drive(static_cast<std::size_t>(frames), 0);
+  for (const int first : drive_starts) {
+    if (first >= 0 && first < frames) starts_drive[static_cast<std::size_t>(first)] = 1;
+  }
   std::vector<const ViewObservation*> all, consecutive, longer;
   for (const ViewObservation& o : observations) {
     all.push_back(&o);
     (o.later == o.earlier + 1 ? consecutive : longer).push_back(&o);
   }
-  const std::optional<Eigen::VectorXd> x = Solve(all, frames, h, options);
+  const std::optional<Eigen::VectorXd> x = Solve(all, frames, h, options, starts_drive);
   if (!x) return geometry;  // keep the calibrated height and no tilt
   // Is there anything to correct? The registrations to the previous frame and the longer ones
   // (keyframes, loops) measure the same floor with errors of their own: where the two solutions
   // agree, the floor's height and tilt show; on a flat floor they are noise that would only bend
   // the map, and what a frame's templates bias alike in both is not common enough to agree.
-  const std::optional<Eigen::VectorXd> a = Solve(consecutive, frames, h, options);
-  const std::optional<Eigen::VectorXd> b = Solve(longer, frames, h, options);
+  const std::optional<Eigen::VectorXd> a = Solve(consecutive, frames, h, options, starts_drive);
+  const std::optional<Eigen::VectorXd> b = Solve(longer, frames, h, options, starts_drive);
   if (a && b) {
     geometry.height_agreement = Agreement(*a, *b, HeightAt(0), 1, frames, kHeightLag);
     geometry.tilt_agreement = Eigen::Vector2d(Agreement(*a, *b, TiltAt(frames, 0, 0), 2, frames),

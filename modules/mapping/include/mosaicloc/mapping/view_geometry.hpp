@@ -72,10 +72,11 @@ struct ViewGeometry {
 /// Solves every frame's log-height and tilt from the observations (linear least squares: each
 /// observation's scale and trace-free part, the frames' smoothness and the priors), and keeps
 /// each only where it shows (ViewGeometry's agreements).
-/// `camera_height_mm`: the calibrated height (the tracker's solver.camera_height_mm).
+/// `camera_height_mm`: the calibrated height (the tracker's solver.camera_height_mm);
+/// `drive_starts`: frames that begin a later drive, not tied to the frame before them.
 ViewGeometry SolveViewGeometry(const std::vector<ViewObservation>& observations, int frames,
                                const camera::IdealCamera& camera, double camera_height_mm,
-                               const ViewGeometryOptions& options);
+                               const ViewGeometryOptions& options, const std::vector<int>& drive_starts = {});
 
 /// `earlier_T_later` (a registration, camera frames, mm) corrected for the earlier frame's
 /// height and tilt: its step scaled by the height, its yaw rid of the tilt's bias
