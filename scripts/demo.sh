@@ -53,4 +53,4 @@ echo
 echo "Report: $(pwd)/$OUT/report/index.html (the page to share; beside it metrics.json, estimate.tum,"
 echo "        fixes.csv, map_state.png, map_quality.png, map_mode.png, timelines.png, trajectory.png,"
 echo "        position_error.png, heading_error.png, map.png); dead reckoning: $(pwd)/$OUT/dead-reckoning;"
-echo "        the map's consistency: $(pwd)/$OUT/consistency (consistency.json, loops.csv, seams.csv, residuals.png)"
+echo "        the map's consistency: $(pwd)/$OUT/consistency (consistency.json, loops.csv, seams.csv, path.csv, view.csv, residuals.png)"
