@@ -1,7 +1,6 @@
 #include "report.hpp"
 
 #include <cstdio>
-#include <fstream>
 #include <map>
 #include <optional>
 #include <string>
@@ -15,9 +14,8 @@ void PrintJson(const nlohmann::json& result) { std::printf("%s\n", result.dump(2
 
 void PrintMetrics(const std::filesystem::path& directory, const dataset::Metrics& metrics, bool json) {
   if (json) {
-    std::ifstream in(directory / "metrics.json");
-    const nlohmann::json parsed = nlohmann::json::parse(in);
-    nlohmann::json result = {{"report", std::filesystem::absolute(directory).string()}, {"metrics", parsed}};
+    nlohmann::json result = {{"report", std::filesystem::absolute(directory).string()},
+                             {"metrics", nlohmann::json(dataset::MetricsJson(metrics))}};
     PrintJson(result);
     return;
   }

@@ -334,7 +334,7 @@ Metrics WithEvaluation(Metrics metrics, const Metrics& evaluated) {
   return metrics;
 }
 
-void WriteMetricsJson(const std::filesystem::path& file, const Metrics& metrics) {
+nlohmann::ordered_json MetricsJson(const Metrics& metrics) {
   nlohmann::ordered_json json = nlohmann::ordered_json::object();
   json["frames"] = ToJson(metrics.frames);
   json["fixes"] = ToJson(metrics.fixes);
@@ -432,7 +432,11 @@ void WriteMetricsJson(const std::filesystem::path& file, const Metrics& metrics)
   json["revisit_places"] = ToJson(metrics.revisit_places);
   json["revisit_visits"] = ToJson(metrics.revisit_visits);
   json["revisit_failures"] = ToJson(metrics.revisit_failures);
-  core::WriteFileAtomically(file, json.dump(2) + "\n");
+  return json;
+}
+
+void WriteMetricsJson(const std::filesystem::path& file, const Metrics& metrics) {
+  core::WriteFileAtomically(file, MetricsJson(metrics).dump(2) + "\n");
 }
 
 }  // namespace mosaicloc::dataset

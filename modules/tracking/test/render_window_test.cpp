@@ -58,6 +58,13 @@ TEST(Reference, RenderWindowVectorBuildsAgreeExactly) {
   }
 }
 
+// The bilinear value of `image` at raster point r, whose pixel (ix, iy) is the top-left of the four.
+double Bilinear(const cv::Mat& image, const Eigen::Vector2d& r, int ix, int iy) {
+  const double fx = r.x() - ix, fy = r.y() - iy;
+  return (1 - fy) * ((1 - fx) * image.at<std::uint8_t>(iy, ix) + fx * image.at<std::uint8_t>(iy, ix + 1)) +
+         fy * ((1 - fx) * image.at<std::uint8_t>(iy + 1, ix) + fx * image.at<std::uint8_t>(iy + 1, ix + 1));
+}
+
 // Inside the reference (the unchecked path) and across its edge (the checked one) the window
 // is the same bilinear interpolation, rounded, as written out here.
 TEST(Reference, RenderWindowIsBilinearInsideAndAcrossTheEdge) {
@@ -80,10 +87,7 @@ TEST(Reference, RenderWindowIsBilinearInsideAndAcrossTheEdge) {
         wrong += mask.at<std::uint8_t>(y, x) != (inside ? 255 : 0) ? 1 : 0;
         if (!inside) continue;
         ++known;
-        const double fx = r.x() - ix, fy = r.y() - iy;
-        const double v = (1 - fy) * ((1 - fx) * image.at<std::uint8_t>(iy, ix) + fx * image.at<std::uint8_t>(iy, ix + 1)) +
-                         fy * ((1 - fx) * image.at<std::uint8_t>(iy + 1, ix) + fx * image.at<std::uint8_t>(iy + 1, ix + 1));
-        wrong += std::abs(window.at<std::uint8_t>(y, x) - v) > 0.5 + 1e-9 ? 1 : 0;
+        wrong += std::abs(window.at<std::uint8_t>(y, x) - Bilinear(image, r, ix, iy)) > 0.5 + 1e-9 ? 1 : 0;
       }
     }
     return std::pair<int, int>(known, wrong);
@@ -156,10 +160,7 @@ TEST(Reference, RenderWindowOverHolesKnowsExactlyTheSamplesWithFourMappedSources
           continue;
         }
         ++mapped;
-        const double fx = r.x() - ix, fy = r.y() - iy;
-        const double v = (1 - fy) * ((1 - fx) * image.at<std::uint8_t>(iy, ix) + fx * image.at<std::uint8_t>(iy, ix + 1)) +
-                         fy * ((1 - fx) * image.at<std::uint8_t>(iy + 1, ix) + fx * image.at<std::uint8_t>(iy + 1, ix + 1));
-        wrong += std::abs(window.at<std::uint8_t>(y, x) - v) > 0.5 + 1e-9 ? 1 : 0;
+        wrong += std::abs(window.at<std::uint8_t>(y, x) - Bilinear(image, r, ix, iy)) > 0.5 + 1e-9 ? 1 : 0;
       }
     }
     EXPECT_GT(mapped, size.area() / 2);

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <nlohmann/json.hpp>
 
 #include "mosaicloc/core/pose2.hpp"
 #include "mosaicloc/core/timestamp.hpp"
@@ -228,8 +229,10 @@ struct PlaceSpread {
 };
 std::optional<PlaceSpread> SpreadAtPlaces(const std::vector<std::vector<Eigen::Vector2d>>& errors);
 
-/// Writes metrics.json: an object with every design.md section 4 key in that order, null where
-/// unknown, then the extras; pretty-printed, written atomically (temporary file, then rename).
+/// metrics.json's object: every design.md section 4 key in that order, null where unknown, then
+/// the extras.
+nlohmann::ordered_json MetricsJson(const Metrics& metrics);
+/// Writes metrics.json (MetricsJson), pretty-printed, atomically (temporary file, then rename).
 /// Throws core::Error (runtime) if writing fails.
 void WriteMetricsJson(const std::filesystem::path& file, const Metrics& metrics);
 
