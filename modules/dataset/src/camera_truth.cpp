@@ -3,6 +3,7 @@
 #include <cmath>
 #include <fstream>
 #include <limits>
+#include <unordered_map>
 
 #include <fmt/format.h>
 
@@ -56,6 +57,20 @@ std::vector<CameraTruthSample> ReadCameraTruth(const std::filesystem::path& file
     samples.push_back(sample);
   }
   return samples;
+}
+
+Trajectory ViewPoses(const Trajectory& world_from_vehicle, const std::vector<CameraTruthSample>& views) {
+  std::unordered_map<std::int64_t, Eigen::Vector2d> offsets;
+  offsets.reserve(views.size());
+  for (const CameraTruthSample& view : views) offsets.emplace(view.time.nanoseconds(), view.truth.centre_offset_mm);
+  Trajectory moved = world_from_vehicle;
+  for (StampedPose& sample : moved) {
+    const auto it = offsets.find(sample.time.nanoseconds());
+    if (it == offsets.end()) continue;
+    const core::Pose2& pose = sample.world_from_vehicle;
+    sample.world_from_vehicle = core::Pose2(pose.translation_mm() + pose.Rotation() * it->second, pose.yaw_rad());
+  }
+  return moved;
 }
 
 }  // namespace mosaicloc::dataset

@@ -6,6 +6,7 @@
 #include <map>
 #include <set>
 
+#include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -26,9 +27,23 @@ MapBuilder::MapBuilder(const MapGrid& grid, Blend blend) : grid_(grid), blend_(b
   if (!grid_.Check(&why)) core::ThrowInvalidInput("map grid: " + why);
 }
 
-void MapBuilder::AddFrame(const cv::Mat& image, const core::Pose2& world_from_camera, double mm_per_px) {
+void MapBuilder::Pad(const cv::Mat& image) {
   if (image.type() != CV_8UC1 || image.empty()) core::ThrowInvalidInput("map builder: frames must be 8-bit grey");
   ++frames_;
+  cv::copyMakeBorder(image, padded_, internal::kPaintBorderPx, internal::kPaintBorderPx, internal::kPaintBorderPx,
+                     internal::kPaintBorderPx, cv::BORDER_REPLICATE);
+}
+
+MapBuilder::Accumulator& MapBuilder::Tile(std::int64_t tc, std::int64_t tr) {
+  const std::int64_t t = grid_.tile_size_px;
+  auto [it, inserted] = accumulators_.try_emplace(TileKey{0, tc, tr});
+  if (inserted) it->second = cv::Mat::zeros(static_cast<int>(t), static_cast<int>(t), CV_32FC2);
+  changed_.insert(it->first);
+  return it->second;
+}
+
+void MapBuilder::AddFrame(const cv::Mat& image, const core::Pose2& world_from_camera, double mm_per_px) {
+  Pad(image);
   // Each map pixel takes the frame's bicubic (Catmull-Rom) value at its centre (in float) and
   // the frame's tent weight evaluated there (internal::PaintRow). Bicubic, not bilinear: the map is
   // rendered by a second (bilinear) interpolation, and two bilinear passes blur pixel-scale
@@ -38,8 +53,6 @@ void MapBuilder::AddFrame(const cv::Mat& image, const core::Pose2& world_from_ca
   // centres, and a map that stops at the edge leaves the view an unmapped rim wherever no
   // other frame reaches (round trip, worst frame: asphalt 0.9930 and brick 0.9917 with the
   // tent ending at the edge, 0.9977 and 0.9985 with it half a pixel beyond).
-  cv::copyMakeBorder(image, padded_, internal::kPaintBorderPx, internal::kPaintBorderPx, internal::kPaintBorderPx,
-                     internal::kPaintBorderPx, cv::BORDER_REPLICATE);
   const internal::PaintSource source{padded_.ptr<std::uint8_t>(internal::kPaintBorderPx) + internal::kPaintBorderPx,
                                      static_cast<std::ptrdiff_t>(padded_.step[0]), image.cols, image.rows};
 
@@ -97,19 +110,87 @@ void MapBuilder::AddFrame(const cv::Mat& image, const core::Pose2& world_from_ca
       const std::int64_t x1 = std::min(c1 + 1, (tc + 1) * t);
       const std::int64_t y1 = std::min(r1 + 1, (tr + 1) * t);
       if (x1 <= x0 || y1 <= y0) continue;
-      auto [it, inserted] = accumulators_.try_emplace(TileKey{0, tc, tr});
-      if (inserted) it->second = cv::Mat::zeros(static_cast<int>(t), static_cast<int>(t), CV_32FC2);
-      changed_.insert(it->first);
+      Accumulator& tile = Tile(tc, tr);
       for (std::int64_t row = y0; row < y1; ++row) {
         // Frame position of raster (x, row) = offset + linear (x, row).
         const double u_row = offset.x() + linear(0, 1) * static_cast<double>(row);
         const double v_row = offset.y() + linear(1, 1) * static_cast<double>(row);
         const auto [from, to] = columns_inside(u_row, v_row, x0, x1 - 1);
         if (to < from) continue;
-        auto* pairs = it->second.ptr<float>(static_cast<int>(row - tr * t)) + 2 * (from - tc * t);
+        auto* pairs = tile.ptr<float>(static_cast<int>(row - tr * t)) + 2 * (from - tc * t);
         internal::PaintRow(source, u_row + linear(0, 0) * static_cast<double>(from),
                            v_row + linear(1, 0) * static_cast<double>(from), linear(0, 0), linear(1, 0),
                            static_cast<int>(to - from + 1), pairs, blend_ == Blend::kBestView);
+      }
+    }
+  }
+}
+
+void MapBuilder::AddFrame(const cv::Mat& image, const core::Pose2& world_from_view, double mm_per_px,
+                          double focal_px, double tilt_x_rad, double tilt_y_rad) {
+  if (tilt_x_rad == 0.0 && tilt_y_rad == 0.0) return AddFrame(image, world_from_view, mm_per_px);
+  if (!(std::abs(tilt_x_rad) < 0.5 && std::abs(tilt_y_rad) < 0.5) || !(focal_px > 0.0)) {
+    core::ThrowInvalidInput("map builder: a tilted camera needs a focal length > 0 and a tilt within 0.5 rad");
+  }
+  Pad(image);
+  const internal::PaintSource source{padded_.ptr<std::uint8_t>(internal::kPaintBorderPx) + internal::kPaintBorderPx,
+                                     static_cast<std::ptrdiff_t>(padded_.step[0]), image.cols, image.rows};
+  // In camera axes (x right, y up the image, z back to the lens), pixel (u, v) is the ray
+  // d = (u - cx, -(v - cy), -f) and the floor the points P with n.P = -h, h = mm_per_px f. Q
+  // turns n onto z: in its axes the floor is z = -h and (x, y) are floor millimetres, the
+  // optical axis's foot q0 where world_from_view puts the view's centre.
+  const Eigen::Vector3d n = Eigen::Vector3d(-std::tan(tilt_y_rad), std::tan(tilt_x_rad), 1.0).normalized();
+  const Eigen::Matrix3d q = Eigen::Quaterniond::FromTwoVectors(n, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const double h = mm_per_px * focal_px;
+  const Eigen::Vector2d q0 = (q * Eigen::Vector3d(0.0, 0.0, -h / n.z())).head<2>();
+  const double cx = 0.5 * (image.cols - 1);
+  const double cy = 0.5 * (image.rows - 1);
+  // Level-0 raster (c, r) -> world -> view's floor axes -> camera -> (u w, v w, w), linear in (c, r, 1).
+  const double res = grid_.mm_per_px;
+  const Eigen::Matrix2d view_from_world = world_from_view.Rotation().transpose();
+  const Eigen::Vector2d world00(grid_.origin_x_mm + 0.5 * res, grid_.origin_y_mm - 0.5 * res);
+  Eigen::Matrix<double, 3, 3> floor_from_raster;  // columns: per c, per r, at (0, 0)
+  floor_from_raster.block<2, 1>(0, 0) = view_from_world * Eigen::Vector2d(res, 0.0);
+  floor_from_raster.block<2, 1>(0, 1) = view_from_world * Eigen::Vector2d(0.0, -res);
+  floor_from_raster.block<2, 1>(0, 2) = view_from_world * (world00 - world_from_view.translation_mm()) + q0;
+  floor_from_raster.row(2) << 0.0, 0.0, -h;
+  const Eigen::Matrix3d camera_from_raster = q.transpose() * floor_from_raster;
+  Eigen::Matrix3d image_from_camera;  // (u w, v w, w) from camera P, w = -P.z
+  image_from_camera << focal_px, 0.0, -cx, 0.0, -focal_px, -cy, 0.0, 0.0, -1.0;
+  const Eigen::Matrix3d image_from_raster = image_from_camera * camera_from_raster;
+
+  // Footprint: the frame's corners (a pixel beyond, where the weight ends) through the inverse.
+  const Eigen::Matrix3d raster_from_image = image_from_raster.inverse();
+  double min_c = 1e300, min_r = 1e300, max_c = -1e300, max_r = -1e300;
+  for (const double u : {-1.0, static_cast<double>(image.cols)}) {
+    for (const double v : {-1.0, static_cast<double>(image.rows)}) {
+      const Eigen::Vector3d raster = raster_from_image * Eigen::Vector3d(u, v, 1.0);
+      if (!(raster.z() > 0.0)) core::ThrowInvalidInput("map builder: the tilted camera does not see the floor whole");
+      min_c = std::min(min_c, raster.x() / raster.z());
+      max_c = std::max(max_c, raster.x() / raster.z());
+      min_r = std::min(min_r, raster.y() / raster.z());
+      max_r = std::max(max_r, raster.y() / raster.z());
+    }
+  }
+  const auto c0 = static_cast<std::int64_t>(std::floor(min_c));
+  const auto c1 = static_cast<std::int64_t>(std::ceil(max_c));
+  const auto r0 = static_cast<std::int64_t>(std::floor(min_r));
+  const auto r1 = static_cast<std::int64_t>(std::ceil(max_r));
+  const std::int64_t t = grid_.tile_size_px;
+  for (std::int64_t tr = FloorDiv(r0, t); tr <= FloorDiv(r1, t); ++tr) {
+    for (std::int64_t tc = FloorDiv(c0, t); tc <= FloorDiv(c1, t); ++tc) {
+      const std::int64_t x0 = std::max(c0, tc * t);
+      const std::int64_t y0 = std::max(r0, tr * t);
+      const std::int64_t x1 = std::min(c1 + 1, (tc + 1) * t);
+      const std::int64_t y1 = std::min(r1 + 1, (tr + 1) * t);
+      if (x1 <= x0 || y1 <= y0) continue;
+      Accumulator& tile = Tile(tc, tr);
+      for (std::int64_t row = y0; row < y1; ++row) {
+        const Eigen::Vector3d start = image_from_raster * Eigen::Vector3d(static_cast<double>(x0), static_cast<double>(row), 1.0);
+        const Eigen::Vector3d step = image_from_raster.col(0);
+        internal::PaintRowProjective(source, start.x(), start.y(), start.z(), step.x(), step.y(), step.z(),
+                                     static_cast<int>(x1 - x0), tile.ptr<float>(static_cast<int>(row - tr * t)) + 2 * (x0 - tc * t),
+                                     blend_ == Blend::kBestView);
       }
     }
   }

@@ -158,4 +158,14 @@ void PaintRow(const PaintSource& source, double u0, double v0, double du, double
   }
 }
 
+void PaintRowProjective(const PaintSource& source, double u0, double v0, double w0, double du, double dv, double dw,
+                        int count, float* accumulator, bool best_view) {
+  for (int i = 0; i < count; ++i) {
+    const double w = w0 + dw * i;
+    if (!(w > 0.0)) continue;
+    PaintPixel(source, static_cast<float>((u0 + du * i) / w), static_cast<float>((v0 + dv * i) / w),
+               accumulator + 2 * i, best_view);
+  }
+}
+
 }  // namespace mosaicloc::mosaic::internal

@@ -2,10 +2,12 @@
 
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <numbers>
 
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/log.hpp"
+#include "mosaicloc/dataset/camera_truth.hpp"
 #include "mosaicloc/estimation/odometry.hpp"
 #include "mosaicloc/runtime/settings.hpp"
 
@@ -14,6 +16,35 @@ namespace mosaicloc::runtime {
 camera::IdealCamera CameraOf(const dataset::DatasetInfo& info) {
   return camera::IdealCamera(
       camera::IdealCameraOptions{info.camera.width_px, info.camera.height_px, info.camera.mm_per_px});
+}
+
+std::optional<double> CalibratedHeightMm(const std::filesystem::path& dataset, const dataset::DatasetInfo& info) {
+  const auto calibrated = info.provenance.find("camera_height_mm");
+  if (calibrated == info.provenance.end()) return std::nullopt;
+  char* end = nullptr;
+  const double height_mm = std::strtod(calibrated->second.c_str(), &end);
+  if (end == calibrated->second.c_str() || *end != '\0' || !(height_mm > 0.0)) {
+    core::ThrowInvalidInput(dataset.string() + ": provenance camera_height_mm '" + calibrated->second +
+                            "' is not a positive number");
+  }
+  return height_mm;
+}
+
+ViewTruth ViewTruthOf(const std::filesystem::path& dataset, const dataset::DatasetReader& reader) {
+  ViewTruth truth{reader.GroundTruth(), {}};
+  const std::filesystem::path file = dataset / dataset::kCameraTruthFile;
+  const std::optional<double> calibrated_mm = CalibratedHeightMm(dataset, reader.info());
+  std::error_code ec;
+  if (!calibrated_mm || !std::filesystem::exists(file, ec)) return truth;
+  const std::vector<dataset::CameraTruthSample> views = dataset::ReadCameraTruth(file);
+  truth.world_from_vehicle = dataset::ViewPoses(truth.world_from_vehicle, views);
+  truth.focal_px = *calibrated_mm / reader.info().camera.mm_per_px;
+  truth.views.reserve(views.size());
+  for (const dataset::CameraTruthSample& view : views) {
+    truth.views.emplace(view.time.nanoseconds(), ViewTruth::View{view.truth.height_mm / *calibrated_mm,
+                                                                 view.truth.tilt_x_rad, view.truth.tilt_y_rad});
+  }
+  return truth;
 }
 
 core::Pose2 StartPose(const std::optional<dataset::Trajectory>& groundtruth, const dataset::DatasetInfo& info,

@@ -15,15 +15,18 @@
 #include <numeric>
 #include <limits>
 #include <sstream>
+#include <unordered_map>
 
 #include <opencv2/imgcodecs.hpp>
 
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/file.hpp"
+#include "mosaicloc/dataset/camera_truth.hpp"
 #include "mosaicloc/dataset/dataset.hpp"
 #include "mosaicloc/mosaic/build_checkpoint.hpp"
 #include "mosaicloc/mosaic/builder.hpp"
 #include "mosaicloc/mosaic/renderer.hpp"
+#include "mosaicloc/runtime/drive.hpp"
 #include "mosaicloc/tracking/place_index.hpp"
 #include "mosaicloc/tracking/reference.hpp"
 #include "mosaicloc/tracking/relocalize.hpp"
@@ -104,11 +107,23 @@ MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(d
   const double painting_from = estimate ? 0.5 : 0.0;
   std::vector<fs::path> poses_files;
   std::vector<dataset::Trajectory> poses;
+  // At the ground truth each frame is painted as its camera saw the floor, where the simulator
+  // recorded it: a tilted camera looks beside its mounting point and at a slant, and a camera
+  // higher than calibrated shows more floor per pixel.
+  std::vector<std::unordered_map<std::int64_t, ViewTruth::View>> views(datasets.size());
+  std::vector<double> focal_px(datasets.size(), 0.0);
   for (std::size_t d = 0; d < datasets.size(); ++d) {
     poses_files.push_back(groundtruth ? datasets[d] / "groundtruth" / "data.tum"
                           : estimate  ? DrivePath(estimated_file, static_cast<int>(d) + 1)
                                       : fs::path(args.poses));
-    poses.push_back(groundtruth ? readers[d]->GroundTruth() : dataset::ReadTum(poses_files.back()));
+    if (groundtruth) {
+      ViewTruth truth = ViewTruthOf(datasets[d], *readers[d]);
+      poses.push_back(std::move(truth.world_from_vehicle));
+      views[d] = std::move(truth.views);
+      focal_px[d] = truth.focal_px;
+    } else {
+      poses.push_back(dataset::ReadTum(poses_files.back()));
+    }
   }
   mosaic::MapGrid grid;
   grid.mm_per_px = info.camera.mm_per_px;
@@ -133,6 +148,7 @@ MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(d
     identity["frame_list_crc32" + suffix] = FileCrc(datasets[d] / "cam0" / "data.csv");
     identity["dataset_yaml_crc32" + suffix] = FileCrc(datasets[d] / "dataset.yaml");
     identity["poses_crc32" + suffix] = FileCrc(poses_files[d]);
+    if (!views[d].empty()) identity["views_crc32" + suffix] = FileCrc(datasets[d] / dataset::kCameraTruthFile);
   }
   std::unique_ptr<mosaic::BuildCheckpoint> checkpoint;
   std::int64_t painted = 0;
@@ -173,7 +189,10 @@ MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(d
     while (const auto frame = frames.Next()) {
       const auto pose = dataset::PoseAt(poses[d], frame->time, std::chrono::milliseconds(100));
       if (pose) {
-        builder.AddFrame(frame->image, *pose * camera.vehicle_from_camera, camera.mm_per_px);
+        const auto found = views[d].find(frame->time.nanoseconds());
+        const ViewTruth::View view = found == views[d].end() ? ViewTruth::View{} : found->second;
+        builder.AddFrame(frame->image, *pose * camera.vehicle_from_camera, camera.mm_per_px * view.scale,
+                         focal_px[d], view.tilt_x_rad, view.tilt_y_rad);
         ++painted;
       } else {
         ++skipped;

@@ -293,7 +293,9 @@ MapPosesSummary EstimateMapPoses(const MapPosesOptions& options, const std::vect
       core::ThrowInvalidInput(datasets[d].string() + ": its camera (size, mm_per_px or mounting) is not " +
                               datasets[0].string() + "'s: drives mapped together must share one camera");
     }
-    truths.push_back(GroundTruthOf(reader));
+    // The registrations measure where the camera looked: the truth they are held against is that.
+    truths.push_back(reader.HasGroundTruth() ? std::optional(ViewTruthOf(datasets[d], reader).world_from_vehicle)
+                                             : std::nullopt);
     std::int64_t rejected = 0;
     const dataset::Trajectory wheels = WheelTrajectory(reader, core::Pose2::Identity(), &rejected);
     summary.encoder_samples_rejected += rejected;

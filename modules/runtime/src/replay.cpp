@@ -204,24 +204,10 @@ class ReplayRecord {
  private:
   // The camera's height the localizer held (its image scale times the calibrated height)
   // against the simulator's truth, when the dataset records both: metrics and height.png.
-  // The camera's calibrated height over the floor the dataset notes (provenance
-  // camera_height_mm), if it does; a note that is not a positive number is invalid input.
-  static std::optional<double> CalibratedHeightMm(const ReplayOptions& options, const dataset::DatasetInfo& info) {
-    const auto calibrated = info.provenance.find("camera_height_mm");
-    if (calibrated == info.provenance.end()) return std::nullopt;
-    char* end = nullptr;
-    const double height_mm = std::strtod(calibrated->second.c_str(), &end);
-    if (end == calibrated->second.c_str() || *end != '\0' || !(height_mm > 0.0)) {
-      core::ThrowInvalidInput(options.dataset.string() + ": provenance camera_height_mm '" + calibrated->second +
-                              "' is not a positive number");
-    }
-    return height_mm;
-  }
-
   void CheckHeight(const ReplayOptions& options, const dataset::DatasetInfo& info, const std::string& title,
                    dataset::Metrics* metrics) const {
     const std::filesystem::path file = options.dataset / dataset::kCameraTruthFile;
-    const std::optional<double> calibrated_mm = CalibratedHeightMm(options, info);
+    const std::optional<double> calibrated_mm = CalibratedHeightMm(options.dataset, info);
     std::error_code ec;
     if (!calibrated_mm || !std::filesystem::exists(file, ec) || reports_.empty()) return;
     const double height_mm = *calibrated_mm;
@@ -278,7 +264,7 @@ class ReplayRecord {
   void WriteTruthFreePlots(const ReplayOptions& options, const dataset::DatasetInfo& info, const std::string& heading) {
     const bool scale_held = std::any_of(reports_.begin(), reports_.end(),
                                         [](const dataset::FrameReport& r) { return r.scale != 1.0; });
-    const double height_mm = scale_held ? CalibratedHeightMm(options, info).value_or(kNaN) : kNaN;
+    const double height_mm = scale_held ? CalibratedHeightMm(options.dataset, info).value_or(kNaN) : kNaN;
     std::vector<dataset::TimelineSample> timeline;
     timeline.reserve(reports_.size());
     for (std::size_t i = 0; i < reports_.size(); ++i) {

@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include "mosaicloc/runtime/map_jobs.hpp"
 #include "straight_drive_replay.hpp"
 
 namespace mosaicloc::runtime {
@@ -42,6 +43,44 @@ TEST_F(RealFloorTest, ATiltingBodysLeverIsTakenOutOfTheFixes) {
   ASSERT_TRUE(m.height_error_rms_mm) << "the simulator recorded the camera's height";
   EXPECT_LT(*m.height_error_rms_mm, 0.05);
   EXPECT_TRUE(std::filesystem::exists(tilted.report / "height.png"));
+}
+
+// The same body maps the floor too: its mapping run (0.5 m/s) starts and stops at 1 m/s^2, so
+// while it does its camera looks at floor 0.9 mm beside its mounting point. Painted at the
+// mounting point's true poses the map holds that floor 0.9 mm out of place, and the drive's
+// fixes, lever and all taken out, land there; painted as the camera saw the floor (map build at
+// the ground truth, which reads the view the simulator recorded: where the optical axis met the
+// floor, the height and the slant), the map is where the floor is.
+TEST_F(RealFloorTest, AMapIsPaintedAtTheGroundTruthWhereItsCameraLooked) {
+  sim::SimulatorOptions mapping = Run(false);
+  mapping.suspension.pitch_deg_per_mps2 = 0.5;
+  mapping.suspension.pivot_height_mm = 100.0;
+  sim::Simulate(mapping, scratch_->path() / "tilting-map-run", false);
+  sim::SimulatorOptions drive = Run(true);
+  drive.seed = 10;
+  drive.suspension = mapping.suspension;
+  sim::Simulate(drive, scratch_->path() / "tilting-both", false);
+
+  ReplayOptions options = Options(ReplayMode::kMosaic, "looked-at-mount", "tilting-both");
+  options.settings.localizer.tracker.templates.count = 12;
+  options.settings.localizer.tracker.solver.estimate_tilt = true;
+  options.settings.localizer.tilt_pivot_height_mm = 100.0;
+  options.map = scratch_->path() / "tilting-mount.mosaic";
+  PaintAtTruth(scratch_->path() / "tilting-map-run", options.map);
+  const ReplaySummary at_mount = Replay(options);
+  ASSERT_TRUE(at_mount.metrics.position_max_mm && at_mount.metrics.position_rms_mm);
+  std::printf("painted at the mounting point: position %.4f / %.4f mm RMS / max\n", *at_mount.metrics.position_rms_mm,
+              *at_mount.metrics.position_max_mm);
+  EXPECT_GT(*at_mount.metrics.position_max_mm, 0.3) << "the mapping run's lever, painted into the map";
+
+  MapBuildOptions build;
+  build.dataset = scratch_->path() / "tilting-map-run";
+  build.out = scratch_->path() / "tilting-view.mosaic";
+  build.poses = "groundtruth";
+  BuildMap(build);
+  options.map = build.out;
+  options.out = scratch_->path() / "looked-at-view";
+  ExpectHeld(Replay(options).metrics, 0.999, 0.02, 0.1);
 }
 
 // The fixture's drive over a floor that is no longer flat (1 mm RMS in waves of 1 to 2 m, felt

@@ -33,6 +33,14 @@ class MapBuilder {
 
   /// Paints a CV_8UC1 ideal image of mm_per_px taken at world_from_camera.
   void AddFrame(const cv::Mat& image, const core::Pose2& world_from_camera, double mm_per_px);
+  /// Paints an ideal image from a pinhole of focal length focal_px tilted against the floor:
+  /// its optical axis meets the floor at world_from_view's position, its image x axis points
+  /// along its yaw, and it shows mm_per_px of floor per pixel where it would looking straight
+  /// down from the same distance (mm_per_px x focal_px); the floor's normal is
+  /// (-tan tilt_y, tan tilt_x, 1) in camera axes (x right, y up the image, z back to the lens).
+  /// Without tilt, the overload above.
+  void AddFrame(const cv::Mat& image, const core::Pose2& world_from_view, double mm_per_px, double focal_px,
+                double tilt_x_rad, double tilt_y_rad);
   /// Writes every level into the store in transactions of at most `batch` tiles.
   void Write(TileStore& store, const std::function<void(double)>& progress = {}, int batch = 64) const;
 
@@ -59,6 +67,11 @@ class MapBuilder {
   std::unordered_map<TileKey, Accumulator, TileKeyHash> accumulators_;
   std::unordered_set<TileKey, TileKeyHash> changed_;  ///< painted since the last checkpoint
   cv::Mat padded_;  ///< the frame being painted, with a replicated border
+
+  /// Checks a frame, counts it and copies it into padded_.
+  void Pad(const cv::Mat& image);
+  /// The level-0 accumulator of tile (tc, tr), created empty where there is none, marked changed.
+  Accumulator& Tile(std::int64_t tc, std::int64_t tr);
 };
 
 /// Replaces level-0 tiles and recomputes every pyramid tile above them (reading their

@@ -1,7 +1,9 @@
 #pragma once
 
 #include <cstdint>
+#include <filesystem>
 #include <optional>
+#include <unordered_map>
 
 #include "mosaicloc/camera/ideal_camera.hpp"
 #include "mosaicloc/core/pose2.hpp"
@@ -18,6 +20,30 @@ camera::IdealCamera CameraOf(const dataset::DatasetInfo& info);
 
 /// The dataset's ground truth, when it has one.
 std::optional<dataset::Trajectory> GroundTruthOf(const dataset::DatasetReader& reader);
+
+/// The camera's calibrated height over the floor the dataset notes (provenance
+/// camera_height_mm), if it does. Throws core::Error (invalid input, naming `dataset`) for a
+/// note that is not a positive number.
+std::optional<double> CalibratedHeightMm(const std::filesystem::path& dataset, const dataset::DatasetInfo& info);
+
+/// The ground truth of where the camera looked, from a simulated drive that records its
+/// camera's geometry (dataset::kCameraTruthFile): its poses moved by each view's centre offset
+/// (dataset::ViewPoses), and by each frame's time in ns its view's scale (the camera's height
+/// over the floor against the calibrated height: the floor a pixel shows, relative to
+/// mm_per_px) and tilt. Without that file, or without a calibrated height, the ground truth as
+/// it is and no views. Throws core::Error (invalid input) where the dataset has no ground truth
+/// or either file is malformed (naming file and line).
+struct ViewTruth {
+  struct View {
+    double scale = 1.0;
+    double tilt_x_rad = 0.0;
+    double tilt_y_rad = 0.0;
+  };
+  dataset::Trajectory world_from_vehicle;
+  std::unordered_map<std::int64_t, View> views;
+  double focal_px = 0.0;  ///< the calibrated height over mm_per_px, where there are views
+};
+ViewTruth ViewTruthOf(const std::filesystem::path& dataset, const dataset::DatasetReader& reader);
 
 /// Where the drive starts (as a localizer is told at installation, or the map's frame is
 /// chosen): the ground truth at `time`, else its first pose; without ground truth, the start
