@@ -132,9 +132,6 @@ void MapBuilder::AddFrame(const cv::Mat& image, const core::Pose2& world_from_vi
   if (!(std::abs(tilt_x_rad) < 0.5 && std::abs(tilt_y_rad) < 0.5) || !(focal_px > 0.0)) {
     core::ThrowInvalidInput("map builder: a tilted camera needs a focal length > 0 and a tilt within 0.5 rad");
   }
-  Pad(image);
-  const internal::PaintSource source{padded_.ptr<std::uint8_t>(internal::kPaintBorderPx) + internal::kPaintBorderPx,
-                                     static_cast<std::ptrdiff_t>(padded_.step[0]), image.cols, image.rows};
   // In camera axes (x right, y up the image, z back to the lens), pixel (u, v) is the ray
   // d = (u - cx, -(v - cy), -f) and the floor the points P with n.P = -h, h = mm_per_px f. Q
   // turns n onto z: in its axes the floor is z = -h and (x, y) are floor millimetres, the
@@ -145,7 +142,8 @@ void MapBuilder::AddFrame(const cv::Mat& image, const core::Pose2& world_from_vi
   const Eigen::Vector2d q0 = (q * Eigen::Vector3d(0.0, 0.0, -h / n.z())).head<2>();
   const double cx = 0.5 * (image.cols - 1);
   const double cy = 0.5 * (image.rows - 1);
-  // Level-0 raster (c, r) -> world -> view's floor axes -> camera -> (u w, v w, w), linear in (c, r, 1).
+  // Level-0 raster (c, r) -> world -> view's floor axes -> camera -> (u w, v w, w): linear
+  // in (c, r, 1).
   const double res = grid_.mm_per_px;
   const Eigen::Matrix2d view_from_world = world_from_view.Rotation().transpose();
   const Eigen::Vector2d world00(grid_.origin_x_mm + 0.5 * res, grid_.origin_y_mm - 0.5 * res);
@@ -176,6 +174,11 @@ void MapBuilder::AddFrame(const cv::Mat& image, const core::Pose2& world_from_vi
   const auto c1 = static_cast<std::int64_t>(std::ceil(max_c));
   const auto r0 = static_cast<std::int64_t>(std::floor(min_r));
   const auto r1 = static_cast<std::int64_t>(std::ceil(max_r));
+
+  Pad(image);
+  const internal::PaintSource source{padded_.ptr<std::uint8_t>(internal::kPaintBorderPx) + internal::kPaintBorderPx,
+                                     static_cast<std::ptrdiff_t>(padded_.step[0]), image.cols, image.rows};
+  const Eigen::Vector3d step = image_from_raster.col(0);
   const std::int64_t t = grid_.tile_size_px;
   for (std::int64_t tr = FloorDiv(r0, t); tr <= FloorDiv(r1, t); ++tr) {
     for (std::int64_t tc = FloorDiv(c0, t); tc <= FloorDiv(c1, t); ++tc) {
@@ -186,10 +189,11 @@ void MapBuilder::AddFrame(const cv::Mat& image, const core::Pose2& world_from_vi
       if (x1 <= x0 || y1 <= y0) continue;
       Accumulator& tile = Tile(tc, tr);
       for (std::int64_t row = y0; row < y1; ++row) {
-        const Eigen::Vector3d start = image_from_raster * Eigen::Vector3d(static_cast<double>(x0), static_cast<double>(row), 1.0);
-        const Eigen::Vector3d step = image_from_raster.col(0);
+        const Eigen::Vector3d start =
+            image_from_raster * Eigen::Vector3d(static_cast<double>(x0), static_cast<double>(row), 1.0);
         internal::PaintRowProjective(source, start.x(), start.y(), start.z(), step.x(), step.y(), step.z(),
-                                     static_cast<int>(x1 - x0), tile.ptr<float>(static_cast<int>(row - tr * t)) + 2 * (x0 - tc * t),
+                                     static_cast<int>(x1 - x0),
+                                     tile.ptr<float>(static_cast<int>(row - tr * t)) + 2 * (x0 - tc * t),
                                      blend_ == Blend::kBestView);
       }
     }

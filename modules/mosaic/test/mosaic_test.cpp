@@ -714,14 +714,16 @@ TEST(MapBuilder, ATiltedCamerasFrameIsPaintedWhereItSawTheFloor) {
     cv::Mat painted = cv::Mat::zeros(1024, 1024, CV_8UC1);
     for (const TileKey& key : builder.TileKeys()) {
       if (key.col < 0 || key.row < 0 || key.col >= 8 || key.row >= 8) continue;
-      builder.FinishTile(key).copyTo(painted(cv::Rect(static_cast<int>(key.col) * 128, static_cast<int>(key.row) * 128, 128, 128)));
+      const cv::Rect place(static_cast<int>(key.col) * 128, static_cast<int>(key.row) * 128, 128, 128);
+      builder.FinishTile(key).copyTo(painted(place));
     }
     // The floor the frame saw, three pixels in from its edges.
     cv::Mat inside = cv::Mat::zeros(1024, 1024, CV_8UC1);
     std::vector<cv::Point> corners;
     for (const auto& [u, v] : {std::pair(3.0, 3.0), {316.0, 3.0}, {316.0, 236.0}, {3.0, 236.0}}) {
       const Eigen::Vector2d floor = on_floor(Eigen::Vector3d(u - cx, -(v - cy), -f));
-      corners.emplace_back(static_cast<int>(std::lround(floor.x() / 0.25)), static_cast<int>(std::lround(-floor.y() / 0.25)));
+      corners.emplace_back(static_cast<int>(std::lround(floor.x() / 0.25)),
+                           static_cast<int>(std::lround(-floor.y() / 0.25)));
     }
     cv::fillConvexPoly(inside, corners, cv::Scalar(255));
     EXPECT_EQ(cv::countNonZero(painted(cv::Rect(0, 0, 1024, 1024)) & inside), cv::countNonZero(inside));

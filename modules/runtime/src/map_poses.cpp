@@ -181,6 +181,11 @@ mapping::MappingResult OptimizeImported(const fs::path& file, const mapping::Map
     if (i > 0) m.path_length_m += 1e-3 * (m.graph.nodes[i].translation_mm() - m.graph.nodes[i - 1].translation_mm()).norm();
   }
   for (const mapping::PoseGraphEdge& e : m.graph.edges) m.loops_accepted += e.kind == mapping::EdgeKind::kLoop ? 1 : 0;
+  if (options.view_geometry) {
+    m.warnings.push_back("the imported graph's edges are taken as they are: the camera's height and tilt are "
+                         "measured from the frames' registrations, which a graph does not carry (a graph this "
+                         "program exported has them taken out already)");
+  }
   return m;
 }
 

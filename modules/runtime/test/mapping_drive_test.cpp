@@ -109,6 +109,9 @@ TEST_F(MappingDriveTest, TheMappingDriveIsMadeConsistentFromFramesAndEncodersAlo
   ASSERT_TRUE(imported.error);
   EXPECT_NEAR(imported.error->rms_mm, m.error->rms_mm, 0.01);
   EXPECT_TRUE(fs::exists(options.out));
+  ASSERT_FALSE(imported.mapping.warnings.empty());
+  EXPECT_NE(imported.mapping.warnings.back().find("height and tilt"), std::string::npos)
+      << "an imported graph says that the camera's view was not estimated";
 }
 
 // A later drive at up to 1.5 m/s (1.2 m/s in the turns) with other noise, localized on the
