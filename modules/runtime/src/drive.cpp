@@ -39,12 +39,19 @@ ViewTruth ViewTruthOf(const std::filesystem::path& dataset, const dataset::Datas
   const std::vector<dataset::CameraTruthSample> views = dataset::ReadCameraTruth(file);
   truth.world_from_vehicle = dataset::ViewPoses(truth.world_from_vehicle, views);
   truth.focal_px = *calibrated_mm / reader.info().camera.mm_per_px;
-  truth.views.reserve(views.size());
-  for (const dataset::CameraTruthSample& view : views) {
-    truth.views.emplace(view.time.nanoseconds(), ViewTruth::View{view.truth.height_mm / *calibrated_mm,
-                                                                 view.truth.tilt_x_rad, view.truth.tilt_y_rad});
-  }
+  truth.views = FrameViews(views, *calibrated_mm);
   return truth;
+}
+
+std::unordered_map<std::int64_t, FrameView> FrameViews(const std::vector<dataset::CameraTruthSample>& views,
+                                                       double calibrated_height_mm) {
+  std::unordered_map<std::int64_t, FrameView> by_time;
+  by_time.reserve(views.size());
+  for (const dataset::CameraTruthSample& view : views) {
+    by_time.emplace(view.time.nanoseconds(), FrameView{view.truth.height_mm / calibrated_height_mm,
+                                                       view.truth.tilt_x_rad, view.truth.tilt_y_rad});
+  }
+  return by_time;
 }
 
 core::Pose2 StartPose(const std::optional<dataset::Trajectory>& groundtruth, const dataset::DatasetInfo& info,

@@ -84,6 +84,7 @@ MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(d
   }
   const fs::path checkpoint_file = args.out.string() + ".checkpoint";
   const fs::path estimated_file = args.out.string() + ".poses.tum";
+  const fs::path estimated_views_file = args.out.string() + ".views.csv";
   std::optional<MapPosesSummary> mapping;
   // Estimated poses are kept beside the checkpoint: a resumed build paints with the same ones.
   bool estimated_before = estimate && args.resume && fs::exists(checkpoint_file, ec);
@@ -97,6 +98,7 @@ MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(d
     pose_options.join_start_sigma_mm = args.join_start_sigma_mm;
     pose_options.mapper.view_geometry = !args.flat_floor;
     pose_options.out = estimated_file;
+    pose_options.views_out = estimated_views_file;
     pose_options.report = args.report;
     std::vector<const dataset::DatasetReader*> open;
     for (const auto& reader : readers) open.push_back(reader.get());
@@ -107,10 +109,12 @@ MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(d
   const double painting_from = estimate ? 0.5 : 0.0;
   std::vector<fs::path> poses_files;
   std::vector<dataset::Trajectory> poses;
-  // At the ground truth each frame is painted as its camera saw the floor, where the simulator
-  // recorded it: a tilted camera looks beside its mounting point and at a slant, and a camera
-  // higher than calibrated shows more floor per pixel.
-  std::vector<std::unordered_map<std::int64_t, ViewTruth::View>> views(datasets.size());
+  // Each frame is painted as its camera saw the floor where that is known: a tilted camera
+  // looks at a slant (and beside its mounting point), a camera higher than calibrated shows
+  // more floor per pixel. At the ground truth, where the simulator recorded it; at estimated
+  // poses, where the mapper measured it (the view geometry applied, section 7a).
+  std::vector<std::unordered_map<std::int64_t, FrameView>> views(datasets.size());
+  std::vector<fs::path> views_files(datasets.size());
   std::vector<double> focal_px(datasets.size(), 0.0);
   for (std::size_t d = 0; d < datasets.size(); ++d) {
     poses_files.push_back(groundtruth ? datasets[d] / "groundtruth" / "data.tum"
@@ -121,8 +125,16 @@ MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(d
       poses.push_back(std::move(truth.world_from_vehicle));
       views[d] = std::move(truth.views);
       focal_px[d] = truth.focal_px;
+      if (!views[d].empty()) views_files[d] = datasets[d] / dataset::kCameraTruthFile;
     } else {
       poses.push_back(dataset::ReadTum(poses_files.back()));
+      const fs::path estimated_views = DrivePath(estimated_views_file, static_cast<int>(d) + 1);
+      if (estimate && fs::exists(estimated_views, ec)) {
+        const double height_mm = DefaultMapperOptions().tracker.solver.camera_height_mm;
+        views[d] = FrameViews(dataset::ReadCameraTruth(estimated_views), height_mm);
+        focal_px[d] = height_mm / readers[d]->info().camera.mm_per_px;
+        views_files[d] = estimated_views;
+      }
     }
   }
   mosaic::MapGrid grid;
@@ -148,7 +160,7 @@ MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(d
     identity["frame_list_crc32" + suffix] = FileCrc(datasets[d] / "cam0" / "data.csv");
     identity["dataset_yaml_crc32" + suffix] = FileCrc(datasets[d] / "dataset.yaml");
     identity["poses_crc32" + suffix] = FileCrc(poses_files[d]);
-    if (!views[d].empty()) identity["views_crc32" + suffix] = FileCrc(datasets[d] / dataset::kCameraTruthFile);
+    if (!views_files[d].empty()) identity["views_crc32" + suffix] = FileCrc(views_files[d]);
   }
   std::unique_ptr<mosaic::BuildCheckpoint> checkpoint;
   std::int64_t painted = 0;
@@ -190,7 +202,7 @@ MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(d
       const auto pose = dataset::PoseAt(poses[d], frame->time, std::chrono::milliseconds(100));
       if (pose) {
         const auto found = views[d].find(frame->time.nanoseconds());
-        const ViewTruth::View view = found == views[d].end() ? ViewTruth::View{} : found->second;
+        const FrameView view = found == views[d].end() ? FrameView{} : found->second;
         builder.AddFrame(frame->image, *pose * camera.vehicle_from_camera, camera.mm_per_px * view.scale,
                          focal_px[d], view.tilt_x_rad, view.tilt_y_rad);
         ++painted;
@@ -240,7 +252,10 @@ MapBuildSummary BuildMap(const MapBuildOptions& args, const std::function<void(d
   checkpoint.reset();
   mosaic::BuildCheckpoint::Remove(checkpoint_file);
   if (estimate) {
-    for (std::size_t d = 0; d < datasets.size(); ++d) fs::remove(DrivePath(estimated_file, static_cast<int>(d) + 1), ec);
+    for (std::size_t d = 0; d < datasets.size(); ++d) {
+      fs::remove(DrivePath(estimated_file, static_cast<int>(d) + 1), ec);
+      fs::remove(DrivePath(estimated_views_file, static_cast<int>(d) + 1), ec);
+    }
   }
   const auto store = mosaic::TileStore::Open(args.out, false);
   return {total, painted, skipped, resumed_after, store->Count(), store->Count(0), place_features, std::move(mapping)};

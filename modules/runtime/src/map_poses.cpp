@@ -19,6 +19,7 @@
 #include "mosaicloc/core/error.hpp"
 #include "mosaicloc/core/file.hpp"
 #include "mosaicloc/core/log.hpp"
+#include "mosaicloc/dataset/camera_truth.hpp"
 #include "mosaicloc/dataset/dataset.hpp"
 #include "mosaicloc/dataset/evaluation.hpp"
 #include "mosaicloc/dataset/frame_png.hpp"
@@ -390,6 +391,30 @@ MapPosesSummary EstimateMapPoses(const MapPosesOptions& options, const std::vect
   if (!options.out.empty()) {
     for (std::size_t d = 0; d < summary.poses.size(); ++d) {
       dataset::WriteTum(DrivePath(options.out, static_cast<int>(d) + 1), summary.poses[d]);
+    }
+  }
+  if (!options.views_out.empty()) {
+    const bool applied = m.view.height_applied || m.view.tilt_applied;
+    const double height_mm = options.mapper.tracker.solver.camera_height_mm;
+    for (std::size_t d = 0; d + 1 < firsts.size(); ++d) {
+      const fs::path file = DrivePath(options.views_out, static_cast<int>(d) + 1);
+      std::error_code ec;
+      if (!applied) {
+        fs::remove(file, ec);
+        continue;
+      }
+      // The mapper's tilt is the floor's slope in image axes (x right, y down); the camera's
+      // is about its own x and y axes (y up): tilt_x = -slope_y, tilt_y = -slope_x.
+      std::string rows = dataset::CameraTruthHeader();
+      for (std::size_t i = firsts[d]; i < firsts[d + 1]; ++i) {
+        if (!m.has_pose[i]) continue;
+        dataset::CameraTruth view;
+        view.height_mm = m.view.scale[i] * height_mm;
+        view.tilt_x_rad = -m.view.tilt[i].y();
+        view.tilt_y_rad = -m.view.tilt[i].x();
+        rows += dataset::CameraTruthRow(input.frame_times[i], view);
+      }
+      core::WriteFileAtomically(file, rows);
     }
   }
   if (!options.graph_out.empty()) mapping::WriteG2o(options.graph_out, m.graph);

@@ -5,11 +5,13 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
 #include "mosaicloc/core/error.hpp"
+#include "mosaicloc/dataset/camera_truth.hpp"
 #include "mosaicloc/dataset/dataset.hpp"
 #include "mosaicloc/dataset/trajectory.hpp"
 #include "mosaicloc/mapping/pose_graph.hpp"
@@ -157,9 +159,39 @@ TEST(MappingUnevenFloor, TheCamerasHeightAndTiltAreTakenOutOfTheRegistrations) {
     options.dataset = scratch.path() / "uneven";
     options.report = scratch.path() / (view_geometry ? "report" : "report-flat");
     options.mapper.view_geometry = view_geometry;
+    options.views_out = scratch.path() / "views.csv";
     return EstimateMapPoses(options);
   };
-  const MapPosesSummary taken_out = map(true), flat = map(false);
+  const MapPosesSummary taken_out = map(true);
+  // The views written for the painting, in the simulator's own terms: they follow its truth.
+  {
+    const std::vector<dataset::CameraTruthSample> estimated = dataset::ReadCameraTruth(scratch.path() / "views.csv");
+    const std::vector<dataset::CameraTruthSample> truth =
+        dataset::ReadCameraTruth(scratch.path() / "uneven" / dataset::kCameraTruthFile);
+    std::map<std::int64_t, dataset::CameraTruth> true_at;
+    for (const auto& sample : truth) true_at[sample.time.nanoseconds()] = sample.truth;
+    double sum_xy[2] = {0.0, 0.0}, sum_xx[2] = {0.0, 0.0}, sum_yy[2] = {0.0, 0.0}, height_sq = 0.0;
+    std::size_t n = 0;
+    for (const auto& sample : estimated) {
+      const dataset::CameraTruth& t = true_at.at(sample.time.nanoseconds());
+      const double e[2] = {sample.truth.tilt_x_rad, sample.truth.tilt_y_rad}, r[2] = {t.tilt_x_rad, t.tilt_y_rad};
+      for (int k = 0; k < 2; ++k) {
+        sum_xy[k] += e[k] * r[k];
+        sum_xx[k] += e[k] * e[k];
+        sum_yy[k] += r[k] * r[k];
+      }
+      height_sq += std::pow(sample.truth.height_mm - t.height_mm, 2);
+      ++n;
+    }
+    ASSERT_GT(n, 100u);
+    for (int k = 0; k < 2; ++k) {
+      // About zero, the tilts' normalized products: a sign or axis mixed up would turn them negative.
+      EXPECT_GT(sum_xy[k] / std::sqrt(sum_xx[k] * sum_yy[k]), 0.8) << "tilt axis " << k;
+    }
+    EXPECT_LT(std::sqrt(height_sq / static_cast<double>(n)), 0.05) << "mm";
+  }
+  const MapPosesSummary flat = map(false);
+  EXPECT_FALSE(fs::exists(scratch.path() / "views.csv")) << "no views where none were estimated";
   ASSERT_TRUE(taken_out.error && flat.error);
   std::printf("4.9 m loop over a floor 1 mm uneven: %.3f mm RMS (%.3f max) with the height and tilt taken out, "
               "%.3f (%.3f) without; agreements height %.2f, tilt %.2f %.2f\n",

@@ -8,6 +8,7 @@
 #include "mosaicloc/camera/ideal_camera.hpp"
 #include "mosaicloc/core/pose2.hpp"
 #include "mosaicloc/core/timestamp.hpp"
+#include "mosaicloc/dataset/camera_truth.hpp"
 #include "mosaicloc/dataset/dataset.hpp"
 #include "mosaicloc/dataset/trajectory.hpp"
 
@@ -26,21 +27,26 @@ std::optional<dataset::Trajectory> GroundTruthOf(const dataset::DatasetReader& r
 /// note that is not a positive number.
 std::optional<double> CalibratedHeightMm(const std::filesystem::path& dataset, const dataset::DatasetInfo& info);
 
+/// How a frame's camera looked at the floor beyond its pose: its height over the floor against
+/// the calibrated height (the floor a pixel shows, relative to mm_per_px) and its tilt against
+/// the floor (dataset::CameraTruth's axes). What a map is painted with (MapBuilder::AddFrame).
+struct FrameView {
+  double scale = 1.0;
+  double tilt_x_rad = 0.0;
+  double tilt_y_rad = 0.0;
+};
+/// Each frame's view by its time in ns, from rows of camera.csv's format.
+std::unordered_map<std::int64_t, FrameView> FrameViews(const std::vector<dataset::CameraTruthSample>& views,
+                                                       double calibrated_height_mm);
+
 /// The ground truth of where the camera looked, from a simulated drive that records its
 /// camera's geometry (dataset::kCameraTruthFile): its poses moved by each view's centre offset
-/// (dataset::ViewPoses), and by each frame's time in ns its view's scale (the camera's height
-/// over the floor against the calibrated height: the floor a pixel shows, relative to
-/// mm_per_px) and tilt. Without that file, or without a calibrated height, the ground truth as
-/// it is and no views. Throws core::Error (invalid input) where the dataset has no ground truth
-/// or either file is malformed (naming file and line).
+/// (dataset::ViewPoses), and each frame's view. Without that file, or without a calibrated
+/// height, the ground truth as it is and no views. Throws core::Error (invalid input) where the
+/// dataset has no ground truth or either file is malformed (naming file and line).
 struct ViewTruth {
-  struct View {
-    double scale = 1.0;
-    double tilt_x_rad = 0.0;
-    double tilt_y_rad = 0.0;
-  };
   dataset::Trajectory world_from_vehicle;
-  std::unordered_map<std::int64_t, View> views;
+  std::unordered_map<std::int64_t, FrameView> views;
   double focal_px = 0.0;  ///< the calibrated height over mm_per_px, where there are views
 };
 ViewTruth ViewTruthOf(const std::filesystem::path& dataset, const dataset::DatasetReader& reader);

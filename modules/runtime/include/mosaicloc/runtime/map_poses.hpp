@@ -26,6 +26,11 @@ struct MapPosesOptions {
   std::filesystem::path out;        ///< the optimized trajectory (TUM), or empty
   std::filesystem::path report;     ///< the consistency report's directory, or empty
   std::filesystem::path graph_out;  ///< the pose graph in g2o's format, or empty
+  /// Each frame's estimated view (height and tilt, section 7a) in groundtruth/camera.csv's
+  /// format (no centre offsets: the poses are where the camera looked), when the view
+  /// geometry was applied, so that a map is painted with it; drive k's at DrivePath(views_out,
+  /// k). Where it was not applied the files are removed. Empty: not written.
+  std::filesystem::path views_out;
   /// A pose graph (g2o) of this drive's frames, one node per frame with encoder data in order
   /// (world_from_camera), to optimize instead of registering the frames: e.g. one exported and
   /// edited, or built by another tool.
