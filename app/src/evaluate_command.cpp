@@ -1,5 +1,4 @@
 #include "commands.hpp"
-#include "mosaicloc/dataset/trajectory.hpp"
 #include "mosaicloc/runtime/report.hpp"
 #include "report.hpp"
 
@@ -17,11 +16,8 @@ Action AddEvaluateCommand(CLI::App& app, const GlobalOptions& global) {
   command->add_option("--groundtruth", args->groundtruth, "Reference trajectory, TUM")->required();
   command->add_option("--out", args->out, "Report directory: metrics.json and plots")->required();
   return [args, &global] {
-    const dataset::Trajectory estimate = dataset::ReadTum(args->estimate);
-    const dataset::Trajectory groundtruth = dataset::ReadTum(args->groundtruth);
-    const dataset::Metrics metrics =
-        runtime::WriteReport(args->out, estimate, groundtruth, dataset::Metrics{}, args->estimate.filename().string());
-    PrintMetrics(args->out, metrics, global.json);
+    PrintMetrics(args->out, runtime::EvaluateTrajectoryFiles(args->estimate, args->groundtruth, args->out),
+                 global.json);
   };
 }
 

@@ -27,23 +27,38 @@ MapBuilder::MapBuilder(const MapGrid& grid, Blend blend) : grid_(grid), blend_(b
   if (!grid_.Check(&why)) core::ThrowInvalidInput("map grid: " + why);
 }
 
-void MapBuilder::Pad(const cv::Mat& image) {
+internal::PaintSource MapBuilder::Pad(const cv::Mat& image) {
   if (image.type() != CV_8UC1 || image.empty()) core::ThrowInvalidInput("map builder: frames must be 8-bit grey");
   ++frames_;
   cv::copyMakeBorder(image, padded_, internal::kPaintBorderPx, internal::kPaintBorderPx, internal::kPaintBorderPx,
                      internal::kPaintBorderPx, cv::BORDER_REPLICATE);
+  return {padded_.ptr<std::uint8_t>(internal::kPaintBorderPx) + internal::kPaintBorderPx,
+          static_cast<std::ptrdiff_t>(padded_.step[0]), image.cols, image.rows};
 }
 
-MapBuilder::Accumulator& MapBuilder::Tile(std::int64_t tc, std::int64_t tr) {
+template <class PaintRun>
+void MapBuilder::PaintFootprint(std::int64_t c0, std::int64_t c1, std::int64_t r0, std::int64_t r1,
+                                const PaintRun& paint_row) {
   const std::int64_t t = grid_.tile_size_px;
-  auto [it, inserted] = accumulators_.try_emplace(TileKey{0, tc, tr});
-  if (inserted) it->second = cv::Mat::zeros(static_cast<int>(t), static_cast<int>(t), CV_32FC2);
-  changed_.insert(it->first);
-  return it->second;
+  for (std::int64_t tr = FloorDiv(r0, t); tr <= FloorDiv(r1, t); ++tr) {
+    for (std::int64_t tc = FloorDiv(c0, t); tc <= FloorDiv(c1, t); ++tc) {
+      const std::int64_t x0 = std::max(c0, tc * t);
+      const std::int64_t y0 = std::max(r0, tr * t);
+      const std::int64_t x1 = std::min(c1 + 1, (tc + 1) * t);
+      const std::int64_t y1 = std::min(r1 + 1, (tr + 1) * t);
+      if (x1 <= x0 || y1 <= y0) continue;
+      auto [it, inserted] = accumulators_.try_emplace(TileKey{0, tc, tr});
+      if (inserted) it->second = cv::Mat::zeros(static_cast<int>(t), static_cast<int>(t), CV_32FC2);
+      changed_.insert(it->first);
+      for (std::int64_t row = y0; row < y1; ++row) {
+        paint_row(row, x0, x1, it->second.ptr<float>(static_cast<int>(row - tr * t)) + 2 * (x0 - tc * t));
+      }
+    }
+  }
 }
 
 void MapBuilder::AddFrame(const cv::Mat& image, const core::Pose2& world_from_camera, double mm_per_px) {
-  Pad(image);
+  const internal::PaintSource source = Pad(image);
   // Each map pixel takes the frame's bicubic (Catmull-Rom) value at its centre (in float) and
   // the frame's tent weight evaluated there (internal::PaintRow). Bicubic, not bilinear: the map is
   // rendered by a second (bilinear) interpolation, and two bilinear passes blur pixel-scale
@@ -53,8 +68,6 @@ void MapBuilder::AddFrame(const cv::Mat& image, const core::Pose2& world_from_ca
   // centres, and a map that stops at the edge leaves the view an unmapped rim wherever no
   // other frame reaches (round trip, worst frame: asphalt 0.9930 and brick 0.9917 with the
   // tent ending at the edge, 0.9977 and 0.9985 with it half a pixel beyond).
-  const internal::PaintSource source{padded_.ptr<std::uint8_t>(internal::kPaintBorderPx) + internal::kPaintBorderPx,
-                                     static_cast<std::ptrdiff_t>(padded_.step[0]), image.cols, image.rows};
 
   // Level-0 raster (col, row) -> world -> image pixel: an affine map.
   const double res = grid_.mm_per_px;
@@ -102,28 +115,16 @@ void MapBuilder::AddFrame(const cv::Mat& image, const core::Pose2& world_from_ca
     clip(v_row, linear(1, 0), image.rows);
     return std::pair<std::int64_t, std::int64_t>(static_cast<std::int64_t>(low), static_cast<std::int64_t>(high));
   };
-  const std::int64_t t = grid_.tile_size_px;
-  for (std::int64_t tr = FloorDiv(r0, t); tr <= FloorDiv(r1, t); ++tr) {
-    for (std::int64_t tc = FloorDiv(c0, t); tc <= FloorDiv(c1, t); ++tc) {
-      const std::int64_t x0 = std::max(c0, tc * t);
-      const std::int64_t y0 = std::max(r0, tr * t);
-      const std::int64_t x1 = std::min(c1 + 1, (tc + 1) * t);
-      const std::int64_t y1 = std::min(r1 + 1, (tr + 1) * t);
-      if (x1 <= x0 || y1 <= y0) continue;
-      Accumulator& tile = Tile(tc, tr);
-      for (std::int64_t row = y0; row < y1; ++row) {
-        // Frame position of raster (x, row) = offset + linear (x, row).
-        const double u_row = offset.x() + linear(0, 1) * static_cast<double>(row);
-        const double v_row = offset.y() + linear(1, 1) * static_cast<double>(row);
-        const auto [from, to] = columns_inside(u_row, v_row, x0, x1 - 1);
-        if (to < from) continue;
-        auto* pairs = tile.ptr<float>(static_cast<int>(row - tr * t)) + 2 * (from - tc * t);
-        internal::PaintRow(source, u_row + linear(0, 0) * static_cast<double>(from),
-                           v_row + linear(1, 0) * static_cast<double>(from), linear(0, 0), linear(1, 0),
-                           static_cast<int>(to - from + 1), pairs, blend_ == Blend::kBestView);
-      }
-    }
-  }
+  PaintFootprint(c0, c1, r0, r1, [&](std::int64_t row, std::int64_t x0, std::int64_t x1, float* pairs) {
+    // Frame position of raster (x, row) = offset + linear (x, row).
+    const double u_row = offset.x() + linear(0, 1) * static_cast<double>(row);
+    const double v_row = offset.y() + linear(1, 1) * static_cast<double>(row);
+    const auto [from, to] = columns_inside(u_row, v_row, x0, x1 - 1);
+    if (to < from) return;
+    internal::PaintRow(source, u_row + linear(0, 0) * static_cast<double>(from),
+                       v_row + linear(1, 0) * static_cast<double>(from), linear(0, 0), linear(1, 0),
+                       static_cast<int>(to - from + 1), pairs + 2 * (from - x0), blend_ == Blend::kBestView);
+  });
 }
 
 void MapBuilder::AddFrame(const cv::Mat& image, const core::Pose2& world_from_view, double mm_per_px,
@@ -175,29 +176,14 @@ void MapBuilder::AddFrame(const cv::Mat& image, const core::Pose2& world_from_vi
   const auto r0 = static_cast<std::int64_t>(std::floor(min_r));
   const auto r1 = static_cast<std::int64_t>(std::ceil(max_r));
 
-  Pad(image);
-  const internal::PaintSource source{padded_.ptr<std::uint8_t>(internal::kPaintBorderPx) + internal::kPaintBorderPx,
-                                     static_cast<std::ptrdiff_t>(padded_.step[0]), image.cols, image.rows};
+  const internal::PaintSource source = Pad(image);
   const Eigen::Vector3d step = image_from_raster.col(0);
-  const std::int64_t t = grid_.tile_size_px;
-  for (std::int64_t tr = FloorDiv(r0, t); tr <= FloorDiv(r1, t); ++tr) {
-    for (std::int64_t tc = FloorDiv(c0, t); tc <= FloorDiv(c1, t); ++tc) {
-      const std::int64_t x0 = std::max(c0, tc * t);
-      const std::int64_t y0 = std::max(r0, tr * t);
-      const std::int64_t x1 = std::min(c1 + 1, (tc + 1) * t);
-      const std::int64_t y1 = std::min(r1 + 1, (tr + 1) * t);
-      if (x1 <= x0 || y1 <= y0) continue;
-      Accumulator& tile = Tile(tc, tr);
-      for (std::int64_t row = y0; row < y1; ++row) {
-        const Eigen::Vector3d start =
-            image_from_raster * Eigen::Vector3d(static_cast<double>(x0), static_cast<double>(row), 1.0);
-        internal::PaintRowProjective(source, start.x(), start.y(), start.z(), step.x(), step.y(), step.z(),
-                                     static_cast<int>(x1 - x0),
-                                     tile.ptr<float>(static_cast<int>(row - tr * t)) + 2 * (x0 - tc * t),
-                                     blend_ == Blend::kBestView);
-      }
-    }
-  }
+  PaintFootprint(c0, c1, r0, r1, [&](std::int64_t row, std::int64_t x0, std::int64_t x1, float* pairs) {
+    const Eigen::Vector3d start =
+        image_from_raster * Eigen::Vector3d(static_cast<double>(x0), static_cast<double>(row), 1.0);
+    internal::PaintRowProjective(source, start.x(), start.y(), start.z(), step.x(), step.y(), step.z(),
+                                 static_cast<int>(x1 - x0), pairs, blend_ == Blend::kBestView);
+  });
 }
 
 std::size_t MapBuilder::unsaved_bytes() const {

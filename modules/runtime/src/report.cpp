@@ -10,6 +10,13 @@
 
 namespace mosaicloc::runtime {
 
+dataset::Metrics EvaluateTrajectoryFiles(const std::filesystem::path& estimate,
+                                         const std::filesystem::path& groundtruth,
+                                         const std::filesystem::path& directory) {
+  return WriteReport(directory, dataset::ReadTum(estimate), dataset::ReadTum(groundtruth), dataset::Metrics{},
+                     estimate.filename().string());
+}
+
 dataset::Metrics WriteReport(const std::filesystem::path& directory, const dataset::Trajectory& estimate,
                              const std::optional<dataset::Trajectory>& groundtruth, dataset::Metrics metrics,
                              const std::string& title) {

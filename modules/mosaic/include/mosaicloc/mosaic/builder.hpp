@@ -16,6 +16,10 @@
 
 namespace mosaicloc::mosaic {
 
+namespace internal {
+struct PaintSource;
+}
+
 /// How overlapping frames combine into one map pixel. A frame gives each map pixel it
 /// overlaps its bicubic value at the pixel's centre and a weight that falls linearly from the
 /// frame centre to zero half a pixel beyond its edges.
@@ -68,10 +72,13 @@ class MapBuilder {
   std::unordered_set<TileKey, TileKeyHash> changed_;  ///< painted since the last checkpoint
   cv::Mat padded_;  ///< the frame being painted, with a replicated border
 
-  /// Checks a frame, counts it and copies it into padded_.
-  void Pad(const cv::Mat& image);
-  /// The level-0 accumulator of tile (tc, tr), created empty where there is none, marked changed.
-  Accumulator& Tile(std::int64_t tc, std::int64_t tr);
+  /// Checks a frame, counts it and copies it into padded_, the source it is painted from.
+  internal::PaintSource Pad(const cv::Mat& image);
+  /// Over the level-0 raster columns [c0, c1] and rows [r0, r1], tile by tile (each created
+  /// where there is none and marked changed): paint_row(row, x0, x1, pairs) for every raster
+  /// row's run [x0, x1) in one tile, `pairs` its accumulator at x0.
+  template <class PaintRun>
+  void PaintFootprint(std::int64_t c0, std::int64_t c1, std::int64_t r0, std::int64_t r1, const PaintRun& paint_row);
 };
 
 /// Replaces level-0 tiles and recomputes every pyramid tile above them (reading their

@@ -22,6 +22,13 @@ dataset::Metrics WriteReport(const std::filesystem::path& directory, const datas
                              const std::optional<dataset::Trajectory>& groundtruth, dataset::Metrics metrics,
                              const std::string& title);
 
+/// `mosaicloc evaluate`: an estimated trajectory (TUM) against a reference (TUM), the report
+/// written into `directory` titled by the estimate's file name. Throws core::Error (invalid
+/// input) naming the file and line of a malformed TUM file.
+dataset::Metrics EvaluateTrajectoryFiles(const std::filesystem::path& estimate,
+                                         const std::filesystem::path& groundtruth,
+                                         const std::filesystem::path& directory);
+
 /// The map's mosaic under a drive (the reports' positions, with a margin), at the finest
 /// pyramid level that keeps it within about 1600 pixels; unmapped floor white. Empty when
 /// even the coarsest level would be too large, or there are no reports.
