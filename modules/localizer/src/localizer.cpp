@@ -141,6 +141,7 @@ bool LocalizerOptions::Check(std::string* why) const {
   };
   if (!(fix_sigma_floor_mm >= 0.0) || !(fix_sigma_floor_rad >= 0.0)) return fail("fix sigma floors must be >= 0");
   if (!(fix_covariance_scale >= 1.0)) return fail("fix_covariance_scale must be >= 1");
+  if (!(max_fixed_sigma_mm > 0.0)) return fail("max_fixed_sigma_mm must be > 0");
   if (!(relocalize_radius_mm > 0.0)) return fail("relocalize_radius_mm must be > 0");
   if (reanchor_after_rejections < 0 || reanchor_after_rejections == 1) {
     return fail("reanchor_after_rejections must be 0 (never) or >= 2");
@@ -166,6 +167,10 @@ bool LocalizerOptions::Check(std::string* why) const {
   }
   if (!(tilt_pivot_height_mm >= -1000.0 && tilt_pivot_height_mm <= 2000.0)) {
     return fail("tilt_pivot_height_mm must be in [-1000, 2000]");
+  }
+  if (!(tilt_sigma_deg > 0.0 && tilt_sigma_deg <= 10.0)) return fail("tilt_sigma_deg must be in (0, 10]");
+  if (!(tilt_correlation_s > 0.0 && tilt_correlation_s <= 3600.0)) {
+    return fail("tilt_correlation_s must be in (0, 3600]");
   }
   if (!visual_odometry.Check(why)) return false;
   // The parts last, so that a complaint about a field of this struct is not hidden by one of theirs.
@@ -205,7 +210,8 @@ Localizer::Localizer(const camera::IdealCamera& camera, const LocalizerOptions& 
       odometry_(options.odometry),
       lock_(options.lock),
       tick_quantization_(estimation::TickQuantizationCovariance(options.odometry.wheels)),
-      scale_variance_(options.scale_sigma * options.scale_sigma) {
+      scale_variance_(options.scale_sigma * options.scale_sigma),
+      tilt_variance_(Eigen::Vector2d::Constant(std::pow(options.tilt_sigma_deg * std::numbers::pi / 180.0, 2))) {
   // The filter's calibration states are those of the vehicle's kinematics.
   options_.filter.kind = options_.odometry.wheels.kind;
   std::string why;
@@ -322,6 +328,15 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
     if (scale_time_) scale_variance_ += drift * drift * core::ToSeconds(time - *scale_time_);
     scale_time_ = time;
   }
+  if (!tilt_time_ || time > *tilt_time_) {
+    if (tilt_time_) {  // first-order Gauss-Markov: the tilt forgets itself towards none
+      const double kept = std::exp(-core::ToSeconds(time - *tilt_time_) / options_.tilt_correlation_s);
+      const double sigma = options_.tilt_sigma_deg * std::numbers::pi / 180.0;
+      tilt_ *= kept;
+      tilt_variance_ = kept * kept * tilt_variance_ + Eigen::Vector2d::Constant((1.0 - kept * kept) * sigma * sigma);
+    }
+    tilt_time_ = time;
+  }
   const core::Pose2 prior_camera = predicted * options_.vehicle_from_camera;
   const Eigen::Matrix3d prior_camera_covariance =
       CameraCovariance(predicted, options_.vehicle_from_camera, predicted_covariance);
@@ -378,7 +393,8 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
     outcome.track = AtTheEdge(frame, std::move(outcome.track));
   }
   if (outcome.track.ok()) {
-    const core::Pose2 fix = MountingPoint(outcome.track) * options_.vehicle_from_camera.Inverse();
+    const auto [tilt, tilt_sigma_rad] = FixTilt(outcome.track);
+    const core::Pose2 fix = MountingPoint(outcome.track, tilt) * options_.vehicle_from_camera.Inverse();
     // The floors are errors of the camera's pose (map and rectification errors move what the
     // camera sees), so they go in before the lever arm: a yaw error of the camera moves the
     // vehicle's origin sideways by the arm, and the fix's covariance says so.
@@ -386,17 +402,35 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
     camera_covariance(0, 0) += options_.fix_sigma_floor_mm * options_.fix_sigma_floor_mm;
     camera_covariance(1, 1) += options_.fix_sigma_floor_mm * options_.fix_sigma_floor_mm;
     camera_covariance(2, 2) += options_.fix_sigma_floor_rad * options_.fix_sigma_floor_rad;
-    if (outcome.track.tilt_estimated && options_.tilt_pivot_height_mm != 0.0) {
-      // The lever taken out of the fix is as uncertain as the tilt it was measured from.
-      const double lever_sigma_mm = options_.tilt_pivot_height_mm * outcome.track.tilt_sigma_rad;
-      camera_covariance(0, 0) += options_.fix_covariance_scale * lever_sigma_mm * lever_sigma_mm;
-      camera_covariance(1, 1) += options_.fix_covariance_scale * lever_sigma_mm * lever_sigma_mm;
-    }
+    // The lever taken out of the fix is as uncertain as the tilt it was taken at.
+    const double lever_sigma_mm = options_.tilt_pivot_height_mm * tilt_sigma_rad;
+    camera_covariance(0, 0) += lever_sigma_mm * lever_sigma_mm;
+    camera_covariance(1, 1) += lever_sigma_mm * lever_sigma_mm;
     const Eigen::Matrix3d fix_covariance =
         VehicleCovariance(outcome.track.world_from_camera, options_.vehicle_from_camera, camera_covariance);
     outcome.fix_world_from_vehicle = fix;
     outcome.fix_quality = std::clamp(outcome.track.mean_zncc, 0.0, 1.0);
-    if (relocalize) {
+    // How certain the estimate would be after the fix: a relocalization's is the fix's own; a
+    // confident prediction keeps itself whatever the fix, an uncertain one takes the fix's.
+    Eigen::Matrix3d fixed_covariance = fix_covariance;
+    if (!relocalize) {
+      fixed_covariance = predicted_covariance - predicted_covariance *
+                                                    (predicted_covariance + fix_covariance).ldlt().solve(predicted_covariance);
+    }
+    const double fixed_sigma_mm = std::sqrt(std::max(
+        0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(fixed_covariance.topLeftCorner<2, 2>(), Eigen::EigenvaluesOnly)
+                 .eigenvalues()
+                 .maxCoeff()));
+    if (fixed_sigma_mm > options_.max_fixed_sigma_mm) {
+      outcome.reason = fmt::format(
+          "fix rejected: too uncertain (the estimate would be good to {:.3f} mm, one standard deviation, above "
+          "{:.3f}{})",
+          fixed_sigma_mm, options_.max_fixed_sigma_mm,
+          lever_sigma_mm > 0.0 && !outcome.track.tilt_estimated
+              ? fmt::format("; {} templates too few to measure the tilt, whose lever is {:.3f} mm uncertain",
+                            outcome.track.inliers, lever_sigma_mm)
+              : std::string());
+    } else if (relocalize) {
       // A verified relocalization replaces the prediction it contradicts.
       Restart(time, fix, fix_covariance, false, &outcome);
     } else {
@@ -434,6 +468,13 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   }
   outcome.scale = scale_;
   outcome.scale_sigma = std::sqrt(scale_variance_);
+  if (outcome.fixed && outcome.track.tilt_estimated) {
+    const double measured_variance = options_.fix_covariance_scale * outcome.track.tilt_sigma_rad *
+                                     outcome.track.tilt_sigma_rad;
+    const Eigen::Vector2d gain = (tilt_variance_.array() / (tilt_variance_.array() + measured_variance)).matrix();
+    tilt_ += gain.cwiseProduct(Eigen::Vector2d(outcome.track.tilt_x_rad, outcome.track.tilt_y_rad) - tilt_);
+    tilt_variance_ = tilt_variance_.cwiseProduct(Eigen::Vector2d::Ones() - gain);
+  }
   estimation::FrameVerdict verdict = estimation::FrameVerdict::kFixed;
   if (outcome.fixed) {
     off_map_path_mm_ = 0.0;
@@ -609,13 +650,22 @@ bool Localizer::OffTheMap(const tracking::ReferenceRaster& coarse, const core::P
   return true;
 }
 
-core::Pose2 Localizer::MountingPoint(const tracking::TrackResult& track) const {
-  if (!track.tilt_estimated || options_.tilt_pivot_height_mm == 0.0) return track.world_from_camera;
+std::pair<Eigen::Vector2d, double> Localizer::FixTilt(const tracking::TrackResult& track) const {
+  if (!options_.tracker.solver.estimate_tilt || options_.tilt_pivot_height_mm == 0.0) return {Eigen::Vector2d::Zero(), 0.0};
+  if (track.tilt_estimated) {
+    return {Eigen::Vector2d(track.tilt_x_rad, track.tilt_y_rad),
+            std::sqrt(options_.fix_covariance_scale) * track.tilt_sigma_rad};
+  }
+  return {tilt_, std::sqrt(tilt_variance_.maxCoeff())};
+}
+
+core::Pose2 Localizer::MountingPoint(const tracking::TrackResult& track, const Eigen::Vector2d& tilt_rad) const {
+  if (options_.tilt_pivot_height_mm == 0.0) return track.world_from_camera;
   // The floor's normal in camera axes is (-tan tilt_y, tan tilt_x, 1): a body turned about an
   // axis p over the floor puts the image centre p times the normal's horizontal part away
   // from the mounting point, in the camera's axes.
   const Eigen::Vector2d offset_camera =
-      options_.tilt_pivot_height_mm * Eigen::Vector2d(-std::tan(track.tilt_y_rad), std::tan(track.tilt_x_rad));
+      options_.tilt_pivot_height_mm * Eigen::Vector2d(-std::tan(tilt_rad.y()), std::tan(tilt_rad.x()));
   return core::Pose2(track.world_from_camera.translation_mm() - track.world_from_camera.Rotation() * offset_camera,
                      track.world_from_camera.yaw_rad());
 }

@@ -132,14 +132,15 @@ class Drive : public ::testing::Test {
     const camera::IdealCamera camera{camera::IdealCameraOptions{}};
     sim::ImagingOptions imaging;
     const sim::Imager imager(*floor_, camera, imaging, 7);
-    // A body that rolls in the turn (body_roll_deg_per_mps2_) about an axis on the floor: the
-    // view tilts, and its centre stays over the mounting point.
+    // A body that rolls in the turn (body_roll_deg_per_mps2_) about an axis body_pivot_mm_
+    // over the floor: the view tilts, and its centre moves that height times the roll aside
+    // from the mounting point.
     std::optional<sim::CameraPlacement> placement;
     if (body_roll_deg_per_mps2_ != 0.0) {
       sim::CameraPlacementOptions rolling;
       rolling.vehicle_from_camera = Pose2(200.0, 0.0, 0.0);  // as below
       rolling.suspension.roll_deg_per_mps2 = body_roll_deg_per_mps2_;
-      rolling.suspension.pivot_height_mm = 0.0;
+      rolling.suspension.pivot_height_mm = body_pivot_mm_;
       placement.emplace(rolling, camera.mm_per_px(), camera.cx(), camera.cy());
     }
     LocalizerOptions options = options_;
@@ -248,6 +249,7 @@ class Drive : public ::testing::Test {
   bool floor_repeats_ = false;  ///< the index records the floor's self-test as finding copies
   bool index_map_ = false;  ///< Localize indexes the map (as with unknown_start_) but starts with a pose
   double body_roll_deg_per_mps2_ = 0.0;  ///< the simulated body's roll out of the turn
+  double body_pivot_mm_ = 0.0;  ///< and the height over the floor of the axis it rolls about
   test::ScratchDir scratch_;
   std::unique_ptr<sim::Floor> floor_;
   std::unique_ptr<mosaic::TileStore> store_;
@@ -646,6 +648,44 @@ TEST_F(DistortedExcursion, TheMapsDistortionOverTheExcursionIsInTheGate) {
   RecordProperty("first_rejection_without_the_distortion", rigid.first_rejection);
   const std::size_t back = back_on_the_map(widened);
   EXPECT_GE(widened.fix_errors_mm[back], 0.0) << "the first view wholly back on the map is fixed";
+}
+
+// A body leaning 0.67° out of a turn about an axis 100 mm over the floor puts the image centre
+// 1.2 mm beside the mounting point. Where the templates measure the tilt, the fix takes that
+// lever out; where they are too few (here never: min_tilt_points above the templates' count, as
+// at the edge of the map), the lever is only known to the body's tilt_sigma_deg, and a fix that
+// uncertain is not taken: taken, it would be a millimetre off.
+TEST_F(Drive, AFixTooSparseToMeasureTheTiltItsLeverDependsOnIsNotTaken) {
+  body_roll_deg_per_mps2_ = 8.0;  // 0.5 m/s on the 3 m arc: 0.083 m/s², 0.67°
+  body_pivot_mm_ = 100.0;
+  options_.tracker.templates.count = 12;
+  options_.tracker.solver.estimate_tilt = true;
+  options_.tilt_pivot_height_mm = 100.0;
+  const auto drive = [&](int min_tilt_points, double max_fixed_sigma_mm) {
+    options_.tracker.solver.min_tilt_points = min_tilt_points;
+    options_.max_fixed_sigma_mm = max_fixed_sigma_mm;
+    return Localize(1.0, 0.5, Pose2());
+  };
+  const double bound = LocalizerOptions{}.max_fixed_sigma_mm;
+  const Run measured = drive(8, bound);
+  const Run unmeasured = drive(64, bound);
+  const Run unbounded = drive(64, 100.0);
+  ASSERT_FALSE(measured.errors_mm.empty());
+  EXPECT_EQ(measured.fixes, static_cast<int>(measured.errors_mm.size()))
+      << (measured.reasons.empty() ? std::string() : measured.reasons.front());
+  for (const double e : measured.fix_errors_mm) EXPECT_LT(e, 0.1);
+  EXPECT_EQ(unmeasured.fixes, 0);
+  ASSERT_FALSE(unmeasured.reasons.empty());
+  EXPECT_NE(unmeasured.reasons.front().find("too uncertain"), std::string::npos) << unmeasured.reasons.front();
+  EXPECT_NE(unmeasured.reasons.front().find("too few to measure the tilt"), std::string::npos);
+  EXPECT_EQ(unmeasured.words.front(), "rejected");
+  // What the bound keeps out: the same fixes taken are as far off as the lever.
+  ASSERT_GT(unbounded.fixes, 10);
+  const double taken_max_mm = *std::max_element(unbounded.fix_errors_mm.begin(), unbounded.fix_errors_mm.end());
+  RecordProperty("fix_error_max_mm_tilt_measured",
+                 std::to_string(*std::max_element(measured.fix_errors_mm.begin(), measured.fix_errors_mm.end())));
+  RecordProperty("fix_error_max_mm_tilt_unmeasured_taken", std::to_string(taken_max_mm));
+  EXPECT_GT(taken_max_mm, 0.8);
 }
 
 TEST(CovarianceTransfer, CameraAndVehicleCovariancesAreInverse) {

@@ -72,6 +72,8 @@ void ReadLocalizerConfig(const YAML::Node& node, const std::string& file_name, L
   solver.Optional("min_tilt_points", &t.solver.min_tilt_points);
   solver.Optional("camera_height_mm", &t.solver.camera_height_mm);
   solver.Optional("tilt_pivot_height_mm", &o.tilt_pivot_height_mm);
+  solver.Optional("tilt_sigma_deg", &o.tilt_sigma_deg);
+  solver.Optional("tilt_correlation_s", &o.tilt_correlation_s);
   solver.Optional("scale_sigma", &o.scale_sigma);
   solver.Optional("scale_drift_per_sqrt_s", &o.scale_drift_per_sqrt_s);
   solver.Check(t.solver);
@@ -83,6 +85,7 @@ void ReadLocalizerConfig(const YAML::Node& node, const std::string& file_name, L
   filter.Optional("fix_sigma_floor_mm", &o.fix_sigma_floor_mm);
   filter.Optional("fix_sigma_floor_rad", &o.fix_sigma_floor_rad);
   filter.Optional("fix_covariance_scale", &o.fix_covariance_scale);
+  filter.Optional("max_fixed_sigma_mm", &o.max_fixed_sigma_mm);
   filter.Optional("map_distortion_mm_per_m", &o.map_distortion_mm_per_m);
   filter.Optional("wheel_variance_mm", &o.odometry.wheel_variance_mm);
   filter.Optional("wheel_scale_sigma", &o.filter.wheel_scale_sigma);

@@ -85,6 +85,12 @@ struct LocalizerOptions {
   double fix_sigma_floor_rad = 2e-5;
   /// Fix covariance inflation: the tracker's covariance counts every pixel as independent.
   double fix_covariance_scale = 4.0;
+  /// A fix that would leave the estimate's position less certain than this (its largest
+  /// standard deviation after the fix, mm) is not taken: an uncertain prediction (after visual
+  /// odometry, say) takes on an uncertain fix's error (the lever of a tilt its templates were
+  /// too few to measure), and the frame would be reported as fixed. A confident prediction
+  /// keeps its certainty whatever the fix. The next frame usually does better.
+  double max_fixed_sigma_mm = 0.25;
   /// Uncertainty of the encoder samples' time stamps, ms: 0 in replay (exact clocks); on a
   /// vehicle the PLC's update period and the polling make them late or early by a few ms,
   /// which puts the odometry v * dt behind or ahead along the heading and its heading
@@ -153,6 +159,15 @@ struct LocalizerOptions {
   /// tilted by an angle a moves the image centre on the floor by this times a against the
   /// camera's mounting point; the fix takes that out (0: the body tilts about the floor).
   double tilt_pivot_height_mm = 0.0;
+  /// The body's tilt between the frames that measure it (tracker.solver.estimate_tilt with a
+  /// tilt_pivot_height_mm): about each camera axis a first-order Gauss-Markov process of
+  /// standard deviation tilt_sigma_deg that forgets itself over tilt_correlation_s, brought up
+  /// to date by every fix that measures the tilt. A fix whose templates are too few to measure
+  /// it takes the lever out at the tilt this predicts, and carries the prediction's uncertainty
+  /// times the pivot's height in its covariance: a body that leans into a turn while the view
+  /// comes back onto the edge of the map is not taken for a vehicle a millimetre aside.
+  double tilt_sigma_deg = 0.5;
+  double tilt_correlation_s = 2.0;
   VisualOdometryOptions visual_odometry;
   bool Check(std::string* why) const;
 };
@@ -283,11 +298,15 @@ class Localizer {
   // The predicted view is less than on_map_coverage on `coarse` (the map at the coverage's
   // level): says so in front of `reason`.
   bool OffTheMap(const tracking::ReferenceRaster& coarse, const core::Pose2& prior_camera, std::string* reason) const;
+  // Where the camera's mounting point is, from the image centre the tracker found and the
+  // camera's tilt (LocalizerOptions::tilt_pivot_height_mm).
+  core::Pose2 MountingPoint(const tracking::TrackResult& track, const Eigen::Vector2d& tilt_rad) const;
+  // The tilt the fix of `track` is taken at, and its standard deviation (rad): the one the
+  // tracker measured (its sigma inflated as the fix's covariance is), or else the one
+  // predicted (LocalizerOptions::tilt_sigma_deg). Zero both where no lever is taken out.
+  std::pair<Eigen::Vector2d, double> FixTilt(const tracking::TrackResult& track) const;
   // A registration of a view partly off the map, registered again around itself with more
   // templates; the one with more inliers.
-  /// Where the camera's mounting point is, from the image centre the tracker found and the
-  /// tilt it measured (LocalizerOptions::tilt_pivot_height_mm).
-  core::Pose2 MountingPoint(const tracking::TrackResult& track) const;
   tracking::TrackResult AtTheEdge(const cv::Mat& frame, tracking::TrackResult found) const;
   // Off the map: registers the frame against the keyframe (or the frame before) and chains the
   // estimate on from it (true), or makes it the keyframe where it cannot be registered (false,
@@ -356,6 +375,11 @@ class Localizer {
   double scale_ = 1.0;
   double scale_variance_ = 0.0;
   std::optional<core::Timestamp> scale_time_;
+  // The camera's tilt (rad, about its x and y axes; LocalizerOptions::tilt_sigma_deg), the
+  // variance of each, and the time they were last brought to.
+  Eigen::Vector2d tilt_ = Eigen::Vector2d::Zero();
+  Eigen::Vector2d tilt_variance_ = Eigen::Vector2d::Zero();
+  std::optional<core::Timestamp> tilt_time_;
 };
 
 /// Share (0..1) of the floor seen by a camera at `world_from_camera`, grown by `margin_mm`
