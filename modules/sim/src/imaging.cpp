@@ -28,22 +28,44 @@ class NodeGrid {
     const auto j = static_cast<int>(n / static_cast<std::size_t>(nodes_u_));
     return {-0.5 + kStep * i, -0.5 + kStep * j};
   }
-  /// The value at supersample (us, vs) of a k-times supersampled image, whose centre is at
-  /// pixel ((us + 0.5) / k - 0.5, ...).
+  /// Where supersample (us, vs) of a k-times supersampled image lies among the nodes (its
+  /// centre is at pixel ((us + 0.5) / k - 0.5, ...)): the node before it and the fraction of
+  /// the way to the next, for every column and every row. Bilinear interpolation is then one
+  /// blend of two node rows per image row (Row) and one of two values per sample (At).
+  struct Weights {
+    std::vector<int> cell;
+    std::vector<double> fraction;
+  };
+  Weights Columns(int width, int k) const { return Along(width, k, nodes_u_); }
+  Weights Rows(int height, int k) const { return Along(height, k, nodes_v_); }
+  /// The nodes' values blended to image row `vs` (rows = Rows(...)).
   template <class T>
-  T Interpolate(const std::vector<T>& nodes, int us, int vs, int k) const {
-    const double gv = ((vs + 0.5) / k) / kStep;
-    const int j = std::min(static_cast<int>(gv), nodes_v_ - 2);
-    const double fv = gv - j;
-    const double gu = ((us + 0.5) / k) / kStep;
-    const int i = std::min(static_cast<int>(gu), nodes_u_ - 2);
-    const double fu = gu - i;
-    const std::size_t n = static_cast<std::size_t>(j) * nodes_u_ + i;
-    return (1 - fv) * ((1 - fu) * nodes[n] + fu * nodes[n + 1]) +
-           fv * ((1 - fu) * nodes[n + nodes_u_] + fu * nodes[n + nodes_u_ + 1]);
+  void Row(const std::vector<T>& nodes, const Weights& rows, int vs, std::vector<T>* row) const {
+    const std::size_t n = static_cast<std::size_t>(rows.cell[vs]) * nodes_u_;
+    const double f = rows.fraction[vs];
+    row->resize(nodes_u_);
+    for (int i = 0; i < nodes_u_; ++i) (*row)[i] = (1 - f) * nodes[n + i] + f * nodes[n + nodes_u_ + i];
+  }
+  /// The value at column `us` of a row from Row (columns = Columns(...)).
+  template <class T>
+  static T At(const std::vector<T>& row, const Weights& columns, int us) {
+    const int i = columns.cell[us];
+    const double f = columns.fraction[us];
+    return (1 - f) * row[i] + f * row[i + 1];
   }
 
  private:
+  static Weights Along(int size, int k, int nodes) {
+    Weights w;
+    w.cell.resize(size);
+    w.fraction.resize(size);
+    for (int s = 0; s < size; ++s) {
+      const double g = ((s + 0.5) / k) / kStep;
+      w.cell[s] = std::min(static_cast<int>(g), nodes - 2);
+      w.fraction[s] = g - w.cell[s];
+    }
+    return w;
+  }
   int nodes_u_;
   int nodes_v_;
 };
@@ -257,15 +279,20 @@ cv::Mat Imager::RenderSupersampled(const PixelToWorld& pixel_to_world) const {
   const int rows = static_cast<int>(std::ceil(box.max_r) - static_cast<double>(row0)) + 3;
   const cv::Mat patch = floor_.Render(col0, row0, cols, rows);
 
+  for (Eigen::Vector2d& node : texel) node -= Eigen::Vector2d(static_cast<double>(col0), static_cast<double>(row0));
+  const NodeGrid::Weights columns = grid.Columns(width, k);
+  const NodeGrid::Weights grid_rows = grid.Rows(height, k);
+  std::vector<Eigen::Vector2d> row;
   cv::Mat map_c(height, width, CV_32F);
   cv::Mat map_r(height, width, CV_32F);
   for (int vs = 0; vs < height; ++vs) {
+    grid.Row(texel, grid_rows, vs, &row);
     auto* out_c = map_c.ptr<float>(vs);
     auto* out_r = map_r.ptr<float>(vs);
     for (int us = 0; us < width; ++us) {
-      const Eigen::Vector2d value = grid.Interpolate(texel, us, vs, k);
-      out_c[us] = static_cast<float>(value.x() - static_cast<double>(col0));
-      out_r[us] = static_cast<float>(value.y() - static_cast<double>(row0));
+      const Eigen::Vector2d value = NodeGrid::At(row, columns, us);
+      out_c[us] = static_cast<float>(value.x());
+      out_r[us] = static_cast<float>(value.y());
     }
   }
   cv::Mat super;
@@ -342,14 +369,22 @@ cv::Mat Imager::RenderSurface(const PixelToWorld& pixel_to_world, const SurfaceV
   };
   const auto depth_at = [&](double c, double r) { return depth_max > 0.0 ? sample(depth, c, r) : 0.0; };
 
+  for (Eigen::Vector2d& node : texel) node -= Eigen::Vector2d(static_cast<double>(col0), static_cast<double>(row0));
+  const NodeGrid::Weights columns = grid.Columns(width, k);
+  const NodeGrid::Weights grid_rows = grid.Rows(height, k);
+  std::vector<Eigen::Vector2d> texel_row, parallax_row;
+  std::vector<double> top_z_row, flat_irradiance_row;
   cv::Mat super(height, width, CV_32F);
   const LightOptions& light = surface_.light;
   for (int vs = 0; vs < height; ++vs) {
+    grid.Row(texel, grid_rows, vs, &texel_row);
+    grid.Row(parallax, grid_rows, vs, &parallax_row);
+    grid.Row(top_z, grid_rows, vs, &top_z_row);
+    grid.Row(flat_irradiance, grid_rows, vs, &flat_irradiance_row);
     auto* out = super.ptr<float>(vs);
     for (int us = 0; us < width; ++us) {
-      const Eigen::Vector2d top = grid.Interpolate(texel, us, vs, k) -
-                                  Eigen::Vector2d(static_cast<double>(col0), static_cast<double>(row0));
-      const Eigen::Vector2d step_dir = grid.Interpolate(parallax, us, vs, k);
+      const Eigen::Vector2d top = NodeGrid::At(texel_row, columns, us);
+      const Eigen::Vector2d step_dir = NodeGrid::At(parallax_row, columns, us);
       // March down the ray until it is below the surface, then place the hit between the last
       // two steps (the surface's first crossing: what lies in front hides what lies behind).
       double hit_depth = 0.0;
@@ -382,12 +417,12 @@ cv::Mat Imager::RenderSurface(const PixelToWorld& pixel_to_world, const SurfaceV
         const double ddy =
             level_top ? 0.0 : -(depth_at(hit.x(), hit.y() + 0.5) - depth_at(hit.x(), hit.y() - 0.5)) / t;
         if (hit_depth == 0.0 && ddx == 0.0 && ddy == 0.0) {
-          irradiance = grid.Interpolate(flat_irradiance, us, vs, k);  // a level top: smooth over the view
+          irradiance = NodeGrid::At(flat_irradiance_row, columns, us);  // a level top: smooth over the view
         } else {
           const Eigen::Vector3d normal = Eigen::Vector3d(ddx, ddy, 1.0).normalized();
           const Eigen::Vector3d point((hit.x() + static_cast<double>(col0) + 0.5) * t,
                                       -(hit.y() + static_cast<double>(row0) + 0.5) * t,
-                                      grid.Interpolate(top_z, us, vs, k) - hit_depth);
+                                      NodeGrid::At(top_z_row, columns, us) - hit_depth);
           // Shadow: walk towards the light while below the top surface.
           const auto shadowed = [&](const Eigen::Vector3d& to_light) {
             if (hit_depth <= 0.0) return false;

@@ -23,6 +23,8 @@ class FloorShape {
   double HeightMm(const Eigen::Vector2d& xy_mm) const;
   /// d height / d (x, y), mm per mm.
   Eigen::Vector2d Gradient(const Eigen::Vector2d& xy_mm) const;
+  /// Both at once (one angle per wave): the height, and the gradient in `gradient`.
+  double HeightAndGradient(const Eigen::Vector2d& xy_mm, Eigen::Vector2d* gradient) const;
   /// Where the ray from `origin` along `direction` (world, z up, direction pointing down)
   /// meets the floor, (x, y) mm.
   Eigen::Vector2d Intersect(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction) const;
