@@ -79,7 +79,9 @@ Action AddBenchCommand(CLI::App& app, const GlobalOptions& global) {
   return [args, soak_args, soak, &global] {
     if (soak->parsed()) {
       const runtime::SoakOptions options = runtime::SoakOptionsFor(*soak_args);
-      ProgressBar progress("soak", global.quiet || global.json);
+      // A soak runs for hours: its progress goes to standard error even with --json (the
+      // figures go to standard output), unless --quiet.
+      ProgressBar progress("soak", global.quiet);
       // A stop signal ends the drive with the figures of the frames localized so far.
       const runtime::SoakSummary r = runtime::RunSoak(options, progress.DrawCallback(), &core::StopSignals::Reason);
       progress.Finish();
