@@ -109,6 +109,9 @@ TEST(FloorShape, HasTheRequestedRoughnessAndRaysLandOnIt) {
   EXPECT_NEAR(shape.Gradient(p).x(),
               (shape.HeightMm(p + Eigen::Vector2d(step, 0)) - shape.HeightMm(p - Eigen::Vector2d(step, 0))) / (2 * step),
               1e-8);
+  Eigen::Vector2d gradient;
+  EXPECT_NEAR(shape.HeightAndGradient(p, &gradient), shape.HeightMm(p), 1e-12);
+  EXPECT_NEAR((gradient - shape.Gradient(p)).norm(), 0.0, 1e-15);
   EXPECT_TRUE(FloorShape(0.0, 2.0, 7).flat());
 }
 
