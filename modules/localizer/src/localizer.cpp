@@ -410,25 +410,26 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
         VehicleCovariance(outcome.track.world_from_camera, options_.vehicle_from_camera, camera_covariance);
     outcome.fix_world_from_vehicle = fix;
     outcome.fix_quality = std::clamp(outcome.track.mean_zncc, 0.0, 1.0);
-    // How certain the estimate would be after the fix: a relocalization's is the fix's own; a
-    // confident prediction keeps itself whatever the fix, an uncertain one takes the fix's.
-    Eigen::Matrix3d fixed_covariance = fix_covariance;
-    if (!relocalize) {
-      fixed_covariance = predicted_covariance - predicted_covariance *
-                                                    (predicted_covariance + fix_covariance).ldlt().solve(predicted_covariance);
-    }
-    const double fixed_sigma_mm = std::sqrt(std::max(
-        0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(fixed_covariance.topLeftCorner<2, 2>(), Eigen::EigenvaluesOnly)
-                 .eigenvalues()
-                 .maxCoeff()));
-    if (fixed_sigma_mm > options_.max_fixed_sigma_mm) {
+    // How certain the estimate would be after the fix: a relocalization's (and a re-anchoring's)
+    // is the fix's own; after an update P (P + R)^-1 R, so a confident prediction keeps itself
+    // whatever the fix and an uncertain one takes the fix's. Not a number: not taken.
+    const auto largest_sigma_mm = [](const Eigen::Matrix3d& covariance) {
+      const Eigen::Matrix2d xy = 0.5 * (covariance.topLeftCorner<2, 2>() + covariance.topLeftCorner<2, 2>().transpose());
+      return std::sqrt(Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(xy, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff());
+    };
+    const double fix_sigma_mm = largest_sigma_mm(fix_covariance);
+    const double fixed_sigma_mm =
+        relocalize ? fix_sigma_mm
+                   : largest_sigma_mm((predicted_covariance + fix_covariance).ldlt().solve(predicted_covariance).transpose() *
+                                      fix_covariance);
+    if (!(fixed_sigma_mm <= options_.max_fixed_sigma_mm)) {
       outcome.reason = fmt::format(
           "fix rejected: too uncertain (the estimate would be good to {:.3f} mm, one standard deviation, above "
           "{:.3f}{})",
           fixed_sigma_mm, options_.max_fixed_sigma_mm,
-          lever_sigma_mm > 0.0 && !outcome.track.tilt_estimated
+          lever_sigma_mm != 0.0 && !outcome.track.tilt_estimated
               ? fmt::format("; {} templates too few to measure the tilt, whose lever is {:.3f} mm uncertain",
-                            outcome.track.inliers, lever_sigma_mm)
+                            outcome.track.inliers, std::abs(lever_sigma_mm))
               : std::string());
     } else if (relocalize) {
       // A verified relocalization replaces the prediction it contradicts.
@@ -451,7 +452,9 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
                                      core::WrapAngle(fix.yaw_rad() - predicted.yaw_rad()));
         if (!gated) {
           rejected_run_ = 0;
-        } else if (RejectedAgain(time, offset, fix_covariance + unmodelled)) {
+        } else if (fix_sigma_mm <= options_.max_fixed_sigma_mm &&
+                   RejectedAgain(time, offset, fix_covariance + unmodelled)) {
+          // A restart takes the fix's own uncertainty: only from a fix certain enough.
           Restart(time, fix, fix_covariance, true, &outcome);
         }
       }

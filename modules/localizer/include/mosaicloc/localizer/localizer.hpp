@@ -175,7 +175,7 @@ struct LocalizerOptions {
 /// What happened to one frame.
 struct FrameOutcome {
   /// Why there is no fix, in one word (fixes.csv): "off-map", "rejected" (at the filter's
-  /// gate), or the tracker's failure ("no-texture", "no-match", "ambiguous",
+  /// gate, or too uncertain to take: LocalizerOptions::max_fixed_sigma_mm), or the tracker's failure ("no-texture", "no-match", "ambiguous",
   /// "too-few-inliers", "not-converged"); empty with a fix.
   std::string ReasonWord() const;
 
