@@ -216,6 +216,15 @@ Localizer::Localizer(const camera::IdealCamera& camera, const LocalizerOptions& 
   options_.filter.kind = options_.odometry.wheels.kind;
   std::string why;
   if (!options_.Check(&why)) core::ThrowInvalidInput("localizer options: " + why);
+  const tracking::TrackerOptions& t = options_.tracker;
+  if (t.solver.estimate_tilt && options_.tilt_pivot_height_mm != 0.0 &&
+      (!t.solver.estimate_scale || t.templates.count < t.solver.min_tilt_points)) {
+    core::Log().warn(
+        "localizer: solver.estimate_tilt with a tilt_pivot_height_mm, but the tilt is measured only with "
+        "solver.estimate_scale and at least solver.min_tilt_points ({}) templates (templates.count: {}): every fix "
+        "carries the lever of a tilt not measured, and after visual odometry is refused as too uncertain",
+        t.solver.min_tilt_points, t.templates.count);
+  }
 }
 
 void Localizer::Initialize(core::Timestamp time, const core::Pose2& world_from_vehicle,
