@@ -4,7 +4,7 @@
 source "$(dirname "$0")/lib.sh"
 require_peers
 command -v chromium >/dev/null || { fail "chromium is not installed (scripts/install-deps.sh installs it)"; finish; }
-make_site site 0.5 procedural
+make_site site 0.25 procedural
 PLC_PORT=$(free_port)
 CONSOLE_PORT=$(free_port)
 cat > "$SCRATCH/run.yaml" <<YAML
@@ -25,7 +25,7 @@ RUN=$!
 wait_port "$CONSOLE_PORT"
 # Once the drive has started: the state as a script reads it, and the page following live
 # updates (20 Hz) for as long as headless chromium's virtual time lets it (about half a second
-# of real time: a few updates, not a fixed number). The drive lasts about 7 s (0.5 m/s), so the run
+# of real time: a few updates, not a fixed number). The drive lasts about 12 s (0.25 m/s), so the run
 # is still going when a slow browser start has the page ask for it.
 sleep 3.8
 curl -sf "http://127.0.0.1:$CONSOLE_PORT/api/live" > "$SCRATCH/live.json" || fail "GET /api/live during the run"
