@@ -314,6 +314,14 @@ FixOutcome PoseFilter::Correct(core::Timestamp time, const core::Pose2& world_fr
   return outcome;
 }
 
+Eigen::Matrix3d PoseFilter::CorrectedCovariance(core::Timestamp time, const Eigen::Matrix3d& covariance,
+                                                const Eigen::Matrix3d& prediction_spread) const {
+  // (I - K) P at the gain K = P (P + R)^-1, which the Joseph form of Correct reduces to.
+  const Eigen::Matrix3d predicted = CovarianceAt(time) + prediction_spread;
+  const Eigen::Matrix3d corrected = predicted * (predicted + covariance).ldlt().solve(covariance);
+  return 0.5 * (corrected + corrected.transpose());
+}
+
 PoseFilter::Split PoseFilter::SplitAt(core::Timestamp time) const {
   // The state at `time`: split the increment that spans it.
   Split split;

@@ -128,6 +128,19 @@ TEST(PoseFilter, GatesAFixFarFromThePrediction) {
   EXPECT_FALSE(filter.Correct(At(2), Pose2(), Eigen::Matrix3d::Identity()).accepted) << "newer than odometry";
 }
 
+TEST(PoseFilter, SaysTheCovarianceAFixWouldLeave) {
+  // A prediction uncertain along x, a fix uncertain along y, with a spread added on top.
+  PoseFilter filter(PoseFilterOptions{}, At(0), Pose2(), Eigen::Vector3d(4.0, 0.01, 1e-6).asDiagonal());
+  filter.Predict(At(1), Arc(10.0, 0.0, 10ms));
+  const Eigen::Matrix3d fix = Eigen::Vector3d(0.01, 4.0, 1e-6).asDiagonal();
+  const Eigen::Matrix3d spread = Eigen::Matrix3d::Identity() * 0.5;
+  const Eigen::Matrix3d expected = filter.CorrectedCovariance(At(1), fix, spread);
+  EXPECT_LT(expected(0, 0), 0.011) << "x: the fix's";
+  EXPECT_LT(expected(1, 1), 0.53) << "y: the prediction's";
+  ASSERT_TRUE(filter.Correct(At(1), Pose2(10.0, 0.0, 0.0), fix, spread).accepted);
+  EXPECT_LT((filter.covariance() - expected).cwiseAbs().maxCoeff(), 1e-9 * expected.norm());
+}
+
 // A drive with known truth: odometry with a 2 % scale error and noise, fixes with known
 // noise at 30 Hz. The filter must stay within its own covariance (normalised estimation
 // error squared near 3) and far better than dead reckoning.

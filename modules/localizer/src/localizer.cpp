@@ -97,6 +97,22 @@ double ViewShift(const camera::IdealCamera& camera, const core::Pose2& a, const 
   return (a.translation_mm() - b.translation_mm()).norm() / std::min(camera.width_mm(), camera.height_mm());
 }
 
+// The variance of the camera's tilt about either axis with nothing measured
+// (LocalizerOptions::tilt_sigma_deg), rad².
+double TiltPriorVariance(const LocalizerOptions& options) {
+  const double sigma_rad = options.tilt_sigma_deg * std::numbers::pi / 180.0;
+  return sigma_rad * sigma_rad;
+}
+
+// A Kalman update of `value` (a number, or a vector whose components share one variance and
+// are measured with one variance) by a measurement of it.
+template <typename Value>
+void UpdateEstimate(const Value& measured, double measured_variance, Value& value, double& variance) {
+  const double gain = variance / (variance + measured_variance);
+  value += gain * (measured - value);
+  variance *= 1.0 - gain;
+}
+
 }  // namespace
 
 const char* ToString(Mode mode) {
@@ -211,7 +227,7 @@ Localizer::Localizer(const camera::IdealCamera& camera, const LocalizerOptions& 
       lock_(options.lock),
       tick_quantization_(estimation::TickQuantizationCovariance(options.odometry.wheels)),
       scale_variance_(options.scale_sigma * options.scale_sigma),
-      tilt_variance_(Eigen::Vector2d::Constant(std::pow(options.tilt_sigma_deg * std::numbers::pi / 180.0, 2))) {
+      tilt_variance_(TiltPriorVariance(options)) {
   // The filter's calibration states are those of the vehicle's kinematics.
   options_.filter.kind = options_.odometry.wheels.kind;
   std::string why;
@@ -340,9 +356,8 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
   if (!tilt_time_ || time > *tilt_time_) {
     if (tilt_time_) {  // first-order Gauss-Markov: the tilt forgets itself towards none
       const double kept = std::exp(-core::ToSeconds(time - *tilt_time_) / options_.tilt_correlation_s);
-      const double sigma = options_.tilt_sigma_deg * std::numbers::pi / 180.0;
       tilt_ *= kept;
-      tilt_variance_ = kept * kept * tilt_variance_ + Eigen::Vector2d::Constant((1.0 - kept * kept) * sigma * sigma);
+      tilt_variance_ = kept * kept * tilt_variance_ + (1.0 - kept * kept) * TiltPriorVariance(options_);
     }
     tilt_time_ = time;
   }
@@ -420,17 +435,14 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
     outcome.fix_world_from_vehicle = fix;
     outcome.fix_quality = std::clamp(outcome.track.mean_zncc, 0.0, 1.0);
     // How certain the estimate would be after the fix: a relocalization's (and a re-anchoring's)
-    // is the fix's own; after an update P (P + R)^-1 R, so a confident prediction keeps itself
-    // whatever the fix and an uncertain one takes the fix's. Not a number: not taken.
+    // is the fix's own, an update's the filter's corrected covariance. Not a number: not taken.
     const auto largest_sigma_mm = [](const Eigen::Matrix3d& covariance) {
       const Eigen::Matrix2d xy = 0.5 * (covariance.topLeftCorner<2, 2>() + covariance.topLeftCorner<2, 2>().transpose());
       return std::sqrt(Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(xy, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff());
     };
     const double fix_sigma_mm = largest_sigma_mm(fix_covariance);
     const double fixed_sigma_mm =
-        relocalize ? fix_sigma_mm
-                   : largest_sigma_mm((predicted_covariance + fix_covariance).ldlt().solve(predicted_covariance).transpose() *
-                                      fix_covariance);
+        relocalize ? fix_sigma_mm : largest_sigma_mm(filter_->CorrectedCovariance(time, fix_covariance, unmodelled));
     if (!(fixed_sigma_mm <= options_.max_fixed_sigma_mm)) {
       outcome.reason = fmt::format(
           "fix rejected: too uncertain (the estimate would be good to {:.3f} mm, one standard deviation, above "
@@ -472,20 +484,16 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
     outcome.reason = tracking::ToString(outcome.track.failure) + std::string(": ") + outcome.track.reason;
   }
   if (outcome.fixed && outcome.track.scale_estimated) {
-    const double measured_variance = options_.fix_covariance_scale * outcome.track.scale_sigma *
-                                     outcome.track.scale_sigma;
-    const double gain = scale_variance_ / (scale_variance_ + measured_variance);
-    scale_ += gain * (outcome.track.scale - scale_);
-    scale_variance_ *= 1.0 - gain;
+    UpdateEstimate(outcome.track.scale,
+                   options_.fix_covariance_scale * outcome.track.scale_sigma * outcome.track.scale_sigma, scale_,
+                   scale_variance_);
   }
   outcome.scale = scale_;
   outcome.scale_sigma = std::sqrt(scale_variance_);
   if (outcome.fixed && outcome.track.tilt_estimated) {
-    const double measured_variance = options_.fix_covariance_scale * outcome.track.tilt_sigma_rad *
-                                     outcome.track.tilt_sigma_rad;
-    const Eigen::Vector2d gain = (tilt_variance_.array() / (tilt_variance_.array() + measured_variance)).matrix();
-    tilt_ += gain.cwiseProduct(Eigen::Vector2d(outcome.track.tilt_x_rad, outcome.track.tilt_y_rad) - tilt_);
-    tilt_variance_ = tilt_variance_.cwiseProduct(Eigen::Vector2d::Ones() - gain);
+    UpdateEstimate(Eigen::Vector2d(outcome.track.tilt_x_rad, outcome.track.tilt_y_rad),
+                   options_.fix_covariance_scale * outcome.track.tilt_sigma_rad * outcome.track.tilt_sigma_rad, tilt_,
+                   tilt_variance_);
   }
   estimation::FrameVerdict verdict = estimation::FrameVerdict::kFixed;
   if (outcome.fixed) {
@@ -668,7 +676,7 @@ std::pair<Eigen::Vector2d, double> Localizer::FixTilt(const tracking::TrackResul
     return {Eigen::Vector2d(track.tilt_x_rad, track.tilt_y_rad),
             std::sqrt(options_.fix_covariance_scale) * track.tilt_sigma_rad};
   }
-  return {tilt_, std::sqrt(tilt_variance_.maxCoeff())};
+  return {tilt_, std::sqrt(tilt_variance_)};
 }
 
 core::Pose2 Localizer::MountingPoint(const tracking::TrackResult& track, const Eigen::Vector2d& tilt_rad) const {

@@ -48,12 +48,18 @@ TEST(LocalizerConfig, DefaultFileEqualsCompiledDefaults) {
   EXPECT_EQ(a.solver.min_inliers, b.solver.min_inliers);
   EXPECT_EQ(a.solver.estimate_scale, b.solver.estimate_scale);
   EXPECT_EQ(a.solver.posterior_variance, b.solver.posterior_variance);
+  EXPECT_EQ(a.solver.estimate_tilt, b.solver.estimate_tilt);
+  EXPECT_EQ(a.solver.min_tilt_points, b.solver.min_tilt_points);
   const localizer::LocalizerOptions& l = loaded.localizer;
   const localizer::LocalizerOptions& m = compiled.localizer;
   EXPECT_EQ(l.filter.gate_chi2, m.filter.gate_chi2);
   EXPECT_EQ(l.fix_sigma_floor_mm, m.fix_sigma_floor_mm);
   EXPECT_EQ(l.fix_sigma_floor_rad, m.fix_sigma_floor_rad);
   EXPECT_EQ(l.fix_covariance_scale, m.fix_covariance_scale);
+  EXPECT_EQ(l.max_fixed_sigma_mm, m.max_fixed_sigma_mm);
+  EXPECT_EQ(l.tilt_pivot_height_mm, m.tilt_pivot_height_mm);
+  EXPECT_EQ(l.tilt_sigma_deg, m.tilt_sigma_deg);
+  EXPECT_EQ(l.tilt_correlation_s, m.tilt_correlation_s);
   EXPECT_EQ(l.map_distortion_mm_per_m, m.map_distortion_mm_per_m);
   EXPECT_EQ(l.odometry.wheel_variance_mm, m.odometry.wheel_variance_mm);
   EXPECT_EQ(l.lock.degraded_after_misses, m.lock.degraded_after_misses);

@@ -127,6 +127,11 @@ class PoseFilter {
   /// Never throws: a rejected fix says why.
   FixOutcome Correct(core::Timestamp time, const core::Pose2& world_from_vehicle, const Eigen::Matrix3d& covariance,
                      const Eigen::Matrix3d& prediction_spread = Eigen::Matrix3d::Zero());
+  /// The covariance of the pose at `time` that Correct with these covariances would leave,
+  /// P (P + R)^-1 R: a confident prediction keeps its certainty whatever the fix, an
+  /// uncertain one takes the fix's.
+  Eigen::Matrix3d CorrectedCovariance(core::Timestamp time, const Eigen::Matrix3d& covariance,
+                                      const Eigen::Matrix3d& prediction_spread = Eigen::Matrix3d::Zero()) const;
   /// Restarts from a pose, dropping the history. The wheel scale estimates and their
   /// variances are kept: they belong to the vehicle.
   void Reset(core::Timestamp time, const core::Pose2& world_from_vehicle, const Eigen::Matrix3d& covariance);

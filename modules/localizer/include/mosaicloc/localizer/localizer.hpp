@@ -376,9 +376,10 @@ class Localizer {
   double scale_variance_ = 0.0;
   std::optional<core::Timestamp> scale_time_;
   // The camera's tilt (rad, about its x and y axes; LocalizerOptions::tilt_sigma_deg), the
-  // variance of each, and the time they were last brought to.
+  // variance of either (both axes are predicted and measured alike), and the time they were
+  // last brought to.
   Eigen::Vector2d tilt_ = Eigen::Vector2d::Zero();
-  Eigen::Vector2d tilt_variance_ = Eigen::Vector2d::Zero();
+  double tilt_variance_ = 0.0;
   std::optional<core::Timestamp> tilt_time_;
 };
 
