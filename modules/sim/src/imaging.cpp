@@ -84,6 +84,22 @@ struct Box {
   }
 };
 
+// The texels of a floor patch: the box grown by `margin` texels on every side.
+struct Patch {
+  Patch(const Box& box, int margin)
+      : col0(static_cast<std::int64_t>(std::floor(box.min_c)) - margin),
+        row0(static_cast<std::int64_t>(std::floor(box.min_r)) - margin),
+        cols(static_cast<int>(std::ceil(box.max_c) - static_cast<double>(col0)) + margin + 1),
+        rows(static_cast<int>(std::ceil(box.max_r) - static_cast<double>(row0)) + margin + 1) {}
+  /// Floor texel coordinates made the patch's (its first texel's centre at 0, 0).
+  void Into(std::vector<Eigen::Vector2d>& texels) const {
+    const Eigen::Vector2d origin(static_cast<double>(col0), static_cast<double>(row0));
+    for (Eigen::Vector2d& texel : texels) texel -= origin;
+  }
+  std::int64_t col0, row0;
+  int cols, rows;
+};
+
 // What the LEDs at `lights` (world) shine on a Lambertian surface at `point` with `normal`:
 // each an emitter along `axis_down` (cosine of the emission angle) at the inverse square,
 // times the cosine of incidence, unless `shadowed(to_light)`.
@@ -226,28 +242,19 @@ cv::Mat Imager::RenderSupersampled(const core::Pose2& world_from_camera, double 
   const int width = camera_.width_px() * k;
   const int height = camera_.height_px() * k;
   const double margin = blur_margin_px + 2.0;
-  double min_c = 1e300, min_r = 1e300, max_c = -1e300, max_r = -1e300;
+  Box box;
   for (const double u : {-margin, width - 1 + margin}) {
-    for (const double v : {-margin, height - 1 + margin}) {
-      const Eigen::Vector2d texel = texel_from_super * Eigen::Vector3d(u, v, 1.0);
-      min_c = std::min(min_c, texel.x());
-      max_c = std::max(max_c, texel.x());
-      min_r = std::min(min_r, texel.y());
-      max_r = std::max(max_r, texel.y());
-    }
+    for (const double v : {-margin, height - 1 + margin}) box.Add(texel_from_super * Eigen::Vector3d(u, v, 1.0));
   }
-  const auto col0 = static_cast<std::int64_t>(std::floor(min_c)) - 1;
-  const auto row0 = static_cast<std::int64_t>(std::floor(min_r)) - 1;
-  const int cols = static_cast<int>(std::ceil(max_c) - static_cast<double>(col0)) + 2;
-  const int rows = static_cast<int>(std::ceil(max_r) - static_cast<double>(row0)) + 2;
-  const cv::Mat patch = floor_.Render(col0, row0, cols, rows);
+  const Patch window(box, 1);
+  const cv::Mat patch = floor_.Render(window.col0, window.row0, window.cols, window.rows);
 
   cv::Mat map(2, 3, CV_64F);
   for (int r = 0; r < 2; ++r) {
     for (int c = 0; c < 3; ++c) map.at<double>(r, c) = texel_from_super(r, c);
   }
-  map.at<double>(0, 2) -= static_cast<double>(col0);
-  map.at<double>(1, 2) -= static_cast<double>(row0);
+  map.at<double>(0, 2) -= static_cast<double>(window.col0);
+  map.at<double>(1, 2) -= static_cast<double>(window.row0);
   cv::Mat super;
   cv::warpAffine(patch, super, map, cv::Size(width, height), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP,
                  cv::BORDER_REPLICATE);
@@ -273,13 +280,9 @@ cv::Mat Imager::RenderSupersampled(const PixelToWorld& pixel_to_world) const {
     texel[n] = TexelOf(pixel_to_world(grid.Pixel(n)), t);
     box.Add(texel[n]);
   }
-  const auto col0 = static_cast<std::int64_t>(std::floor(box.min_c)) - 2;
-  const auto row0 = static_cast<std::int64_t>(std::floor(box.min_r)) - 2;
-  const int cols = static_cast<int>(std::ceil(box.max_c) - static_cast<double>(col0)) + 3;
-  const int rows = static_cast<int>(std::ceil(box.max_r) - static_cast<double>(row0)) + 3;
-  const cv::Mat patch = floor_.Render(col0, row0, cols, rows);
-
-  for (Eigen::Vector2d& node : texel) node -= Eigen::Vector2d(static_cast<double>(col0), static_cast<double>(row0));
+  const Patch window(box, 2);
+  const cv::Mat patch = floor_.Render(window.col0, window.row0, window.cols, window.rows);
+  window.Into(texel);
   const NodeGrid::Weights columns = grid.Columns(width, k);
   const NodeGrid::Weights grid_rows = grid.Rows(height, k);
   std::vector<Eigen::Vector2d> row;
@@ -333,14 +336,11 @@ cv::Mat Imager::RenderSurface(const PixelToWorld& pixel_to_world, const SurfaceV
                                     Eigen::Vector3d::UnitZ(), [](const Eigen::Vector3d&) { return false; });
     box.Add(texel[n]);
   }
-  const int margin = static_cast<int>(std::ceil(depth_max * reach)) + 3;
-  const auto col0 = static_cast<std::int64_t>(std::floor(box.min_c)) - margin;
-  const auto row0 = static_cast<std::int64_t>(std::floor(box.min_r)) - margin;
-  const int cols = static_cast<int>(std::ceil(box.max_c) - static_cast<double>(col0)) + margin + 1;
-  const int rows = static_cast<int>(std::ceil(box.max_r) - static_cast<double>(row0)) + margin + 1;
+  const Patch window(box, static_cast<int>(std::ceil(depth_max * reach)) + 3);
   cv::Mat albedo;
-  floor_.Render(col0, row0, cols, rows).convertTo(albedo, CV_32F);
-  const cv::Mat depth = depth_max > 0.0 ? surface_.relief->Depth(col0, row0, cols, rows) : cv::Mat();
+  floor_.Render(window.col0, window.row0, window.cols, window.rows).convertTo(albedo, CV_32F);
+  const cv::Mat depth =
+      depth_max > 0.0 ? surface_.relief->Depth(window.col0, window.row0, window.cols, window.rows) : cv::Mat();
   // Texels whose 4 x 4 neighbourhood (every bilinear sample of a point in the texel and half a
   // texel around it) is all top: the common case, with no slope to take.
   cv::Mat level;
@@ -369,7 +369,7 @@ cv::Mat Imager::RenderSurface(const PixelToWorld& pixel_to_world, const SurfaceV
   };
   const auto depth_at = [&](double c, double r) { return depth_max > 0.0 ? sample(depth, c, r) : 0.0; };
 
-  for (Eigen::Vector2d& node : texel) node -= Eigen::Vector2d(static_cast<double>(col0), static_cast<double>(row0));
+  window.Into(texel);
   const NodeGrid::Weights columns = grid.Columns(width, k);
   const NodeGrid::Weights grid_rows = grid.Rows(height, k);
   std::vector<Eigen::Vector2d> texel_row, parallax_row;
@@ -420,8 +420,8 @@ cv::Mat Imager::RenderSurface(const PixelToWorld& pixel_to_world, const SurfaceV
           irradiance = NodeGrid::At(flat_irradiance_row, columns, us);  // a level top: smooth over the view
         } else {
           const Eigen::Vector3d normal = Eigen::Vector3d(ddx, ddy, 1.0).normalized();
-          const Eigen::Vector3d point((hit.x() + static_cast<double>(col0) + 0.5) * t,
-                                      -(hit.y() + static_cast<double>(row0) + 0.5) * t,
+          const Eigen::Vector3d point((hit.x() + static_cast<double>(window.col0) + 0.5) * t,
+                                      -(hit.y() + static_cast<double>(window.row0) + 0.5) * t,
                                       NodeGrid::At(top_z_row, columns, us) - hit_depth);
           // Shadow: walk towards the light while below the top surface.
           const auto shadowed = [&](const Eigen::Vector3d& to_light) {
