@@ -33,6 +33,32 @@ function(mosaicloc_target_options target)
     # Coverage for the fuzzers' guidance in every library they reach.
     target_compile_options(${target} PUBLIC -fsanitize=fuzzer-no-link)
   endif()
+  if(MOSAICLOC_PRECOMPILED_HEADERS AND ARG_STANDARD EQUAL 20 AND NOT target STREQUAL "mosaicloc_precompiled")
+    target_precompile_headers(${target} REUSE_FROM mosaicloc_precompiled)
+    # The header is compiled position-independent, as the modules' libraries are, and a
+    # compiler takes it only into compilations alike (executables are otherwise -fPIE).
+    target_compile_options(${target} PRIVATE -fPIC)
+  endif()
+endfunction()
+
+# mosaicloc_add_precompiled_headers(): target mosaicloc_precompiled, whose precompiled header
+# every C++20 target reuses (MOSAICLOC_PRECOMPILED_HEADERS). A compiler takes a precompiled
+# header only into a compilation with the same code-generation options, so it is compiled
+# with ours, position-independent, and holds only libraries whose headers no definition of a
+# target changes (fmt's and spdlog's depend on how they were built, which only their users are
+# told). The headers are those most of the sources include. A target the header does not
+# suit fails to build (CMake adds -Winvalid-pch; our warnings are errors).
+function(mosaicloc_add_precompiled_headers)
+  add_library(mosaicloc_precompiled OBJECT ${PROJECT_SOURCE_DIR}/cmake/precompiled.cpp)
+  target_link_libraries(mosaicloc_precompiled PRIVATE Eigen3::Eigen opencv_core opencv_imgproc
+    nlohmann_json::nlohmann_json yaml-cpp)
+  mosaicloc_target_options(mosaicloc_precompiled)
+  target_compile_options(mosaicloc_precompiled PRIVATE -fPIC)
+  target_precompile_headers(mosaicloc_precompiled PRIVATE
+    <algorithm> <array> <chrono> <cmath> <cstdint> <cstdio> <filesystem> <fstream> <functional>
+    <map> <memory> <numbers> <optional> <random> <sstream> <string> <string_view> <utility> <vector>
+    <Eigen/Core> <Eigen/Geometry> <Eigen/LU> <opencv2/core.hpp> <opencv2/imgproc.hpp>
+    <nlohmann/json.hpp> <yaml-cpp/yaml.h>)
 endfunction()
 
 # mosaicloc_gtest_suites(<target> LABEL <label>): registers the GoogleTest program <target>

@@ -15,6 +15,11 @@
 namespace mosaicloc::calibration {
 namespace {
 
+// The file's keys: the floor frame's columns, the homography's rows and their entries.
+constexpr const char* kFloorColumns[] = {"x_axis", "y_axis", "origin_mm"};
+constexpr const char* kRows[] = {"row0", "row1", "row2"};
+constexpr const char* kEntries[] = {"c0", "c1", "c2"};
+
 Eigen::Matrix3d IdealPixelToFloor(const camera::IdealCameraOptions& ideal) {
   const camera::IdealCamera camera(ideal);
   const double s = ideal.mm_per_px;
@@ -304,11 +309,10 @@ void WriteGroundCalibration(const std::filesystem::path& file, const GroundCalib
   yaml << YAML::Key << "floor_in_optical"
        << YAML::Comment("camera floor frame C in the optical frame (x right, y down, z forward)");
   yaml << YAML::Value << YAML::BeginMap;
-  const char* columns[] = {"x_axis", "y_axis", "origin_mm"};
   const char* notes[] = {"unit vector: image right on the floor", "unit vector: image up on the floor",
                          "the nadir: the floor point below the optical centre, mm"};
   for (int col = 0; col < 3; ++col) {
-    yaml << YAML::Key << columns[col] << YAML::Value << YAML::Flow << YAML::BeginMap;
+    yaml << YAML::Key << kFloorColumns[col] << YAML::Value << YAML::Flow << YAML::BeginMap;
     yaml << YAML::Key << "x" << YAML::Value << m(0, col) << YAML::Key << "y" << YAML::Value << m(1, col);
     yaml << YAML::Key << "z" << YAML::Value << m(2, col) << YAML::EndMap << YAML::Comment(notes[col]);
   }
@@ -318,8 +322,8 @@ void WriteGroundCalibration(const std::filesystem::path& file, const GroundCalib
                         "follows from the keys above and is checked against them when read");
   yaml << YAML::Value << YAML::BeginMap;
   for (int r = 0; r < 3; ++r) {
-    yaml << YAML::Key << "row" + std::to_string(r) << YAML::Value << YAML::Flow << YAML::BeginMap;
-    for (int col = 0; col < 3; ++col) yaml << YAML::Key << "c" + std::to_string(col) << YAML::Value << h(r, col);
+    yaml << YAML::Key << kRows[r] << YAML::Value << YAML::Flow << YAML::BeginMap;
+    for (int col = 0; col < 3; ++col) yaml << YAML::Key << kEntries[col] << YAML::Value << h(r, col);
     yaml << YAML::EndMap;
   }
   yaml << YAML::EndMap;
@@ -356,9 +360,8 @@ GroundCalibration ReadGroundCalibration(const std::filesystem::path& file) {
   ideal.Required("mm_per_px", &c.ideal.mm_per_px, core::InRange(1e-6, 100.0));
   ideal.Finish();
   core::YamlMap floor = root.RequiredMap("floor_in_optical");
-  const char* columns[] = {"x_axis", "y_axis", "origin_mm"};
   for (int col = 0; col < 3; ++col) {
-    core::YamlMap vector = floor.RequiredMap(columns[col]);
+    core::YamlMap vector = floor.RequiredMap(kFloorColumns[col]);
     vector.Required("x", &c.optical_from_floor(0, col));
     vector.Required("y", &c.optical_from_floor(1, col));
     vector.Required("z", &c.optical_from_floor(2, col));
@@ -368,8 +371,8 @@ GroundCalibration ReadGroundCalibration(const std::filesystem::path& file) {
   Eigen::Matrix3d stored;
   core::YamlMap homography = root.RequiredMap("ideal_from_undistorted_raw");
   for (int r = 0; r < 3; ++r) {
-    core::YamlMap row = homography.RequiredMap("row" + std::to_string(r));
-    for (int col = 0; col < 3; ++col) row.Required("c" + std::to_string(col), &stored(r, col));
+    core::YamlMap row = homography.RequiredMap(kRows[r]);
+    for (int col = 0; col < 3; ++col) row.Required(kEntries[col], &stored(r, col));
     row.Finish();
   }
   homography.Finish();
