@@ -386,7 +386,7 @@ FrameOutcome Localizer::ProcessFrame(core::Timestamp time, const cv::Mat& frame)
       }
     }
   } else {
-    outcome.track = tracker_.Track(frame, prior_camera, prior_camera_covariance, reference_, scale_);
+    outcome.track = tracker_.Track(frame, prior_camera, prior_camera_covariance, reference_, scale_, PredictedTilt());
   }
   // Lost, and the search around the prediction does not recover it: the vehicle may be
   // anywhere (moved unseen while the view kept matching a little where the estimate says, so
@@ -670,6 +670,11 @@ bool Localizer::OffTheMap(const tracking::ReferenceRaster& coarse, const core::P
   return true;
 }
 
+tracking::TiltPrediction Localizer::PredictedTilt() const {
+  if (!options_.tracker.solver.estimate_tilt) return {};
+  return {tilt_.x(), tilt_.y(), std::sqrt(tilt_variance_)};
+}
+
 std::pair<Eigen::Vector2d, double> Localizer::FixTilt(const tracking::TrackResult& track) const {
   if (!options_.tracker.solver.estimate_tilt || options_.tilt_pivot_height_mm == 0.0) return {Eigen::Vector2d::Zero(), 0.0};
   if (track.tilt_estimated) {
@@ -696,7 +701,7 @@ tracking::TrackResult Localizer::AtTheEdge(const cv::Mat& frame, tracking::Track
   const double sigma_mm = 0.5 * camera_.mm_per_px();
   const Eigen::Matrix3d around = Eigen::Vector3d(sigma_mm * sigma_mm, sigma_mm * sigma_mm, 1e-6).asDiagonal();
   tracking::TrackResult precise =
-      edge_tracker_.Track(frame, found.world_from_camera, around, reference_, found.scale);
+      edge_tracker_.Track(frame, found.world_from_camera, around, reference_, found.scale, PredictedTilt());
   if (!precise.ok() || precise.inliers < found.inliers) return found;
   return precise;
 }

@@ -45,11 +45,11 @@ double LossWeight(const ceres::LossFunction* loss, const double* r) {
 }
 
 // The residual of the model with `free` parameters at pose (x, y, yaw, k, a, b): the tilted
-// pinhole with all six free, else the similarity (k and the tilt held). The Jacobian is 2 x 6,
-// row-major, zero in the tilt's columns for the similarity.
+// pinhole with all six free or a tilt held, else the similarity (k and a level camera held).
+// The Jacobian is 2 x 6, row-major, zero in the tilt's columns for the similarity.
 void ModelResidual(const double* pose, const Correspondence& c, double s, double height_mm, int free, double* r,
                    double* j) {
-  if (free == 6) {
+  if (free == 6 || pose[4] != 0.0 || pose[5] != 0.0) {
     TiltResidual(pose, c, s, height_mm, r, j);
     return;
   }
@@ -227,6 +227,30 @@ bool PoseCovariance(const std::vector<Correspondence>& cs, const std::vector<boo
   return free == 4 ? InvertInformation<4>(information, covariance) : InvertInformation<3>(information, covariance);
 }
 
+// How far a held tilt moves the solved (x, y, yaw): S S^T, with S = -(J_p^T W J_p)^-1 J_p^T W J_t
+// the change of the `free` estimated parameters per unit change of the held tilt (tan, about
+// each axis), at the solution; times the tilt's variance it is the pose's covariance the
+// tilt's uncertainty adds.
+Eigen::Matrix3d ConsideredTilt(const std::vector<Correspondence>& cs, const std::vector<bool>& use,
+                               const std::vector<double>& scale, const double* pose, const PoseSolverOptions& options,
+                               int free) {
+  const std::unique_ptr<ceres::LossFunction> loss = LossOf(options);
+  Matrix6d information = Matrix6d::Zero();
+  for (std::size_t i = 0; i < cs.size(); ++i) {
+    if (!use[i]) continue;
+    double r[2];
+    Eigen::Matrix<double, 2, 6, Eigen::RowMajor> j;
+    TiltResidual(pose, cs[i], scale[i], options.camera_height_mm, r, j.data());
+    information += LossWeight(loss.get(), r) * j.transpose() * j;
+  }
+  const Eigen::MatrixXd estimated = information.topLeftCorner(free, free);
+  const Eigen::MatrixXd s = -estimated.ldlt().solve(information.block(0, 4, free, 2));
+  Eigen::Matrix<double, 3, 2> pose_per_tilt = Eigen::Matrix<double, 3, 2>::Zero();  // a held yaw does not move
+  pose_per_tilt.topRows(std::min(free, 3)) = s.topRows(std::min(free, 3));
+  const Eigen::Matrix3d moved = pose_per_tilt * pose_per_tilt.transpose();
+  return moved.allFinite() ? moved : Eigen::Matrix3d::Zero();
+}
+
 // TiltResidual's arithmetic for doubles or Jets.
 template <typename T>
 void TiltedResidual(const T* pose, const Correspondence& c, double s, double height_mm, T* residual) {
@@ -312,6 +336,10 @@ bool PoseSolverOptions::Check(std::string* why) const {
   if (min_inliers < 1) return fail("min_inliers must be >= 1");
   if (max_iterations < 1) return fail("max_iterations must be >= 1");
   if (min_tilt_points < 6) return fail("min_tilt_points must be >= 6");
+  if (!(std::abs(held_tilt_x_rad) < 0.5 && std::abs(held_tilt_y_rad) < 0.5 && held_tilt_sigma_rad >= 0.0 &&
+        held_tilt_sigma_rad < 0.5)) {
+    return fail("held_tilt_x_rad and _y_rad must be within +-0.5 and held_tilt_sigma_rad in [0, 0.5)");
+  }
   if (!(camera_height_mm > 0.0)) return fail("camera_height_mm must be > 0");
   if (!(observer_prior_sigma_mm > 0.0) || !(observer_prior_sigma_deg > 0.0) || !(observer_prior_sigma_scale > 0.0)) {
     return fail("observer_prior_sigma_mm, _deg and _scale must be > 0");
@@ -384,7 +412,9 @@ PoseSolution SolvePlanarPose(const std::vector<Correspondence>& correspondences,
   std::vector<double> scale(n);
   for (std::size_t i = 0; i < n; ++i) scale[i] = sigmas[i] / sigma_ref;
 
-  double pose[6] = {initial.x_mm(), initial.y_mm(), initial.yaw_rad(), 1.0, 0.0, 0.0};
+  // The scale starts at 1 and the tilt at the one held, for the solve of it or to hold.
+  const double held_a = std::tan(options.held_tilt_x_rad), held_b = std::tan(options.held_tilt_y_rad);
+  double pose[6] = {initial.x_mm(), initial.y_mm(), initial.yaw_rad(), 1.0, held_a, held_b};
   std::vector<bool> use(n, true);
   int free = FreeParameters(correspondences, use, options);
   Solved solved = Solve(correspondences, use, scale, pose, options, free);
@@ -409,7 +439,8 @@ PoseSolution SolvePlanarPose(const std::vector<Correspondence>& correspondences,
   if (inliers < static_cast<int>(n)) {
     free = FreeParameters(correspondences, use, options);
     pose[3] = 1.0;
-    pose[4] = pose[5] = 0.0;
+    pose[4] = held_a;
+    pose[5] = held_b;
     solved = Solve(correspondences, use, scale, pose, options, free);
   }
   solution.iterations = solved.iterations;
@@ -417,10 +448,8 @@ PoseSolution SolvePlanarPose(const std::vector<Correspondence>& correspondences,
   solution.scale = pose[3];
   solution.scale_estimated = free >= 4;
   solution.tilt_estimated = free == 6;
-  if (solution.tilt_estimated) {
-    solution.tilt_x_rad = std::atan(pose[4]);
-    solution.tilt_y_rad = std::atan(pose[5]);
-  }
+  solution.tilt_x_rad = std::atan(pose[4]);
+  solution.tilt_y_rad = std::atan(pose[5]);
   solution.inlier = use;
   solution.inliers = inliers;
   double sum_sq = 0.0;
@@ -458,6 +487,10 @@ PoseSolution SolvePlanarPose(const std::vector<Correspondence>& correspondences,
     }
     unit *= solution.variance_factor;
     solution.covariance = unit.topLeftCorner<3, 3>() * sigma_ref * sigma_ref;
+    if (free < 6 && options.held_tilt_sigma_rad > 0.0) {
+      solution.covariance += ConsideredTilt(correspondences, use, scale, pose, options, free) *
+                             options.held_tilt_sigma_rad * options.held_tilt_sigma_rad;
+    }
     if (free >= 4) solution.scale_sigma = std::sqrt(unit(3, 3)) * sigma_ref;
     if (free == 6) solution.tilt_sigma_rad = std::sqrt(std::max(unit(4, 4), unit(5, 5))) * sigma_ref;
   } else {

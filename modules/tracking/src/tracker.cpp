@@ -444,14 +444,38 @@ Tracker::Tracker(const camera::IdealCamera& camera, const TrackerOptions& option
   if (!options_.Check(&why)) core::ThrowInvalidInput("tracker options: " + why);
 }
 
+namespace {
+
+// The tracker's options with a predicted tilt held where it is not estimated.
+TrackerOptions Holding(const TrackerOptions& options, const TiltPrediction& tilt) {
+  TrackerOptions held = options;
+  held.solver.held_tilt_x_rad = tilt.x_rad;
+  held.solver.held_tilt_y_rad = tilt.y_rad;
+  held.solver.held_tilt_sigma_rad = tilt.sigma_rad;
+  return held;
+}
+
+bool Level(const TiltPrediction& tilt) { return tilt.x_rad == 0.0 && tilt.y_rad == 0.0 && tilt.sigma_rad == 0.0; }
+
+}  // namespace
+
 TrackResult Tracker::Track(const cv::Mat& frame, const core::Pose2& prior, const Eigen::Matrix3d& prior_covariance,
-                           const ReferenceRaster& reference, double prior_scale) const {
-  return FrameRegistration(camera_, options_, frame, prior, prior_covariance, reference, prior_scale).Run();
+                           const ReferenceRaster& reference, double prior_scale, const TiltPrediction& prior_tilt) const {
+  if (Level(prior_tilt)) {
+    return FrameRegistration(camera_, options_, frame, prior, prior_covariance, reference, prior_scale).Run();
+  }
+  const TrackerOptions held = Holding(options_, prior_tilt);
+  return FrameRegistration(camera_, held, frame, prior, prior_covariance, reference, prior_scale).Run();
 }
 
 TrackResult Tracker::Track(const PreparedFrame& frame, const core::Pose2& prior, const Eigen::Matrix3d& prior_covariance,
-                           const ReferenceRaster& reference, double prior_scale) const {
-  return FrameRegistration(camera_, options_, frame.image, prior, prior_covariance, reference, prior_scale, &frame).Run();
+                           const ReferenceRaster& reference, double prior_scale, const TiltPrediction& prior_tilt) const {
+  if (Level(prior_tilt)) {
+    return FrameRegistration(camera_, options_, frame.image, prior, prior_covariance, reference, prior_scale, &frame)
+        .Run();
+  }
+  const TrackerOptions held = Holding(options_, prior_tilt);
+  return FrameRegistration(camera_, held, frame.image, prior, prior_covariance, reference, prior_scale, &frame).Run();
 }
 
 PreparedFrame Tracker::Prepare(const cv::Mat& frame) const {

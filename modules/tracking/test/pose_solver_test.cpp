@@ -391,6 +391,70 @@ TEST(PoseSolver, TiltIsEstimatedFromAPinholesRays) {
   EXPECT_FALSE(SolvePlanarPose(few, Pose2(centre.x(), centre.y(), yaw), options).tilt_estimated);
 }
 
+// The same pinhole seen by six templates on one side of the view, too few for the tilt: a
+// level camera's similarity turns and shifts with the tilt as they lie. Held at the tilt a
+// prediction gives, the pose is the true one; held level but as uncertain as the tilt is
+// large, the covariance covers the error.
+TEST(PoseSolver, ATiltHeldFromAPredictionIsSolvedThroughAndCarriedInTheCovariance) {
+  const double h = 200.0;
+  const double tilt_x = 0.004, tilt_y = -0.006, yaw = 0.8;
+  const Eigen::Matrix3d world_from_camera = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
+                                             Eigen::AngleAxisd(tilt_x, Eigen::Vector3d::UnitX()) *
+                                             Eigen::AngleAxisd(tilt_y, Eigen::Vector3d::UnitY()))
+                                                .toRotationMatrix();
+  const Eigen::Vector3d lens(1500.0, -300.0, 0.0);
+  const auto floor_point = [&](const Eigen::Vector2d& p) {
+    const Eigen::Vector3d ray = world_from_camera * Eigen::Vector3d(p.x() / h, p.y() / h, -1.0);
+    return Eigen::Vector2d(lens.head<2>() + h / -ray.z() * ray.head<2>());
+  };
+  std::vector<Correspondence> cs;
+  for (int i = 0; i < 2; ++i) {
+    for (int j = 0; j < 3; ++j) {
+      Correspondence c;
+      c.camera_mm = {40.0 + 30.0 * i, -40.0 + 40.0 * j};
+      c.world_mm = floor_point(c.camera_mm);
+      c.sigma_mm = 0.005;
+      cs.push_back(c);
+    }
+  }
+  const Eigen::Vector2d centre = floor_point(Eigen::Vector2d::Zero());
+  const Eigen::Vector3d n = world_from_camera.transpose() * Eigen::Vector3d::UnitZ();
+  PoseSolverOptions options;
+  options.camera_height_mm = h;
+  options.estimate_tilt = true;
+  const auto error = [&](const PoseSolution& s) {
+    return Eigen::Vector3d(s.world_from_camera.x_mm() - centre.x(), s.world_from_camera.y_mm() - centre.y(),
+                           s.world_from_camera.yaw_rad() - yaw);
+  };
+  const PoseSolution level = SolvePlanarPose(cs, Pose2(centre.x(), centre.y(), yaw), options);
+  ASSERT_TRUE(level.ok());
+  EXPECT_FALSE(level.tilt_estimated);
+  RecordProperty("level_error_mm", std::to_string(error(level).head<2>().norm()));
+  RecordProperty("level_yaw_error_rad", std::to_string(error(level).z()));
+  EXPECT_GT(error(level).head<2>().norm(), 0.03) << "the tilt, not measured, is an error";
+
+  options.held_tilt_x_rad = std::atan2(n.y(), n.z());
+  options.held_tilt_y_rad = std::atan2(-n.x(), n.z());
+  const PoseSolution held = SolvePlanarPose(cs, Pose2(centre.x(), centre.y(), yaw), options);
+  ASSERT_TRUE(held.ok());
+  EXPECT_FALSE(held.tilt_estimated);
+  EXPECT_EQ(held.tilt_x_rad, options.held_tilt_x_rad);
+  EXPECT_LT(held.rms_residual_mm, 1e-6);
+  EXPECT_LT(error(held).head<2>().norm(), 1e-6);
+  EXPECT_NEAR(held.world_from_camera.yaw_rad(), yaw, 1e-4);  // the plane's axes, not these Euler angles' yaw
+
+  options.held_tilt_x_rad = options.held_tilt_y_rad = 0.0;
+  options.held_tilt_sigma_rad = 0.006;
+  const PoseSolution uncertain = SolvePlanarPose(cs, Pose2(centre.x(), centre.y(), yaw), options);
+  ASSERT_TRUE(uncertain.ok());
+  EXPECT_LT((uncertain.world_from_camera.translation_mm() - level.world_from_camera.translation_mm()).norm(), 1e-9)
+      << "the uncertainty moves no estimate";
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_GT(uncertain.covariance(k, k), 100.0 * level.covariance(k, k));
+    EXPECT_LT(std::abs(error(uncertain)(k)), 3.0 * std::sqrt(uncertain.covariance(k, k))) << "component " << k;
+  }
+}
+
 TEST(PoseSolver, SaysWhyItFailed) {
   std::mt19937 rng(11);
   const std::vector<Correspondence> two = MakeCorrespondences(Pose2(), 2, 0.0, &rng);

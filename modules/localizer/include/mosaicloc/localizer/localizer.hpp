@@ -305,6 +305,9 @@ class Localizer {
   // tracker measured (its sigma inflated as the fix's covariance is), or else the one
   // predicted (LocalizerOptions::tilt_sigma_deg). Zero both where no lever is taken out.
   std::pair<Eigen::Vector2d, double> FixTilt(const tracking::TrackResult& track) const;
+  // The tilt predicted, which the tracker holds where a frame's templates are too few to
+  // measure it (none unless the tilt is estimated).
+  tracking::TiltPrediction PredictedTilt() const;
   // A registration of a view partly off the map, registered again around itself with more
   // templates; the one with more inliers.
   tracking::TrackResult AtTheEdge(const cv::Mat& frame, tracking::TrackResult found) const;

@@ -67,6 +67,14 @@ struct PoseSolverOptions {
   /// that height), cast onto a plane the camera sees tilted, a homography of the ground plane.
   bool estimate_tilt = false;
   int min_tilt_points = 8;
+  /// The tilt held where it is not estimated (too few points, or estimate_tilt off; rad, as
+  /// PoseSolution's), from a prediction, and that prediction's standard deviation: the pose
+  /// is solved through the pinhole tilted so, and its covariance carries what the tilt's
+  /// uncertainty moves it by (a Schmidt "consider" parameter). All zero: a level camera, as
+  /// sure as the calibration.
+  double held_tilt_x_rad = 0.0;
+  double held_tilt_y_rad = 0.0;
+  double held_tilt_sigma_rad = 0.0;
   /// The height over the floor at which camera_mm is expressed (the calibrated height, times
   /// the scale the tracker renders at), mm; its focal length in pixels is this over mm per px.
   double camera_height_mm = 200.0;

@@ -82,7 +82,8 @@ struct TrackResult {
   double scale_sigma = std::numeric_limits<double>::infinity();
   bool scale_estimated = false;
   /// The camera's tilt against the floor (PoseSolution::tilt_x_rad, ...), where
-  /// solver.estimate_tilt asks for it and the refined templates determine it; else 0.
+  /// solver.estimate_tilt asks for it and the refined templates determine it; else the tilt
+  /// held (Track's TiltPrediction; 0 without one).
   double tilt_x_rad = 0.0;
   double tilt_y_rad = 0.0;
   double tilt_sigma_rad = std::numeric_limits<double>::infinity();
@@ -99,6 +100,15 @@ struct PreparedFrame {
   std::vector<TemplateSpot> spots;
 };
 
+/// A prediction of the camera's tilt against the floor (rad, as TrackResult's) and its
+/// standard deviation, held where a frame's templates are too few to estimate the tilt
+/// (PoseSolverOptions::held_tilt_*).
+struct TiltPrediction {
+  double x_rad = 0.0;
+  double y_rad = 0.0;
+  double sigma_rad = 0.0;
+};
+
 /// Registers a live ideal frame against a reference raster (the map, or a previous frame):
 /// templates where the frame is textured, a ZNCC search for each around its predicted place,
 /// sub-pixel refinement, and a robust planar pose solve. Const: one Tracker may serve several
@@ -110,13 +120,15 @@ class Tracker {
 
   /// `prior` is the predicted world_from_camera and `prior_covariance` its covariance
   /// (x_mm, y_mm, yaw_rad), which sizes the search; `prior_scale` the predicted image scale
-  /// (TrackResult::scale). Never throws for a frame that cannot be registered: the result
-  /// says why.
+  /// (TrackResult::scale), `prior_tilt` the predicted tilt. Never throws for a frame that
+  /// cannot be registered: the result says why.
   TrackResult Track(const cv::Mat& frame, const core::Pose2& prior, const Eigen::Matrix3d& prior_covariance,
-                    const ReferenceRaster& reference, double prior_scale = 1.0) const;
+                    const ReferenceRaster& reference, double prior_scale = 1.0,
+                    const TiltPrediction& prior_tilt = {}) const;
   /// The same for a frame this tracker prepared (or one with the same template options).
   TrackResult Track(const PreparedFrame& frame, const core::Pose2& prior, const Eigen::Matrix3d& prior_covariance,
-                    const ReferenceRaster& reference, double prior_scale = 1.0) const;
+                    const ReferenceRaster& reference, double prior_scale = 1.0,
+                    const TiltPrediction& prior_tilt = {}) const;
   /// The frame's half image and templates, as Track makes them; none for a frame Track would
   /// refuse (empty, or not this camera's 8-bit size), which Track then refuses as before.
   PreparedFrame Prepare(const cv::Mat& frame) const;
