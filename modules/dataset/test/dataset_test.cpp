@@ -38,8 +38,7 @@ void WriteSmall(const fs::path& dir) {
   for (int i = 0; i < 10; ++i) {
     // Counters that pass the int32 maximum, as a PLC's do.
     writer.AddEncoderSample(
-        {Ms(10 * i), static_cast<std::int32_t>(2147483600u + 10u * static_cast<unsigned>(i)),
-         -5 * i});
+        {Ms(10 * i), {static_cast<std::int32_t>(2147483600u + 10u * static_cast<unsigned>(i)), -5 * i}});
   }
   writer.SetGroundTruth({{Ms(0), core::Pose2(0, 0, 0)}, {Ms(66), core::Pose2(66, 0, 0)}});
   writer.Commit();

@@ -650,7 +650,7 @@ bool Localizer::VisualOdometry(core::Timestamp time, const cv::Mat& frame, const
   last_vo_camera_ = camera_pose;
   const bool replace = base != &*keyframe_ || moved >= vo.keyframe_fraction || moved + step > 0.9 * vo.max_fraction ||
                        std::abs(link.world_from_camera.yaw_rad()) >= vo.keyframe_turn_deg * std::numbers::pi / 180.0;
-  if (!replace && !last_registered_) last_registered_.emplace();
+  if (!replace && !last_registered_) last_registered_ = Keyframe{};
   Keyframe& kept = replace ? *keyframe_ : *last_registered_;  // buffers reused: one copy per frame
   outcome->keyframe = replace;
   kept.time = time;
