@@ -8,7 +8,7 @@ cd "$(dirname "$0")/.."
 
 BUILD=build/release
 cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release -DMOSAICLOC_BUILD_TESTS=OFF \
-  -DMOSAICLOC_BUILD_BENCHMARKS=OFF -DMOSAICLOC_PRECOMPILED_HEADERS=ON >/dev/null
+  -DMOSAICLOC_BUILD_BENCHMARKS=OFF >/dev/null
 cmake --build "$BUILD" --target mosaicloc -j "$(nproc)"
 MOSAICLOC="$BUILD/app/mosaicloc"
 
