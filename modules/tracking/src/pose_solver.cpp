@@ -208,11 +208,11 @@ bool InvertInformation(const Matrix6d& information, Matrix6d* covariance) {
   return true;
 }
 
-// The covariance of the `free` leading parameters of (x, y, yaw, k, a, b), at least the
-// first three.
-bool PoseCovariance(const std::vector<Correspondence>& cs, const std::vector<bool>& use,
-                    const std::vector<double>& scale, const double* pose, const PoseSolverOptions& options, int free,
-                    Matrix6d* covariance) {
+// The used residuals' information J^T W J at `pose` in all six parameters, of the model with
+// `free` parameters (ModelResidual), each weighted by the loss's rho'.
+Matrix6d Information(const std::vector<Correspondence>& cs, const std::vector<bool>& use,
+                     const std::vector<double>& scale, const double* pose, const PoseSolverOptions& options,
+                     int free) {
   const std::unique_ptr<ceres::LossFunction> loss = LossOf(options);
   Matrix6d information = Matrix6d::Zero();
   for (std::size_t i = 0; i < cs.size(); ++i) {
@@ -222,6 +222,15 @@ bool PoseCovariance(const std::vector<Correspondence>& cs, const std::vector<boo
     ModelResidual(pose, cs[i], scale[i], options.camera_height_mm, free, r, j.data());
     information += LossWeight(loss.get(), r) * j.transpose() * j;
   }
+  return information;
+}
+
+// The covariance of the `free` leading parameters of (x, y, yaw, k, a, b), at least the
+// first three.
+bool PoseCovariance(const std::vector<Correspondence>& cs, const std::vector<bool>& use,
+                    const std::vector<double>& scale, const double* pose, const PoseSolverOptions& options, int free,
+                    Matrix6d* covariance) {
+  const Matrix6d information = Information(cs, use, scale, pose, options, free);
   covariance->setZero();
   if (free == 6) return InvertInformation<6>(information, covariance);
   return free == 4 ? InvertInformation<4>(information, covariance) : InvertInformation<3>(information, covariance);
@@ -234,15 +243,7 @@ bool PoseCovariance(const std::vector<Correspondence>& cs, const std::vector<boo
 Eigen::Matrix3d ConsideredTilt(const std::vector<Correspondence>& cs, const std::vector<bool>& use,
                                const std::vector<double>& scale, const double* pose, const PoseSolverOptions& options,
                                int free) {
-  const std::unique_ptr<ceres::LossFunction> loss = LossOf(options);
-  Matrix6d information = Matrix6d::Zero();
-  for (std::size_t i = 0; i < cs.size(); ++i) {
-    if (!use[i]) continue;
-    double r[2];
-    Eigen::Matrix<double, 2, 6, Eigen::RowMajor> j;
-    TiltResidual(pose, cs[i], scale[i], options.camera_height_mm, r, j.data());
-    information += LossWeight(loss.get(), r) * j.transpose() * j;
-  }
+  const Matrix6d information = Information(cs, use, scale, pose, options, 6);  // the tilted pinhole's Jacobian
   const Eigen::MatrixXd estimated = information.topLeftCorner(free, free);
   const Eigen::MatrixXd s = -estimated.ldlt().solve(information.block(0, 4, free, 2));
   Eigen::Matrix<double, 3, 2> pose_per_tilt = Eigen::Matrix<double, 3, 2>::Zero();  // a held yaw does not move
